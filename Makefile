@@ -1,0 +1,42 @@
+# Two commands do all the set-up on a fresh machine with Python 3.11+ and make:
+#   make run    create .venv, install pinned deps (incl. ROS 2 Jazzy wheels), run the main job
+#   make test   same set-up, then the test suite
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+# ament_index_python finds the message packages (and ours) under the venv prefix.
+export AMENT_PREFIX_PATH := $(abspath $(VENV))
+# Numba's on-disk cache, shared by every run from this checkout.
+export NUMBA_CACHE_DIR ?= $(abspath $(VENV))/numba-cache
+
+SCENE ?= cantilever
+PYTEST_ARGS ?=
+
+.PHONY: run test test-slow bench constraints clean
+
+$(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade 'pip>=23.2'
+	$(PY) -m pip install --quiet -r requirements.txt -c constraints.txt
+	$(PY) -m pip install --quiet --no-deps -e .
+	touch $@
+
+run: $(STAMP)
+	$(VENV)/bin/study modes $(SCENE)
+
+test: $(STAMP)
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+test-slow: $(STAMP)
+	$(PY) -m pytest -m slow $(PYTEST_ARGS)
+
+bench: $(STAMP)
+	for b in bench/*.py; do $(PY) $$b || exit 1; done
+
+constraints: $(STAMP)
+	( echo '# Full pinned environment (pip freeze of a fresh `make` venv, Python 3.11). Regenerate with `make constraints`.'; \
+	  $(PY) -m pip freeze --exclude-editable ) > constraints.txt
+
+clean:
+	rm -rf $(VENV) build install log
