@@ -11,6 +11,7 @@ Conventions
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import numbers
 
 import numpy as np
 import scipy.sparse as sp
@@ -38,6 +39,9 @@ def component_index(component):
             return DOF_NAMES.index(component)
         except ValueError:
             raise ValueError(f'unknown DOF component {component!r}; allowed: {DOF_NAMES}') from None
+    # int() would silently truncate 1.7 -> 1 and accept True: allow integers only.
+    if isinstance(component, (bool, np.bool_)) or not isinstance(component, numbers.Integral):
+        raise ValueError(f'DOF component must be 0..5 or one of {DOF_NAMES}; got {component!r}')
     component = int(component)
     if not 0 <= component < DOFS_PER_NODE:
         raise ValueError(f'DOF component {component} out of range 0..5')
@@ -121,7 +125,8 @@ class AssembledSystem:
     C: sp.csr_matrix
     K: sp.csr_matrix
     dofs: np.ndarray
-    _lookup: dict = field(default_factory=dict, repr=False, compare=False)
+    # not an init field: dataclasses.replace() would otherwise share (and mutate) the dict
+    _lookup: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         n = self.dofs.shape[0]
@@ -129,7 +134,8 @@ class AssembledSystem:
             shape = getattr(self, name).shape
             if shape != (n, n):
                 raise ValueError(f'{name} has shape {shape}, expected ({n}, {n})')
-        self._lookup.update({(int(a), int(b)): k for k, (a, b) in enumerate(self.dofs)})
+        object.__setattr__(self, '_lookup',
+                           {(int(a), int(b)): k for k, (a, b) in enumerate(self.dofs)})
 
     @property
     def n_dof(self):

@@ -1,0 +1,665 @@
+r"""Exact symmetric two-impact periodic orbit of the SDOF impact damper.
+
+Reference solution for the integrator tests (Masri & Caughey 1966, J. Appl. Mech. 33;
+Masri 1970, JASA 47, with viscous damping of the primary system). Nothing here steps in
+time: the orbit follows from the closed-form flow of the damped oscillator, the impact law
+and a trigonometric equation for the impact phase; its stability from the analytic Jacobian
+of the impact-to-impact map.
+
+Model
+-----
+Primary (housing) mass ``M`` with spring ``K`` and damper ``c``, force ``F0 cos(Omega t)``:
+``M x'' + c x' + K x = F0 cos(Omega t)``. The impactor ``m = mu M`` flies freely,
+``z'' = 0``, while the relative coordinate ``r = z - x`` lies in ``(-D/2, +D/2)``. At a wall
+``x'+ = ((1 - mu e) x'- + mu (1 + e) z'-)/(1 + mu)`` and
+``z'+ = ((1 + e) x'- + (mu - e) z'-)/(1 + mu)``, which is equivalent to momentum
+conservation ``x'- + mu z'- = x'+ + mu z'+`` and ``z'+ - x'+ = -e (z'- - x'-)``.
+
+Orbit
+-----
+Impact on the ``+D/2`` wall at ``t0 = alpha/Omega`` and on the ``-D/2`` wall at
+``t1 = t0 + h``, ``h = pi/Omega``, with ``x(t + h) = -x(t)`` and ``z(t + h) = -z(t)``.
+Unknowns: ``alpha`` and the post-impact state ``(x0, v0, w0)`` at ``t0``
+(``z0 = x0 + D/2``, ``w0`` = impactor velocity). Split ``x = x_p + y`` with the steady
+particular solution ``x_p = X cos(Omega t - phi)``, which satisfies ``x_p(t + h) = -x_p(t)``;
+``(y, y')`` then evolves by the state-transition matrix ``Phi(h)`` of the free damped
+oscillator. With ``y0 = x0 - x_p(t0)``, ``u0 = v0 - x_p'(t0)`` and the pre-impact housing
+velocity ``V1 = -x_p'(t0) + u1`` at ``t1`` the four conditions are
+
+1. ``x(t1-) = -x0``                     ->  ``y1 = -y0``
+2. ``z(t1) = -z0``                      ->  ``w0 h = -(2 x0 + D)``
+3. momentum, post state ``(-v0, -w0)``  ->  ``V1 = -v0 - 2 mu w0``  ->  ``u1 = -u0 - 2 mu w0``
+4. restitution                          ->  ``-(1 + e) V1 = (1 + 2 mu - e) w0``
+
+(1) and (3) read ``(Phi(h) + I) (y0, u0) = (0, -2 mu w0)``, so ``(y0, u0) = (g_y, g_u) w0``
+with ``(g_y, g_u) = -2 mu (Phi(h) + I)^-1 e_2``. (4) then gives ``w0 = kappa x_p'(t0)``,
+``kappa = (1 + e)/((1 + 2 mu - e) - (1 + e)(g_u + 2 mu))``, and (2) becomes, with
+``theta = alpha - phi``,
+
+    ``P cos(theta) + Q sin(theta) = -D``,  ``P = 2 X``,  ``Q = -kappa (h + 2 g_y) Omega X``,
+
+so ``theta = beta +/- arccos(-D/R)`` with ``R = hypot(P, Q)`` and ``beta = atan2(Q, P)``: no
+orbit if ``D > R``, otherwise two candidates (Masri & Caughey's pair). A candidate is an
+orbit only if the impactor approaches the wall (``z'- - x'- > 0`` at the ``+`` wall) and does
+not touch either wall during the flight ``(t0, t1)``: ``|z - x| < D/2`` on a fine grid and at
+every interior extremum of ``z - x`` (roots of ``z' - x' = w0 - x'(t)``, bracketed between the
+roots of ``x''``, refined with ``brentq``).
+
+Stability
+---------
+Section: post-impact state ``s = (t, x, v, w)`` on the ``+`` wall. ``G`` flies to the next
+impact (on the ``-`` wall) and applies the impact law; ``S(t, x, v, w) = (t - h, -x, -v, -w)``
+maps it back to the ``+`` wall. By the symmetry of the equations the one-period map is
+``(S G)^2``, so the Floquet multipliers are the squares of the eigenvalues of ``D(S G)``,
+computed analytically: ``dX(t1)/dt = -Phi(t1 - t) f(t, X)`` for the housing state ``X``,
+the event time from the implicit function theorem ``dt1 = -(dg/ds)/(w - x'(t1-))`` for
+``g = z - x + D/2``, then the linear impact law. Stable if every ``|multiplier| < 1``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+__all__ = [
+    'NoSymmetricOrbit',
+    'SymmetricTwoImpactOrbit',
+    'linear_steady_amplitude',
+    'symmetric_two_impact_orbit',
+    'symmetric_two_impact_orbits',
+    'orbit_state',
+    'orbit_residuals',
+    'phase_equation_roots',
+    'symmetric_half_map',
+    'symmetric_half_map_jacobian',
+]
+
+# Grid used to bracket extrema and to check the flight for intermediate contact.
+_N_GRID = 4001
+# A flight closer to a wall than this fraction of D counts as grazing (not strictly inside).
+_GRAZE_TOL = 1e-9
+
+
+class NoSymmetricOrbit(ValueError):
+    """No symmetric two-impact orbit exists; ``reason`` says why (one entry per candidate)."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class SymmetricTwoImpactOrbit:
+    """Symmetric two-impacts-per-cycle periodic orbit of the SDOF impact damper.
+
+    The impact on the ``+D/2`` wall (``z - x = +D/2``) happens at ``Omega t = alpha``
+    (mod 2 pi), the one on the ``-D/2`` wall at ``alpha + pi``; the state at the second
+    impact is the negative of the state at the first.
+
+    Attributes
+    ----------
+    M : float
+        Primary (housing) mass (kg).
+    K : float
+        Primary stiffness (N/m).
+    c : float
+        Primary viscous damping (N s/m).
+    F0 : float
+        Amplitude of the harmonic force ``F0 cos(Omega t)`` on the primary mass (N).
+    Omega : float
+        Forcing frequency (rad/s).
+    mass_ratio : float
+        Impactor to primary mass ratio ``mu = m/M`` (-).
+    cor : float
+        Coefficient of restitution ``e`` (-).
+    clearance : float
+        Total free travel ``D`` of the impactor; ``z - x`` lies in ``[-D/2, D/2]`` (m).
+    alpha : float
+        Forcing phase ``Omega t0`` of the impact on the ``+D/2`` wall, in ``[0, 2 pi)`` (rad).
+    t_impact : float
+        Time ``t0 = alpha/Omega`` of that impact, in ``[0, 2 pi/Omega)`` (s).
+    half_period : float
+        Time between impacts, ``pi/Omega`` (s).
+    x_impact : float
+        Housing displacement at the ``+D/2`` impact (m).
+    xdot_pre, xdot_post : float
+        Housing velocity just before / after the ``+D/2`` impact (m/s).
+    zdot_pre, zdot_post : float
+        Impactor velocity just before / after the ``+D/2`` impact (m/s); the impactor flies
+        at constant speed ``|zdot_post|`` and ``zdot_pre = -zdot_post``.
+    relative_velocity_pre : float
+        Approach velocity ``z'- - x'-`` at the ``+D/2`` impact, > 0 (m/s).
+    amplitude : float
+        Steady-state amplitude ``max |x(t)|`` over the cycle (m).
+    linear_amplitude : float
+        Amplitude of the same primary system without impactor (m).
+    clearance_margin : float
+        ``D/2 - max |z - x|`` over the interior extrema of ``z - x`` during the flight, or
+        ``D/2`` if ``z - x`` is monotone; > 0 by construction (m).
+    multipliers : tuple of complex
+        Floquet multipliers of the one-period impact map, largest modulus first (-).
+    stable : bool
+        True if every multiplier has modulus < 1 (asymptotically stable).
+    branch : int
+        +1 or -1: which root ``theta = beta +/- arccos(-D/R)`` of the phase equation (-).
+    """
+
+    M: float
+    K: float
+    c: float
+    F0: float
+    Omega: float
+    mass_ratio: float
+    cor: float
+    clearance: float
+    alpha: float
+    t_impact: float
+    half_period: float
+    x_impact: float
+    xdot_pre: float
+    xdot_post: float
+    zdot_pre: float
+    zdot_post: float
+    relative_velocity_pre: float
+    amplitude: float
+    linear_amplitude: float
+    clearance_margin: float
+    multipliers: tuple
+    stable: bool
+    branch: int
+
+    @property
+    def natural_frequency(self) -> float:
+        """Undamped natural frequency ``sqrt(K/M)`` of the primary system (rad/s)."""
+        return float(np.sqrt(self.K / self.M))
+
+    @property
+    def frequency_ratio(self) -> float:
+        """``Omega/omega_n`` (-)."""
+        return self.Omega / self.natural_frequency
+
+    @property
+    def damping_ratio(self) -> float:
+        """``c/(2 sqrt(K M))`` (-)."""
+        return self.c / (2.0 * np.sqrt(self.K * self.M))
+
+    @property
+    def spectral_radius(self) -> float:
+        """Largest multiplier modulus (-)."""
+        return float(abs(self.multipliers[0]))
+
+    @property
+    def post_impact_state(self) -> np.ndarray:
+        """``(t0, x0, x'0, z'0)`` just after the ``+D/2`` impact (s, m, m/s, m/s)."""
+        return np.array([self.t_impact, self.x_impact, self.xdot_post, self.zdot_post])
+
+
+# --------------------------------------------------------------------------- linear flow
+class _Oscillator:
+    """Closed-form flow of ``M x'' + c x' + K x = F0 cos(Omega t)``."""
+
+    def __init__(self, M, K, c, F0, Omega):
+        self.M, self.K, self.c, self.F0, self.Omega = M, K, c, F0, Omega
+        self.wn = np.sqrt(K / M)
+        self.sigma = c / (2.0 * M)
+        zeta = self.sigma / self.wn
+        self.under = zeta < 1.0
+        self.wd = self.wn * np.sqrt(abs(1.0 - zeta * zeta))
+        den = (K - M * Omega**2) ** 2 + (c * Omega) ** 2
+        if den == 0.0:
+            raise NoSymmetricOrbit('undamped forcing at resonance: no bounded particular solution')
+        # x_p = A cos(Omega t) + B sin(Omega t) = X cos(Omega t - phi)
+        self.A = F0 * (K - M * Omega**2) / den
+        self.B = F0 * c * Omega / den
+        self.X = np.hypot(self.A, self.B)
+        self.phi = np.arctan2(self.B, self.A)
+
+    def particular(self, t):
+        wt = self.Omega * np.asarray(t, dtype=float)
+        cs, sn = np.cos(wt), np.sin(wt)
+        return self.A * cs + self.B * sn, self.Omega * (self.B * cs - self.A * sn)
+
+    def transition(self, tau):
+        """State-transition matrix ``Phi(tau)`` of the free oscillator, shape (..., 2, 2)."""
+        tau = np.asarray(tau, dtype=float)
+        a = self.wd * tau
+        if self.under:
+            C = np.cos(a)
+            S = tau * np.sinc(a / np.pi)  # sin(wd tau)/wd, exact at wd = 0
+        else:
+            C = np.cosh(a)
+            safe = np.where(a == 0.0, 1.0, a)
+            S = tau * np.where(a == 0.0, 1.0, np.sinh(safe) / safe)
+        E = np.exp(-self.sigma * tau)
+        Phi = np.empty(tau.shape + (2, 2))
+        Phi[..., 0, 0] = E * (C + self.sigma * S)
+        Phi[..., 0, 1] = E * S
+        Phi[..., 1, 0] = -E * self.wn**2 * S
+        Phi[..., 1, 1] = E * (C - self.sigma * S)
+        return Phi
+
+    def flow(self, t0, x0, v0, t):
+        """Housing ``(x, x')`` at time(s) ``t`` from ``(x0, v0)`` at ``t0``."""
+        xp0, vp0 = self.particular(t0)
+        Phi = self.transition(np.asarray(t, dtype=float) - t0)
+        y0, u0 = x0 - xp0, v0 - vp0
+        xp, vp = self.particular(t)
+        return (xp + Phi[..., 0, 0] * y0 + Phi[..., 0, 1] * u0,
+                vp + Phi[..., 1, 0] * y0 + Phi[..., 1, 1] * u0)
+
+    def accel(self, t, x, v):
+        return (self.F0 * np.cos(self.Omega * t) - self.c * v - self.K * x) / self.M
+
+
+def _impact(xd, zd, mu, e):
+    """Post-impact velocities (housing, impactor) from pre-impact ones."""
+    return (((1.0 - mu * e) * xd + mu * (1.0 + e) * zd) / (1.0 + mu),
+            ((1.0 + e) * xd + (mu - e) * zd) / (1.0 + mu))
+
+
+def _check_inputs(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+    if not (M > 0 and K > 0 and Omega > 0 and clearance > 0):
+        raise ValueError('M, K, Omega and clearance must be positive')
+    if not c >= 0:
+        raise ValueError('c must be >= 0')
+    if not mass_ratio >= 0:
+        raise ValueError('mass_ratio must be >= 0')
+    if not 0.0 <= cor <= 1.0:
+        raise ValueError('cor must lie in [0, 1]')
+    if not np.isfinite(F0):
+        raise ValueError('F0 must be finite')
+
+
+def linear_steady_amplitude(M, K, c, F0, Omega):
+    """Steady-state amplitude of the primary system without impactor.
+
+    Parameters
+    ----------
+    M : float
+        Primary mass (kg).
+    K : float
+        Primary stiffness (N/m).
+    c : float
+        Primary viscous damping (N s/m).
+    F0 : float
+        Force amplitude (N).
+    Omega : float
+        Forcing frequency (rad/s).
+
+    Returns
+    -------
+    float
+        ``|F0|/sqrt((K - M Omega^2)^2 + (c Omega)^2)`` (m); ``inf`` at undamped resonance.
+    """
+    den = np.hypot(K - M * Omega**2, c * Omega)
+    return float(abs(F0) / den) if den > 0 else float('inf')
+
+
+# --------------------------------------------------------------------------- flight checks
+def _root(f, a, b):
+    """Root of ``f`` in the bracket ``[a, b]`` to machine precision."""
+    return brentq(f, a, b, xtol=1e-3 * np.finfo(float).eps * (b - a), rtol=4.0 * np.finfo(float).eps,
+                  maxiter=500)
+
+
+def _bracketed_roots(f, t, y):
+    """Roots of ``f`` at the sign changes of the samples ``y = f(t)``."""
+    roots = []
+    for i in np.nonzero(y[:-1] * y[1:] < 0.0)[0]:
+        roots.append(_root(f, t[i], t[i + 1]))
+    for i in np.nonzero(y == 0.0)[0]:
+        roots.append(t[i])
+    return sorted(roots)
+
+
+def _flight_extrema(osc, t0, x0, v0, w0, h, D):
+    """Interior extrema of ``r = z - x`` and of ``x`` on ``(t0, t0 + h)``.
+
+    Returns the grid ``(t, x, v, r)``, the times of the interior extrema of ``r`` and of ``x``.
+    """
+    t = t0 + np.linspace(0.0, h, _N_GRID)
+    x, v = osc.flow(t0, x0, v0, t)
+    r = x0 + D / 2.0 + w0 * (t - t0) - x
+
+    def vel(s):
+        return osc.flow(t0, x0, v0, s)[1]
+
+    def acc(s):
+        xs, vs = osc.flow(t0, x0, v0, s)
+        return osc.accel(s, xs, vs)
+
+    def rdot(s):
+        return w0 - vel(s)
+
+    a = osc.accel(t, x, v)
+    # r' is monotone between roots of r'' = -x'', so it has at most one root on each piece;
+    # this catches pairs of close roots that one grid cell would hide.
+    inner = t[1:-1]
+    breaks = [t[0]] + _bracketed_roots(acc, inner, a[1:-1]) + [t[-1]]
+    r_ext = []
+    for lo, hi in zip(breaks[:-1], breaks[1:]):
+        flo, fhi = rdot(lo), rdot(hi)
+        if flo * fhi < 0.0:
+            r_ext.append(_root(rdot, lo, hi))
+    r_ext = [s for s in r_ext if t[0] < s < t[-1]]
+    x_ext = [s for s in _bracketed_roots(vel, t, v) if t[0] < s < t[-1]]
+    return t, x, v, r, r_ext, x_ext
+
+
+# --------------------------------------------------------------------------- the orbit
+def _multipliers(osc, D, mu, e, s):
+    J = _half_map_jacobian(osc, D, mu, e, s)
+    lam = np.linalg.eigvals(J) ** 2  # one period = (S G)^2
+    lam = lam[np.argsort(-np.abs(lam), kind='stable')]
+    return tuple(complex(v) for v in lam)
+
+
+def _phase_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+    """Roots of the reduced conditions: ``(osc, [(branch, t0, x0, v0, w0)], reason)``."""
+    _check_inputs(M, K, c, F0, Omega, mass_ratio, cor, clearance)
+    mu, e, D = float(mass_ratio), float(cor), float(clearance)
+    osc = _Oscillator(M, K, c, F0, Omega)
+    h = np.pi / Omega
+    I_plus_Phi = osc.transition(h) + np.eye(2)
+    if abs(np.linalg.det(I_plus_Phi)) < 1e-12 * (1.0 + np.abs(I_plus_Phi).max() ** 2):
+        return osc, [], 'Phi(pi/Omega) has eigenvalue -1 (undamped, Omega = omega_n/odd): degenerate'
+    gy, gu = -2.0 * mu * np.linalg.solve(I_plus_Phi, np.array([0.0, 1.0]))
+    den = (1.0 + 2.0 * mu - e) - (1.0 + e) * (gu + 2.0 * mu)
+    if abs(den) < 1e-12 * (1.0 + e):
+        # e.g. e = 1 with c = 0: nothing dissipates, so the orbits form a continuous family
+        return osc, [], 'phase equation degenerate (kappa infinite: e = 1 with c = 0, or mu = 0)'
+    kappa = (1.0 + e) / den
+    P = 2.0 * osc.X
+    Q = -kappa * (h + 2.0 * gy) * Omega * osc.X
+    R = np.hypot(P, Q)
+    if not D <= R:
+        return osc, [], f'clearance D = {D:.6g} m exceeds R = {R:.6g} m: phase equation has no root'
+    beta = np.arctan2(Q, P)
+    acos = np.arccos(-D / R)
+    roots = []
+    for branch in (+1, -1):
+        alpha = float(np.mod(beta + branch * acos + osc.phi, 2.0 * np.pi))
+        t0 = alpha / Omega
+        xp0, vp0 = osc.particular(t0)
+        w0 = kappa * vp0
+        roots.append((branch, t0, float(xp0 + gy * w0), float(vp0 + gu * w0), float(w0)))
+    return osc, roots, ''
+
+
+def _admissibility(osc, D, t0, x0, v0, w0):
+    """Check one root; returns ``(reason or '', V1, margin, amplitude)``."""
+    h = np.pi / osc.Omega
+    # pre-impact state at t0 is minus the pre-impact state at t1 = t0 + h
+    _, V1 = osc.flow(t0, x0, v0, t0 + h)
+    vrel = -w0 + float(V1)
+    if not vrel > 0.0:
+        return f"impactor recedes from the wall (z'- - x'- = {vrel:.3e} m/s)", V1, None, None
+    t, x, v, r, r_ext, x_ext = _flight_extrema(osc, t0, x0, v0, w0, h, D)
+    r_at = [x0 + D / 2.0 + w0 * (s - t0) - osc.flow(t0, x0, v0, s)[0] for s in r_ext]
+    # Grid points next to the walls sit within |r'| dt of D/2, so only the interior
+    # extrema measure how close the flight comes to a second contact.
+    margin = D / 2.0 - float(max((abs(q) for q in r_at), default=0.0))
+    if not (np.abs(r[1:-1]).max() < D / 2.0 and margin > _GRAZE_TOL * D):
+        return f'impactor reaches a wall during the flight (margin {margin:.3e} m)', V1, margin, None
+    amp = max(abs(x0), float(np.abs(x).max()),
+              *(abs(float(osc.flow(t0, x0, v0, s)[0])) for s in x_ext))
+    return '', float(V1), margin, amp
+
+
+def phase_equation_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+    """Both roots of the phase equation, admissible or not (for diagnostics and tests).
+
+    Parameters are those of :func:`symmetric_two_impact_orbit`.
+
+    Returns
+    -------
+    tuple of (int, ndarray, str)
+        ``(branch, (t0, x0, x'0, z'0), reason)`` per root: the post-impact state on the
+        ``+D/2`` wall (s, m, m/s, m/s) and why it is not an orbit (``''`` if it is).
+        Empty if the phase equation has no root.
+    """
+    osc, roots, _ = _phase_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance)
+    out = []
+    for branch, t0, x0, v0, w0 in roots:
+        reason = _admissibility(osc, float(clearance), t0, x0, v0, w0)[0]
+        out.append((branch, np.array([t0, x0, v0, w0]), reason))
+    return tuple(out)
+
+
+def _candidates(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+    """All admissible orbits and the reasons the other candidates failed."""
+    osc, roots, why = _phase_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance)
+    if not roots:
+        return [], [why]
+    mu, e, D = float(mass_ratio), float(cor), float(clearance)
+    orbits, reasons = [], []
+    for branch, t0, x0, v0, w0 in roots:
+        why, V1, margin, amp = _admissibility(osc, D, t0, x0, v0, w0)
+        if why:
+            reasons.append(f'branch {branch:+d} (alpha = {osc.Omega * t0:.6f} rad): {why}')
+            continue
+        mult = _multipliers(osc, D, mu, e, np.array([t0, x0, v0, w0]))
+        orbits.append(SymmetricTwoImpactOrbit(
+            M=float(M), K=float(K), c=float(c), F0=float(F0), Omega=float(Omega),
+            mass_ratio=mu, cor=e, clearance=D, alpha=float(osc.Omega * t0), t_impact=t0,
+            half_period=float(np.pi / Omega), x_impact=x0, xdot_pre=-V1, xdot_post=v0,
+            zdot_pre=-w0, zdot_post=w0, relative_velocity_pre=V1 - w0,
+            amplitude=float(amp), linear_amplitude=linear_steady_amplitude(M, K, c, F0, Omega),
+            clearance_margin=float(margin), multipliers=mult,
+            stable=bool(abs(mult[0]) < 1.0), branch=branch))
+    return orbits, reasons
+
+
+def symmetric_two_impact_orbits(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+    """All symmetric two-impact orbits (at most two), stable ones first.
+
+    Parameters are those of :func:`symmetric_two_impact_orbit`.
+
+    Returns
+    -------
+    tuple of SymmetricTwoImpactOrbit
+        Admissible orbits, stable first, then by increasing spectral radius; empty if none.
+    """
+    orbits, _ = _candidates(M, K, c, F0, Omega, mass_ratio, cor, clearance)
+    return tuple(sorted(orbits, key=lambda o: (not o.stable, o.spectral_radius)))
+
+
+def symmetric_two_impact_orbit(M, K, c, F0, Omega, mass_ratio, cor, clearance, *, branch=None):
+    """Symmetric two-impacts-per-cycle steady state of the SDOF impact damper.
+
+    Parameters
+    ----------
+    M : float
+        Primary (housing) mass (kg).
+    K : float
+        Primary stiffness (N/m).
+    c : float
+        Primary viscous damping (N s/m).
+    F0 : float
+        Amplitude of the force ``F0 cos(Omega t)`` on the primary mass (N).
+    Omega : float
+        Forcing frequency (rad/s).
+    mass_ratio : float
+        Impactor to primary mass ratio ``mu`` (-).
+    cor : float
+        Coefficient of restitution ``e`` in ``[0, 1]`` (-).
+    clearance : float
+        Total free travel ``D``: ``z - x`` lies in ``[-D/2, D/2]`` (m).
+    branch : {None, +1, -1}, optional
+        Root of the phase equation to return (-). ``None`` returns the stable orbit if there
+        is one, otherwise the admissible orbit with the smallest spectral radius.
+
+    Returns
+    -------
+    SymmetricTwoImpactOrbit
+        The orbit, with amplitude, impact phase, velocities and Floquet multipliers.
+
+    Raises
+    ------
+    NoSymmetricOrbit
+        If no admissible orbit exists; ``reason`` lists why each candidate failed.
+    ValueError
+        For non-physical parameters.
+    """
+    orbits, reasons = _candidates(M, K, c, F0, Omega, mass_ratio, cor, clearance)
+    if branch is not None:
+        orbits = [o for o in orbits if o.branch == branch]
+    if not orbits:
+        raise NoSymmetricOrbit('; '.join(reasons) or f'branch {branch} is not admissible')
+    return min(orbits, key=lambda o: (not o.stable, o.spectral_radius))
+
+
+# --------------------------------------------------------------------------- maps and checks
+def _osc_of(orbit):
+    return _Oscillator(orbit.M, orbit.K, orbit.c, orbit.F0, orbit.Omega)
+
+
+def orbit_state(orbit, t):
+    """State on the periodic orbit at time(s) ``t``.
+
+    Parameters
+    ----------
+    orbit : SymmetricTwoImpactOrbit
+        The orbit.
+    t : float or array_like
+        Time(s) (s). At an impact instant the post-impact state is returned.
+
+    Returns
+    -------
+    x, xdot, z, zdot : float or ndarray
+        Housing displacement (m), housing velocity (m/s), impactor position (m, same frame
+        as ``x``; ``z - x`` in ``[-D/2, D/2]``) and impactor velocity (m/s).
+    """
+    osc = _osc_of(orbit)
+    t = np.asarray(t, dtype=float)
+    h, t0 = orbit.half_period, orbit.t_impact
+    k = np.floor((t - t0) / h)
+    tau = np.clip(t - t0 - k * h, 0.0, h)  # time since the last impact
+    sign = np.where(np.mod(k, 2.0) == 0.0, 1.0, -1.0)  # odd half-cycles are mirrored
+    x, v = osc.flow(t0, orbit.x_impact, orbit.xdot_post, t0 + tau)
+    z = orbit.x_impact + orbit.clearance / 2.0 + orbit.zdot_post * tau
+    out = (sign * x, sign * v, sign * z, sign * np.full_like(tau, orbit.zdot_post))
+    if out[0].ndim == 0:
+        return tuple(float(q) for q in out)
+    return out
+
+
+def orbit_residuals(orbit):
+    """Dimensionless residuals of the orbit's defining conditions.
+
+    Evaluated with the closed-form flow and the impact law directly (not with the reduced
+    phase equation), so they test the reduction as well.
+
+    Parameters
+    ----------
+    orbit : SymmetricTwoImpactOrbit
+        The orbit.
+
+    Returns
+    -------
+    ndarray, shape (5,)
+        ``[(x(t1-) + x0)/A, (z - x + D/2)(t1-)/D, (x'(t1+) + x'0)/V, (z'(t1+) + z'0)/V,
+        (z'- - x'- at t0 from the impact law minus the reported one)/V]`` with ``A`` the
+        amplitude and ``V = Omega A + |z'0|`` (-).
+    """
+    osc = _osc_of(orbit)
+    mu, e, D = orbit.mass_ratio, orbit.cor, orbit.clearance
+    t0, x0, v0, w0 = orbit.post_impact_state
+    t1 = t0 + orbit.half_period
+    x1, V1 = osc.flow(t0, x0, v0, t1)
+    z1 = x0 + D / 2.0 + w0 * orbit.half_period
+    vp, wp = _impact(V1, w0, mu, e)
+    A = orbit.amplitude
+    V = orbit.Omega * A + abs(w0)
+    return np.array([(x1 + x0) / A, (z1 - x1 + D / 2.0) / D, (vp + v0) / V, (wp + w0) / V,
+                     ((-w0 + V1) - orbit.relative_velocity_pre) / V])
+
+
+def _next_impact(osc, D, t0, x0, v0, w0, h):
+    """First wall contact after a post-impact state on the ``+`` wall (time, wall sign)."""
+    n = 8 * _N_GRID
+    t = t0 + np.linspace(0.0, 4.0 * h, n)
+    x, _ = osc.flow(t0, x0, v0, t)
+    r = x0 + D / 2.0 + w0 * (t - t0) - x
+    lo = r[1:] + D / 2.0 <= 0.0  # crossed the - wall
+    hi = r[1:] - D / 2.0 >= 0.0  # came back to the + wall
+    idx_lo = np.argmax(lo) if lo.any() else n
+    idx_hi = np.argmax(hi) if hi.any() else n
+    if min(idx_lo, idx_hi) == n:
+        raise NoSymmetricOrbit('no impact within two forcing periods')
+    wall = -1 if idx_lo <= idx_hi else +1
+    i = min(idx_lo, idx_hi)
+
+    def gap(s):
+        return x0 + D / 2.0 + w0 * (s - t0) - osc.flow(t0, x0, v0, s)[0] - wall * D / 2.0
+
+    return _root(gap, t[i], t[i + 1]), wall
+
+
+def symmetric_half_map(orbit, state):
+    """Closed-form half-cycle impact map ``S G`` (for finite-difference checks).
+
+    Parameters
+    ----------
+    orbit : SymmetricTwoImpactOrbit
+        Supplies the system parameters.
+    state : array_like, shape (4,)
+        Post-impact state ``(t, x, x', z')`` on the ``+D/2`` wall (s, m, m/s, m/s).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        ``(t1 - pi/Omega, -x1, -x'1+, -z'1+)`` after the next impact, which must be on the
+        ``-D/2`` wall (s, m, m/s, m/s); the orbit's post-impact state is a fixed point.
+    """
+    osc = _osc_of(orbit)
+    t0, x0, v0, w0 = map(float, state)
+    t1, wall = _next_impact(osc, orbit.clearance, t0, x0, v0, w0, orbit.half_period)
+    if wall != -1:
+        raise NoSymmetricOrbit('next impact is on the same wall')
+    x1, V1 = osc.flow(t0, x0, v0, t1)
+    vp, wp = _impact(V1, w0, orbit.mass_ratio, orbit.cor)
+    return np.array([t1 - orbit.half_period, -x1, -vp, -wp])
+
+
+def _half_map_jacobian(osc, D, mu, e, s):
+    t0, x0, v0, w0 = s
+    h = np.pi / osc.Omega
+    t1 = t0 + h  # valid at the fixed point; the Jacobian is only used there
+    x1, V1 = osc.flow(t0, x0, v0, t1)
+    Phi = osc.transition(h)
+    f0 = np.array([v0, osc.accel(t0, x0, v0)])
+    # d(x1, V1)/d(t0, x0, v0, w0) at fixed t1
+    dX = np.zeros((2, 4))
+    dX[:, 0] = -Phi @ f0
+    dX[:, 1] = Phi[:, 0]
+    dX[:, 2] = Phi[:, 1]
+    dz = np.array([-w0, 1.0, 0.0, h])  # z1 = x0 + D/2 + w0 (t1 - t0)
+    dg = dz - dX[0]  # g = z - x + D/2
+    dt1 = -dg / (w0 - V1)
+    a1 = osc.accel(t1, x1, V1)
+    dx1 = dX[0] + V1 * dt1
+    dV1 = dX[1] + a1 * dt1
+    dw = np.array([0.0, 0.0, 0.0, 1.0])
+    dvp = ((1.0 - mu * e) * dV1 + mu * (1.0 + e) * dw) / (1.0 + mu)
+    dwp = ((1.0 + e) * dV1 + (mu - e) * dw) / (1.0 + mu)
+    return np.vstack([dt1, -dx1, -dvp, -dwp])
+
+
+def symmetric_half_map_jacobian(orbit):
+    """Analytic Jacobian of :func:`symmetric_half_map` at the orbit's fixed point.
+
+    Parameters
+    ----------
+    orbit : SymmetricTwoImpactOrbit
+        The orbit.
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        ``d(S G)/d(t, x, x', z')`` (mixed units: s, m, m/s); its squared eigenvalues are
+        ``orbit.multipliers`` (-).
+    """
+    return _half_map_jacobian(_osc_of(orbit), orbit.clearance, orbit.mass_ratio, orbit.cor,
+                              orbit.post_impact_state)

@@ -1,0 +1,273 @@
+"""The exact, piecewise-exact modal propagator with event-located impacts.
+
+Between events the model flows exactly (see :mod:`.flow`); impacts are located by bracketed
+root finding on the gap functions with a grazing guard (see :mod:`.kernels`). A stuck
+impactor adds its mass to the housing rows of the *same* coordinates (a rank-one or rank-two
+mass update), so switching between free and stuck loses nothing: the coordinates and their
+velocities are continuous across the switch. The paper's alternative, a second modal basis,
+is :class:`BasisSwitchPropagator` in :mod:`.basis_switch`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+from .events import EVENT_DTYPE, EnergyLedger, Samples, STICK_RULES
+from .flow import build_flow
+
+_RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUMULATION,
+               'none': kernels.STICK_NONE}
+
+
+class ExactPropagator:
+    """Exact flow of a :class:`~.model.LinearModel` with impactors.
+
+    Parameters
+    ----------
+    model : LinearModel
+        Model with its impactors (modal coordinates, normally).
+    forcing : Forcing
+        External forcing on the model's inputs.
+    dt : float
+        Output step (s): sensor samples are taken every ``dt`` and sampled forcing is held
+        linearly between steps. Accuracy does not depend on ``dt`` otherwise.
+    law : {'effective_mass', 'lumped_mass'}
+        Impact law (see :mod:`impact_damper_sim.dampers.law`).
+    stick_rule : {'paper', 'accumulation', 'none'}
+        When a bounce-down becomes the stuck state.
+    stick_fraction : float
+        Paper's rule: a second impact on the same wall within this fraction of the period of
+        the highest retained mode (dimensionless); default 0.002. The accumulation rule uses
+        the same time threshold for the predicted time to the accumulation point.
+    max_events_per_step : int
+        Impacts of one impactor in one step after which it is made to stick.
+    ledger : bool
+        Integrate damping dissipation, forcing and circulatory work (costs time).
+    q0, qd0 : ndarray, optional
+        Initial coordinates and velocities.
+    t0 : float
+        Initial time (s).
+    event_capacity : int
+        Size of the event buffer flushed between kernel calls.
+    """
+
+    def __init__(self, model, forcing, dt, *, law='effective_mass', stick_rule='paper',
+                 stick_fraction=0.002, max_events_per_step=64, ledger=True, q0=None, qd0=None,
+                 t0=0.0, event_capacity=4096):
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f'dt must be a positive time in s, got {dt}')
+        if stick_rule not in STICK_RULES:
+            raise ValueError(f'stick_rule must be one of {STICK_RULES}, got {stick_rule!r}')
+        if not (0 < stick_fraction < 1):
+            raise ValueError(f'stick_fraction must be in (0, 1), got {stick_fraction}')
+        if forcing.n_inputs != model.n_inputs:
+            raise ValueError(f'forcing has {forcing.n_inputs} inputs, model has {model.n_inputs}')
+        self.model = model
+        self.forcing = forcing
+        self.dt = float(dt)
+        self.law = law
+        self.stick_rule = stick_rule
+        self.max_events_per_step = int(max_events_per_step)
+        self.ledger_on = bool(ledger)
+        self._omegas, self._amps = forcing.harmonic_table()
+        n = model.n
+        ni = len(model.impactors)
+        self.t = float(t0)
+        q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
+        qd = np.zeros(n) if qd0 is None else np.asarray(qd0, dtype=float).copy()
+        self._configs = {}
+        self._stuck = np.zeros(ni, dtype=np.int64)
+        cfg = self._config()
+        # highest retained mode sets the paper's sticking time
+        omega_max = float(np.max(np.abs(cfg.lam))) if cfg.lam.size else 1.0
+        self.stick_time = stick_fraction * 2 * np.pi / omega_max
+        self._yh = cfg.to_state(q, qd) - self._particular(cfg, self.t)
+        self._imp_dim = np.array([imp.dim for imp in model.impactors], dtype=np.int64)
+        self._imp_mass = np.array([imp.mass for imp in model.impactors], dtype=float)
+        self._imp_cor = np.array([imp.cor for imp in model.impactors], dtype=float)
+        self._imp_limit = np.array([imp.limit for imp in model.impactors], dtype=float)
+        self._imp_z = np.zeros((ni, 2))
+        self._imp_v = np.zeros((ni, 2))
+        for j, imp in enumerate(model.impactors):
+            x_h = imp.rows @ q
+            v_h = imp.rows @ qd
+            self._imp_z[j, :imp.dim] = x_h + imp.position
+            self._imp_v[j, :imp.dim] = imp.velocity if imp.velocity is not None else v_h
+        self._imp_normal = np.zeros((ni, 2))
+        self._imp_last_t = np.full(ni, -np.inf)
+        self._imp_last_wall = np.zeros(ni)
+        self._imp_rel = np.zeros((ni, 2))
+        self._ledger = np.zeros(5)
+        self._info = np.zeros(4, dtype=np.int64)
+        self._cap = int(event_capacity)
+        self._events = []
+        self.n_config_changes = 0
+        self.grazing_undecided = 0
+        self.max_impacts_per_step = 0
+        self._M_free = model.M
+        self._K_sym = model.K_sym
+        self._K_skew = model.K_skew
+        self._initial_energy = self._energy_now()[0] + self._energy_now()[1]
+
+    # -- configuration ----------------------------------------------------------------------
+    def _stuck_masses(self):
+        return tuple(float(imp.mass) if s else 0.0
+                     for imp, s in zip(self.model.impactors, self._stuck))
+
+    def _config(self):
+        key = tuple(int(s) for s in self._stuck)
+        cfg = self._configs.get(key)
+        if cfg is None:
+            cfg = build_flow(self.model, self._stuck_masses(), self._omegas, self._amps, self.law)
+            self._configs[key] = cfg
+        return cfg
+
+    def _particular(self, cfg, t):
+        yp = np.zeros(cfg.lam.size, dtype=complex)
+        for h, om in enumerate(self._omegas):
+            e = np.exp(1j * om * t)
+            yp += cfg.part_plus[h] * e + cfg.part_minus[h] * np.conj(e)
+        return yp
+
+    # -- state --------------------------------------------------------------------------------
+    def state(self):
+        """Return ``(q, qd)``: coordinates and their velocities now."""
+        cfg = self._config()
+        return cfg.from_state(self._yh + self._particular(cfg, self.t))
+
+    def impactor_states(self):
+        """Return relative positions (m), absolute velocities (m/s) and stuck flags.
+
+        Returns
+        -------
+        rel : ndarray, shape (n_i, 2)
+            ``z - x_h`` (m); SDOF impactors use column 0.
+        vel : ndarray, shape (n_i, 2)
+            Absolute impactor velocity (m/s).
+        stuck : ndarray of bool, shape (n_i,)
+            True while the impactor rides its housing.
+        """
+        q, qd = self.state()
+        ni = len(self.model.impactors)
+        rel = np.zeros((ni, 2))
+        vel = np.zeros((ni, 2))
+        for j, imp in enumerate(self.model.impactors):
+            d = imp.dim
+            x_h = imp.rows @ q
+            v_h = imp.rows @ qd
+            if self._stuck[j]:
+                rel[j, :d] = self._imp_rel[j, :d]
+                vel[j, :d] = v_h
+            else:
+                rel[j, :d] = self._imp_z[j, :d] - x_h
+                vel[j, :d] = self._imp_v[j, :d]
+        return rel, vel, self._stuck.astype(bool)
+
+    def _energy_now(self):
+        q, qd = self.state()
+        structure = 0.5 * qd @ self._M_free @ qd + 0.5 * q @ self._K_sym @ q
+        _, vel, _ = self.impactor_states()
+        impactors = 0.5 * float(np.sum(self._imp_mass * np.sum(vel * vel, axis=1))) \
+            if self._imp_mass.size else 0.0
+        return structure, impactors
+
+    def energy(self):
+        """Return the :class:`~.events.EnergyLedger` now (J)."""
+        structure, impactors = self._energy_now()
+        led = self._ledger
+        return EnergyLedger(structure, impactors, led[0], led[1], led[2], led[3], led[4],
+                            self._initial_energy)
+
+    def take_events(self):
+        """Return the events recorded since the last call (see ``EVENT_DTYPE``) and clear."""
+        if not self._events:
+            return np.zeros(0, dtype=EVENT_DTYPE)
+        out = np.concatenate(self._events)
+        self._events = []
+        return out
+
+    # -- stepping -----------------------------------------------------------------------------
+    def advance(self, n_steps):
+        """Advance ``n_steps`` output steps of ``dt``.
+
+        Parameters
+        ----------
+        n_steps : int
+            Number of steps (dimensionless).
+
+        Returns
+        -------
+        Samples
+            Sensor outputs at the end of each step.
+        """
+        n_steps = int(n_steps)
+        ns = self.model.sensors.shape[0]
+        t_base = self.t
+        times = t_base + self.dt * np.arange(1, n_steps + 1)
+        u_grid = self.forcing.sample(t_base + self.dt * np.arange(n_steps + 1))
+        disp = np.empty((n_steps, ns))
+        vel = np.empty((n_steps, ns))
+        acc = np.empty((n_steps, ns))
+        t_state = np.array([self.t])
+        k = 0
+        ev = np.zeros(self._cap, dtype=EVENT_DTYPE)
+        ev_t = np.empty(self._cap)
+        ev_imp = np.empty(self._cap, dtype=np.int64)
+        ev_kind = np.empty(self._cap, dtype=np.int64)
+        ev_n = np.empty((self._cap, 2))
+        ev_vn = np.empty(self._cap)
+        ev_J = np.empty(self._cap)
+        ev_loss = np.empty(self._cap)
+        ev_count = np.zeros(1, dtype=np.int64)
+        model = self.model
+        rule = _RULE_CODES[self.stick_rule]
+        while True:
+            cfg = self._config()
+            ev_count[0] = 0
+            status = kernels.advance(
+                t_state, t_base, self.dt, k, n_steps, u_grid, self._omegas, self._amps,
+                self._yh, cfg.lam, cfg.W, cfg.V[:model.n], cfg.V[model.n:], cfg.part_plus,
+                cfg.part_minus, cfg.sensor_q, cfg.sensor_v, cfg.house_q, cfg.kick,
+                cfg.mobility, self._imp_dim, self._imp_mass, self._imp_cor, self._imp_limit,
+                self._imp_z, self._imp_v, self._stuck, self._imp_normal, self._imp_last_t,
+                self._imp_last_wall, self._imp_rel, rule, self.stick_time,
+                self.max_events_per_step, self.ledger_on, model.C, self._K_skew, model.B,
+                self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
+                ev_count, self._info)
+            m = int(ev_count[0])
+            if m:
+                chunk = np.zeros(m, dtype=EVENT_DTYPE)
+                chunk['t'] = ev_t[:m]
+                chunk['impactor'] = ev_imp[:m]
+                chunk['kind'] = ev_kind[:m]
+                chunk['normal'] = ev_n[:m]
+                chunk['v_n'] = ev_vn[:m]
+                chunk['impulse'] = ev_J[:m]
+                chunk['loss'] = ev_loss[:m]
+                self._events.append(chunk)
+            self.grazing_undecided = int(self._info[2])
+            self.max_impacts_per_step = max(self.max_impacts_per_step, int(self._info[3]))
+            k = int(self._info[0])
+            if status == kernels.DONE:
+                break
+            if status == kernels.CONFIG_CHANGE:
+                self._switch(float(t_state[0]), cfg)
+                continue
+            if status == kernels.BUFFER_FULL:
+                continue
+            self.t = float(t_state[0])
+            if status == kernels.NONFINITE:
+                raise FloatingPointError(f'non-finite state at t = {self.t:.6g} s')
+            raise RuntimeError(f'chatter not resolved at t = {self.t:.6g} s for impactor '
+                               f'{model.impactors[int(self._info[1])].name!r}')
+        del ev
+        self.t = float(t_state[0])
+        return Samples(times, disp, vel, acc)
+
+    def _switch(self, t_event, old_cfg):
+        """Carry the physical state across a change of the stuck set (exact: same q, qd)."""
+        y = self._yh + self._particular(old_cfg, t_event)
+        q, qd = old_cfg.from_state(y)
+        new_cfg = self._config()
+        self._yh = new_cfg.to_state(q, qd) - self._particular(new_cfg, t_event)
+        self.n_config_changes += 1

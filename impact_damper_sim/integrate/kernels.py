@@ -1,0 +1,757 @@
+"""Numba kernels of the exact, event-located propagator.
+
+Conventions (all kernels): float64 and complex128 arrays only, no Python objects; times in
+seconds; ``y`` is the complex first-order modal state of :mod:`.flow`; state arrays passed
+in are updated in place. Every kernel is written as plain Python/NumPy (``*_py``) and
+compiled with ``numba.njit(cache=True)``; the plain version is the kernel's NumPy twin and
+tests run both (``test/test_kernels.py``) so that the JIT cannot hide an untested path.
+
+Event handling inside :func:`advance`:
+
+* gap functions: SDOF ``g = D/2 - s (z - x_h)`` for each wall ``s = +-1``; planar
+  ``g = c^2 - |z - x_h|^2``; stuck impactors have the release function ``f = -n . a_h``
+  (the normal contact force over the impactor mass);
+* grazing guard: from a point with exact ``g, g', g''`` the scan advances only as far as the
+  cubic lower bound ``g + g' s + g'' s^2/2 - G3 s^3/6`` stays positive, where ``G3`` bounds
+  ``|g'''|`` over the step from the modal amplitudes; a dip and return inside a step cannot
+  be missed;
+* roots are refined by safeguarded Newton-bisection to a few ulps of time;
+* chatter: impacts per step are capped; sticking (paper's rule or the accumulation-point
+  rule) takes over, and a configuration change is handed back to the caller.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# status codes returned by advance()
+DONE = 0
+CONFIG_CHANGE = 1
+BUFFER_FULL = 2
+NONFINITE = 3
+CHATTER = 4
+
+# event kinds
+EV_IMPACT = 0
+EV_STICK = 1
+EV_RELEASE = 2
+EV_GRAZE = 3
+
+# sticking rules
+STICK_NONE = 0
+STICK_PAPER = 1
+STICK_ACCUMULATION = 2
+
+_MAX_SCAN = 2000
+_TWO_PI = 2.0 * np.pi
+
+
+def phis_py(z):
+    """Return ``((e^z - 1)/z, (e^z - 1 - z)/z^2)`` for complex ``z``, accurate near 0."""
+    if abs(z) < 0.2:
+        a = 0j
+        b = 0j
+        term = 1.0 + 0j
+        for k in range(16):
+            a += term / (k + 1)
+            b += term / ((k + 1) * (k + 2))
+            term *= z / (k + 1)
+        return a, b
+    ez = np.exp(z)
+    return (ez - 1.0) / z, (ez - 1.0 - z) / (z * z)
+
+
+phis = njit(cache=True)(phis_py)
+
+
+def propagate_py(yh, lam, tau, w0, ws, out):
+    """Homogeneous-plus-first-order-hold flow over ``tau`` (s): ``out = yh(tau)``.
+
+    ``yh' = lam yh + w0 + ws t`` exactly, for ``t`` in ``[0, tau]``.
+    """
+    for k in range(lam.size):
+        z = lam[k] * tau
+        f1, f2 = phis(z)
+        out[k] = np.exp(z) * yh[k] + tau * f1 * w0[k] + tau * tau * f2 * ws[k]
+
+
+propagate = njit(cache=True)(propagate_py)
+
+
+def add_particular_py(yh, omegas, part_plus, part_minus, t, out):
+    """``out = yh + y_p(t)``: add the harmonic particular solution at absolute time ``t``."""
+    for k in range(yh.size):
+        out[k] = yh[k]
+    for h in range(omegas.size):
+        ep = np.exp(1j * omegas[h] * t)
+        em = np.conj(ep)
+        for k in range(yh.size):
+            out[k] += part_plus[h, k] * ep + part_minus[h, k] * em
+
+
+add_particular = njit(cache=True)(add_particular_py)
+
+
+def input_derivs_py(u0, us, omegas, amps, t, tau, order, out):
+    """Inputs and time derivatives at ``t``: ``out[j] = d^j u / dt^j`` for ``j <= order``.
+
+    ``u = u0 + us tau + Re(sum_h amps[h] exp(i omegas[h] t))``.
+    """
+    nf = u0.size
+    for j in range(order + 1):
+        for f in range(nf):
+            out[j, f] = 0.0
+    for f in range(nf):
+        out[0, f] = u0[f] + us[f] * tau
+        if order >= 1:
+            out[1, f] = us[f]
+    for h in range(omegas.size):
+        e = np.exp(1j * omegas[h] * t)
+        fac = 1.0 + 0j
+        for j in range(order + 1):
+            for f in range(nf):
+                out[j, f] += (fac * amps[h, f] * e).real
+            fac *= 1j * omegas[h]
+
+
+input_derivs = njit(cache=True)(input_derivs_py)
+
+
+def state_derivs_py(y, lam, W, uder, order, out):
+    """``out[m] = d^m y / dt^m`` for ``m <= order`` from ``y' = lam y + W u``."""
+    n2 = y.size
+    nf = W.shape[1]
+    for k in range(n2):
+        out[0, k] = y[k]
+    for m in range(1, order + 1):
+        for k in range(n2):
+            acc = lam[k] * out[m - 1, k]
+            for f in range(nf):
+                acc += W[k, f] * uder[m - 1, f]
+            out[m, k] = acc
+
+
+state_derivs = njit(cache=True)(state_derivs_py)
+
+
+def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w_start, w_end, u_abs, us_abs,
+                         omegas, amps, T, order, out):
+    """Bounds on ``|d^m y_k/dt^m|`` over an interval of length ``T`` (s), for ``m <= order``.
+
+    ``yh`` is the homogeneous-plus-hold part at the start, ``w_start``/``w_end`` the held
+    input terms ``W u`` at both ends, ``u_abs``/``us_abs`` bounds on the held inputs and their
+    slope. The bound on ``|yh_k|`` is ``exp(max(Re lam_k, 0) T) (|yh_k| + T max|W u|_k)``.
+    """
+    n2 = lam.size
+    nf = W.shape[1]
+    nh = omegas.size
+    # bounds on |d^j u_f/dt^j|
+    ub = np.zeros((order + 1, nf))
+    for f in range(nf):
+        ub[0, f] = u_abs[f]
+        if order >= 1:
+            ub[1, f] = us_abs[f]
+    for h in range(nh):
+        for f in range(nf):
+            a = abs(amps[h, f])
+            p = 1.0
+            for j in range(order + 1):
+                ub[j, f] += a * p
+                p *= omegas[h]
+    for k in range(n2):
+        grow = np.exp(max(lam[k].real, 0.0) * T)
+        b = grow * (abs(yh[k]) + T * max(abs(w_start[k]), abs(w_end[k])))
+        for h in range(nh):
+            b += abs(part_plus[h, k]) + abs(part_minus[h, k])
+        lk = abs(lam[k])
+        # |y^(m)| <= |lam|^m b + sum_j |lam|^(m-1-j) |W u^(j)|
+        wu = np.zeros(order + 1)
+        for j in range(order + 1):
+            s = 0.0
+            for f in range(nf):
+                s += abs(W[k, f]) * ub[j, f]
+            wu[j] = s
+        for m in range(order + 1):
+            acc = lk ** m * b
+            for j in range(m):
+                acc += lk ** (m - 1 - j) * wu[j]
+            out[m, k] = acc
+
+
+derivative_bounds = njit(cache=True)(derivative_bounds_py)
+
+
+def cubic_safe_step_py(g0, g1, g2, g3max, T):
+    """Largest ``s <= T`` with ``p(s) = g0 + g1 s + g2 s^2/2 - g3max s^3/6 > 0`` on ``[0, s)``.
+
+    ``p`` is a lower bound of ``g`` when ``g3max`` bounds the third derivative of ``g``.
+    Returns ``T`` when ``p`` stays positive over the whole interval. The search splits
+    ``[0, T]`` at the roots of ``dp/ds`` so that every piece is monotone, then bisects in the
+    first piece that ends at or below zero, returning its last point known to be positive.
+    """
+    if g0 <= 0.0:
+        return 0.0
+    cuts = np.empty(3)
+    n_cut = 0
+    a2 = -0.5 * g3max  # dp/ds = g1 + g2 s + a2 s^2
+    if a2 != 0.0:
+        disc = g2 * g2 - 4.0 * a2 * g1
+        if disc >= 0.0:
+            r = np.sqrt(disc)
+            s1 = (-g2 + r) / (2.0 * a2)
+            s2 = (-g2 - r) / (2.0 * a2)
+            if s1 > s2:
+                s1, s2 = s2, s1
+            if 0.0 < s1 < T:
+                cuts[n_cut] = s1
+                n_cut += 1
+            if 0.0 < s2 < T:
+                cuts[n_cut] = s2
+                n_cut += 1
+    elif g2 != 0.0:
+        s1 = -g1 / g2
+        if 0.0 < s1 < T:
+            cuts[n_cut] = s1
+            n_cut += 1
+    cuts[n_cut] = T
+    n_cut += 1
+    lo = 0.0
+    for i in range(n_cut):
+        hi = cuts[i]
+        if g0 + hi * (g1 + hi * (0.5 * g2 - hi * g3max / 6.0)) <= 0.0:
+            for _ in range(80):
+                mid = 0.5 * (lo + hi)
+                if g0 + mid * (g1 + mid * (0.5 * g2 - mid * g3max / 6.0)) > 0.0:
+                    lo = mid
+                else:
+                    hi = mid
+                if hi - lo <= 1e-3 * hi:
+                    break
+            return lo
+        lo = hi
+    return T
+
+
+cubic_safe_step = njit(cache=True)(cubic_safe_step_py)
+
+
+def point_eval_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
+                  t_cur, tau, order, yh_tau, y_tau, uder, yd):
+    """State ``y`` and derivatives ``yd[m]`` (m <= order) at ``t_cur + tau``.
+
+    ``w0``/``ws`` are ``W u0``/``W us`` of the held inputs at ``t_cur``; ``yh_tau`` receives the
+    homogeneous-plus-hold part, ``y_tau`` the full state.
+    """
+    propagate(yh, lam, tau, w0, ws, yh_tau)
+    add_particular(yh_tau, omegas, part_plus, part_minus, t_cur + tau, y_tau)
+    input_derivs(u0, us, omegas, amps, t_cur + tau, tau, order, uder)
+    state_derivs(y_tau, lam, W, uder, order, yd)
+
+
+point_eval = njit(cache=True)(point_eval_py)
+
+
+def row_derivs_py(rows, n_rows, yd, order, out):
+    """``out[m, r] = Re(rows[r] . yd[m])``: housing kinematics (m, m/s, m/s^2, ...)."""
+    n2 = yd.shape[1]
+    for m in range(order + 1):
+        for r in range(n_rows):
+            acc = 0j
+            for k in range(n2):
+                acc += rows[r, k] * yd[m, k]
+            out[m, r] = acc.real
+
+
+row_derivs = njit(cache=True)(row_derivs_py)
+
+
+def row_bound_py(rows, n_rows, ybound, m):
+    """Bound of ``|d^m x_r/dt^m|`` per row from per-coordinate bounds; returns the 2-norm."""
+    total = 0.0
+    for r in range(n_rows):
+        acc = 0.0
+        for k in range(ybound.shape[1]):
+            acc += abs(rows[r, k]) * ybound[m, k]
+        total += acc * acc
+    return np.sqrt(total)
+
+
+row_bound = njit(cache=True)(row_bound_py)
+
+# event function ids
+FN_WALL_POS = 0
+FN_WALL_NEG = 1
+FN_PLANAR = 2
+FN_RELEASE = 3
+
+
+def fn_values_py(fid, X, z, v, tau, limit, normal):
+    """Event function and its first two derivatives from housing kinematics ``X``.
+
+    ``X[m, r]`` is the m-th derivative of housing row ``r``; ``z``/``v`` the impactor position
+    and velocity at the start of the interval, ``tau`` the time into it.
+    """
+    if fid == FN_WALL_POS or fid == FN_WALL_NEG:
+        s = 1.0 if fid == FN_WALL_POS else -1.0
+        r = z[0] + v[0] * tau - X[0, 0]
+        return limit - s * r, -s * (v[0] - X[1, 0]), s * X[2, 0]
+    if fid == FN_PLANAR:
+        d0 = z[0] + v[0] * tau - X[0, 0]
+        d1 = z[1] + v[1] * tau - X[0, 1]
+        e0 = v[0] - X[1, 0]
+        e1 = v[1] - X[1, 1]
+        g = limit * limit - (d0 * d0 + d1 * d1)
+        g1 = -2.0 * (d0 * e0 + d1 * e1)
+        g2 = -2.0 * (e0 * e0 + e1 * e1 - d0 * X[2, 0] - d1 * X[2, 1])
+        return g, g1, g2
+    # release: normal contact force per unit impactor mass, -n . a_h
+    return (-(normal[0] * X[2, 0] + normal[1] * X[2, 1]),
+            -(normal[0] * X[3, 0] + normal[1] * X[3, 1]),
+            -(normal[0] * X[4, 0] + normal[1] * X[4, 1]))
+
+
+fn_values = njit(cache=True)(fn_values_py)
+
+
+def fn_third_bound_py(fid, X, z, v, tau, limit, ybound, rows, n_rows, T):
+    """Bound on the event function's third derivative over the next ``T`` seconds."""
+    if fid == FN_WALL_POS or fid == FN_WALL_NEG:
+        return row_bound(rows, n_rows, ybound, 3)
+    if fid == FN_PLANAR:
+        x2 = row_bound(rows, n_rows, ybound, 2)
+        x3 = row_bound(rows, n_rows, ybound, 3)
+        e0 = v[0] - X[1, 0]
+        e1 = v[1] - X[1, 1]
+        dd = np.sqrt(e0 * e0 + e1 * e1) + T * x2
+        d0 = z[0] + v[0] * tau - X[0, 0]
+        d1 = z[1] + v[1] * tau - X[0, 1]
+        d = np.sqrt(d0 * d0 + d1 * d1) + T * dd
+        return 2.0 * (3.0 * dd * x2 + d * x3)
+    return row_bound(rows, n_rows, ybound, 5)
+
+
+fn_third_bound = njit(cache=True)(fn_third_bound_py)
+
+
+def fn_at_py(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
+             rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X):
+    """Event function values ``(f, f', f'')`` at ``t_cur + tau`` (fills the work arrays)."""
+    order = 4 if fid == FN_RELEASE else 2
+    point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
+               order, yh_tau, y_tau, uder, yd)
+    row_derivs(rows, n_rows, yd, order, X)
+    return fn_values(fid, X, z, v, tau, limit, normal)
+
+
+fn_at = njit(cache=True)(fn_at_py)
+
+
+def scan_py(fid, Th, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
+            rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X, ybound, u_abs,
+            us_abs):
+    """First time in ``(0, Th]`` where event function ``fid`` reaches zero from above.
+
+    Returns the time into the interval (s), ``-1`` if there is none, or ``-2`` if the
+    grazing guard could not decide within its iteration budget (a tangential touch with
+    vanishing normal velocity, which transfers no impulse).
+    """
+    nf = u0.size
+    tau = 0.0
+    for _ in range(_MAX_SCAN):
+        f0, f1, f2 = fn_at(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
+                           amps, u0, us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau,
+                           uder, yd, X)
+        if f0 <= 0.0:
+            if tau == 0.0 and (f1 > 0.0 or (f1 == 0.0 and f2 > 0.0)):
+                f0 = 1e-300  # leaving the boundary we start on
+            else:
+                return tau
+        T = Th - tau
+        for f in range(nf):
+            u_abs[f] = max(abs(u0[f] + us[f] * tau), abs(u0[f] + us[f] * Th))
+            us_abs[f] = abs(us[f])
+        derivative_bounds(yh_tau, lam, W, part_plus, part_minus, w0 + ws * tau, w0 + ws * Th,
+                          u_abs, us_abs, omegas, amps, T, 5 if fid == FN_RELEASE else 3, ybound)
+        g3 = fn_third_bound(fid, X, z, v, tau, limit, ybound, rows, n_rows, T)
+        s = cubic_safe_step(f0, f1, f2, g3, T)
+        if s >= T:
+            return -1.0
+        probe = tau + min(T, max(2.0 * s, 1e-3 * T))
+        fp, _, _ = fn_at(fid, probe, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
+                         amps, u0, us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder,
+                         yd, X)
+        if fp <= 0.0:
+            return refine(fid, tau + s, probe, t_cur, yh, lam, W, w0, ws, part_plus,
+                          part_minus, omegas, amps, u0, us, rows, n_rows, z, v, limit, normal,
+                          yh_tau, y_tau, uder, yd, X)
+        tau = tau + s
+    return -2.0
+
+
+def refine_py(fid, a, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
+              us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X):
+    """Illinois regula falsi on a bracket with ``f(a) > 0 >= f(b)``; returns the ``b`` side."""
+    fa, _, _ = fn_at(fid, a, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
+                     us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X)
+    fb, _, _ = fn_at(fid, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
+                     us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X)
+    if fa <= 0.0:
+        return a
+    side = 0
+    tol = 4.0 * 2.220446049250313e-16 * max(abs(t_cur + b), 1e-300)
+    for _ in range(200):
+        if b - a <= tol:
+            break
+        c = (a * fb - b * fa) / (fb - fa)
+        if not (a < c < b):
+            c = 0.5 * (a + b)
+        fc, _, _ = fn_at(fid, c, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps,
+                         u0, us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X)
+        if fc > 0.0:
+            a = c
+            fa = fc
+            if side == 1:
+                fb *= 0.5
+            side = 1
+        else:
+            b = c
+            fb = fc
+            if side == -1:
+                fa *= 0.5
+            side = -1
+    return b
+
+
+refine = njit(cache=True)(refine_py)
+scan = njit(cache=True)(scan_py)
+
+
+def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
+                    tau, Vq, Vv, Cmat, Kskew, Bmat, yh_tau, y_tau, uder, yd, ledger):
+    """Add damping dissipation, forcing work and circulatory work over ``[0, tau]`` (J).
+
+    Composite 4-point Gauss-Legendre, with panels no wider than ``0.5/max|lambda|`` so the
+    relative quadrature error stays below about 1e-10.
+    """
+    if tau <= 0.0:
+        return
+    lam_max = 0.0
+    for k in range(lam.size):
+        lam_max = max(lam_max, abs(lam[k]))
+    n_panels = int(np.ceil(tau * lam_max / 0.5))
+    if n_panels < 1:
+        n_panels = 1
+    xs = np.array([-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
+                   0.8611363115940526])
+    ws_g = np.array([0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
+                     0.3478548451374538])
+    n = Vq.shape[0]
+    q = np.empty(n)
+    qd = np.empty(n)
+    width = tau / n_panels
+    for p in range(n_panels):
+        mid = (p + 0.5) * width
+        for g in range(4):
+            s = mid + 0.5 * width * xs[g]
+            point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
+                       s, 0, yh_tau, y_tau, uder, yd)
+            for i in range(n):
+                aq = 0j
+                av = 0j
+                for k in range(lam.size):
+                    aq += Vq[i, k] * y_tau[k]
+                    av += Vv[i, k] * y_tau[k]
+                q[i] = aq.real
+                qd[i] = av.real
+            p_damp = 0.0
+            p_circ = 0.0
+            p_force = 0.0
+            for i in range(n):
+                cq = 0.0
+                kq = 0.0
+                bu = 0.0
+                for k2 in range(n):
+                    cq += Cmat[i, k2] * qd[k2]
+                    kq += Kskew[i, k2] * q[k2]
+                for f in range(uder.shape[1]):
+                    bu += Bmat[i, f] * uder[0, f]
+                p_damp += qd[i] * cq
+                p_circ -= qd[i] * kq
+                p_force += qd[i] * bu
+            wgt = 0.5 * width * ws_g[g]
+            ledger[2] += wgt * p_damp
+            ledger[3] += wgt * p_force
+            ledger[4] += wgt * p_circ
+
+
+ledger_panel = njit(cache=True)(ledger_panel_py)
+
+
+def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
+               yh, lam, W, Vq, Vv, part_plus, part_minus, sensor_q, sensor_v,
+               house_q, kick, mobility,
+               imp_dim, imp_mass, imp_cor, imp_limit,
+               imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_last_wall, imp_rel,
+               stick_rule, stick_time, max_events_per_step,
+               ledger_on, Cmat, Kskew, Bmat, ledger,
+               out_disp, out_vel, out_acc,
+               ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_count, info):
+    """Advance the model with its impactors over grid steps ``k_start .. n_steps-1``.
+
+    Step ``k`` ends at ``t_base + (k + 1) h`` where sensor outputs are recorded; the
+    current time ``t_state[0]`` lies in step ``k_start``. Returns a status code; ``info[0]``
+    holds the step in progress, ``info[1]`` the impactor that changed state, ``info[2]``
+    the number of undecided grazing scans, ``info[3]`` the largest impacts in one step.
+    On ``CONFIG_CHANGE`` the state is at the event time and the caller must rebuild the
+    flow arrays for the new stuck set, convert ``yh`` and call again.
+    """
+    n2 = lam.size
+    nf = W.shape[1]
+    ni = imp_dim.size
+    order_max = 5
+    yh_tau = np.empty(n2, dtype=np.complex128)
+    y_tau = np.empty(n2, dtype=np.complex128)
+    yd = np.empty((order_max + 1, n2), dtype=np.complex128)
+    uder = np.empty((order_max + 1, nf))
+    X = np.zeros((order_max + 1, 2))
+    ybound = np.empty((order_max + 1, n2))
+    u_abs = np.empty(nf)
+    us_abs = np.empty(nf)
+    w0 = np.empty(n2, dtype=np.complex128)
+    ws = np.empty(n2, dtype=np.complex128)
+    u0 = np.empty(nf)
+    us = np.empty(nf)
+    count_step = np.zeros(ni, dtype=np.int64)
+    cap = ev_t.size
+    t_cur = t_state[0]
+    for k in range(k_start, n_steps):
+        t_k = t_base + k * h
+        t_b = t_base + (k + 1) * h
+        for f in range(nf):
+            us[f] = (u_grid[k + 1, f] - u_grid[k, f]) / h
+        for j in range(ni):
+            count_step[j] = 0
+        while True:
+            for f in range(nf):
+                u0[f] = u_grid[k, f] + us[f] * (t_cur - t_k)
+            for i in range(n2):
+                acc0 = 0j
+                accs = 0j
+                for f in range(nf):
+                    acc0 += W[i, f] * u0[f]
+                    accs += W[i, f] * us[f]
+                w0[i] = acc0
+                ws[i] = accs
+            horizon = t_b - t_cur
+            best = horizon
+            best_j = -1
+            best_fid = -1
+            for j in range(ni):
+                n_rows = imp_dim[j]
+                if imp_stuck[j] == 1:
+                    fids = (FN_RELEASE, -1)
+                elif n_rows == 1:
+                    fids = (FN_WALL_POS, FN_WALL_NEG)
+                else:
+                    fids = (FN_PLANAR, -1)
+                for fid in fids:
+                    if fid < 0:
+                        continue
+                    te = scan(fid, best, t_cur, yh, lam, W, w0, ws, part_plus, part_minus,
+                              omegas, amps, u0, us, house_q[j], n_rows, imp_z[j], imp_v[j],
+                              imp_limit[j], imp_normal[j], yh_tau, y_tau, uder, yd, X, ybound,
+                              u_abs, us_abs)
+                    if te == -2.0:
+                        info[2] += 1
+                    elif te >= 0.0 and (te < best or best_j < 0):
+                        best = te
+                        best_j = j
+                        best_fid = fid
+            tau = best
+            if ledger_on:
+                ledger_panel(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
+                             t_cur, tau, Vq, Vv, Cmat, Kskew, Bmat, yh_tau, y_tau, uder, yd,
+                             ledger)
+            point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
+                       tau, 2, yh_tau, y_tau, uder, yd)
+            for i in range(n2):
+                yh[i] = yh_tau[i]
+            for j in range(ni):
+                if imp_stuck[j] == 0:
+                    for r in range(imp_dim[j]):
+                        imp_z[j, r] += imp_v[j, r] * tau
+            t_cur = t_cur + tau if best_j >= 0 else t_b
+            if best_j < 0:
+                break
+            # ---- an event at t_cur for impactor j
+            j = best_j
+            n_rows = imp_dim[j]
+            row_derivs(house_q[j], n_rows, yd, 2, X)
+            if ev_count[0] >= cap:
+                t_state[0] = t_cur
+                info[0] = k
+                return BUFFER_FULL
+            if best_fid == FN_RELEASE:
+                imp_stuck[j] = 0
+                for r in range(n_rows):
+                    imp_z[j, r] = X[0, r] + imp_rel[j, r]
+                    imp_v[j, r] = X[1, r]
+                imp_last_t[j] = t_cur
+                e = ev_count[0]
+                ev_t[e] = t_cur
+                ev_imp[e] = j
+                ev_kind[e] = EV_RELEASE
+                ev_n[e, 0] = imp_normal[j, 0]
+                ev_n[e, 1] = imp_normal[j, 1]
+                ev_vn[e] = 0.0
+                ev_J[e] = 0.0
+                ev_loss[e] = 0.0
+                ev_count[0] = e + 1
+                t_state[0] = t_cur
+                info[0] = k
+                info[1] = j
+                return CONFIG_CHANGE
+            # contact normal (outward) and relative velocity
+            nrm0 = 0.0
+            nrm1 = 0.0
+            if n_rows == 1:
+                nrm0 = 1.0 if best_fid == FN_WALL_POS else -1.0
+                vrel0 = imp_v[j, 0] - X[1, 0]
+                vrel1 = 0.0
+            else:
+                d0 = imp_z[j, 0] - X[0, 0]
+                d1 = imp_z[j, 1] - X[0, 1]
+                dn = np.sqrt(d0 * d0 + d1 * d1)
+                nrm0 = d0 / dn
+                nrm1 = d1 / dn
+                vrel0 = imp_v[j, 0] - X[1, 0]
+                vrel1 = imp_v[j, 1] - X[1, 1]
+            v_n = nrm0 * vrel0 + nrm1 * vrel1
+            m_i = imp_mass[j]
+            g_nn = (nrm0 * (mobility[j, 0, 0] * nrm0 + mobility[j, 0, 1] * nrm1)
+                    + nrm1 * (mobility[j, 1, 0] * nrm0 + mobility[j, 1, 1] * nrm1))
+            e_cor = imp_cor[j]
+            same_wall = (nrm0 * imp_normal[j, 0] + nrm1 * imp_normal[j, 1]) > 0.95
+            dt_prev = t_cur - imp_last_t[j]
+            J = 0.0
+            loss = 0.0
+            if v_n > 0.0:
+                J = (1.0 + e_cor) * v_n / (1.0 / m_i + g_nn)
+                loss = 0.5 * (1.0 - e_cor * e_cor) * v_n * v_n / (1.0 / m_i + g_nn)
+                imp_v[j, 0] -= J * nrm0 / m_i
+                imp_v[j, 1] -= J * nrm1 / m_i
+                for i in range(n2):
+                    yh[i] += kick[j, 0, i] * (J * nrm0)
+                    if n_rows == 2:
+                        yh[i] += kick[j, 1, i] * (J * nrm1)
+                ledger[0] += loss
+                count_step[j] += 1
+                if count_step[j] > info[3]:
+                    info[3] = count_step[j]
+                e = ev_count[0]
+                ev_t[e] = t_cur
+                ev_imp[e] = j
+                ev_kind[e] = EV_IMPACT
+                ev_n[e, 0] = nrm0
+                ev_n[e, 1] = nrm1
+                ev_vn[e] = v_n
+                ev_J[e] = J
+                ev_loss[e] = loss
+                ev_count[0] = e + 1
+            # sticking: bounce-down detected, or a contact without closing velocity
+            stick = v_n <= 0.0
+            if same_wall and v_n > 0.0:
+                if stick_rule == STICK_PAPER and dt_prev < stick_time:
+                    stick = True
+                elif stick_rule == STICK_ACCUMULATION and e_cor < 1.0 and \
+                        dt_prev * e_cor / (1.0 - e_cor) < stick_time:
+                    stick = True
+            if count_step[j] > max_events_per_step:
+                stick = True
+            imp_last_t[j] = t_cur
+            imp_normal[j, 0] = nrm0
+            imp_normal[j, 1] = nrm1
+            pushes = (nrm0 * X[2, 0] + (nrm1 * X[2, 1] if n_rows == 2 else 0.0)) < 0.0
+            if stick and pushes:
+                # plastic completion of the bounce-down: cancel the relative velocity
+                vr0 = imp_v[j, 0] - X[1, 0]
+                vr1 = (imp_v[j, 1] - X[1, 1]) if n_rows == 2 else 0.0
+                if n_rows == 1:
+                    P0 = vr0 / (1.0 / m_i + mobility[j, 0, 0])
+                    P1 = 0.0
+                else:
+                    a00 = 1.0 / m_i + mobility[j, 0, 0]
+                    a01 = mobility[j, 0, 1]
+                    a10 = mobility[j, 1, 0]
+                    a11 = 1.0 / m_i + mobility[j, 1, 1]
+                    det = a00 * a11 - a01 * a10
+                    P0 = (a11 * vr0 - a01 * vr1) / det
+                    P1 = (-a10 * vr0 + a00 * vr1) / det
+                lock_loss = 0.5 * (vr0 * P0 + vr1 * P1)
+                imp_v[j, 0] -= P0 / m_i
+                imp_v[j, 1] -= P1 / m_i
+                for i in range(n2):
+                    yh[i] += kick[j, 0, i] * P0
+                    if n_rows == 2:
+                        yh[i] += kick[j, 1, i] * P1
+                ledger[1] += lock_loss
+                imp_stuck[j] = 1
+                if n_rows == 1:
+                    imp_rel[j, 0] = nrm0 * imp_limit[j]
+                else:
+                    imp_rel[j, 0] = nrm0 * imp_limit[j]
+                    imp_rel[j, 1] = nrm1 * imp_limit[j]
+                if ev_count[0] >= cap:
+                    t_state[0] = t_cur
+                    info[0] = k
+                    info[1] = j
+                    return CONFIG_CHANGE
+                e = ev_count[0]
+                ev_t[e] = t_cur
+                ev_imp[e] = j
+                ev_kind[e] = EV_STICK
+                ev_n[e, 0] = nrm0
+                ev_n[e, 1] = nrm1
+                ev_vn[e] = nrm0 * vr0 + nrm1 * vr1
+                ev_J[e] = np.sqrt(P0 * P0 + P1 * P1)
+                ev_loss[e] = lock_loss
+                ev_count[0] = e + 1
+                t_state[0] = t_cur
+                info[0] = k
+                info[1] = j
+                return CONFIG_CHANGE
+            if count_step[j] > 4 * max_events_per_step + 16:
+                t_state[0] = t_cur
+                info[0] = k
+                info[1] = j
+                return CHATTER
+        # ---- end of step k: record outputs at t_b
+        for f in range(nf):
+            u0[f] = u_grid[k + 1, f]
+        point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_b, 0.0,
+                   1, yh_tau, y_tau, uder, yd)
+        finite = True
+        for i in range(n2):
+            if not (np.isfinite(yh[i].real) and np.isfinite(yh[i].imag)):
+                finite = False
+        if not finite:
+            t_state[0] = t_cur
+            info[0] = k
+            return NONFINITE
+        for s_ in range(sensor_q.shape[0]):
+            ad = 0j
+            av = 0j
+            aa = 0j
+            for i in range(n2):
+                ad += sensor_q[s_, i] * yd[0, i]
+                av += sensor_v[s_, i] * yd[0, i]
+                aa += sensor_v[s_, i] * yd[1, i]
+            out_disp[k, s_] = ad.real
+            out_vel[k, s_] = av.real
+            out_acc[k, s_] = aa.real
+    t_state[0] = t_cur
+    info[0] = n_steps
+    return DONE
+
+
+advance = njit(cache=True)(advance_py)
