@@ -36,7 +36,7 @@ bench: $(STAMP)
 
 constraints: $(STAMP)
 	( echo '# Full pinned environment (pip freeze of a fresh `make` venv, Python 3.11). Regenerate with `make constraints`.'; \
-	  $(PY) -m pip freeze --exclude-editable ) > constraints.txt
+	  $(PY) -m pip freeze --all --exclude-editable ) > constraints.txt
 
 clean:
 	rm -rf $(VENV) build install log

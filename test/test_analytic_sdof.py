@@ -197,7 +197,8 @@ def test_jacobian_matches_finite_differences(point):
     for j in range(4):
         d = np.zeros(4)
         d[j] = 1e-6 * scale[j]
-        Jfd[:, j] = (symmetric_half_map(orbit, s + d) - symmetric_half_map(orbit, s - d)) / (2 * d[j])
+        Jfd[:, j] = (symmetric_half_map(orbit, s + d)
+                     - symmetric_half_map(orbit, s - d)) / (2 * d[j])
     scaled = lambda A: A * scale[None, :] / scale[:, None]   # noqa: E731
     assert np.abs(scaled(J) - scaled(Jfd)).max() < 1e-6
     lam = np.sort_complex(np.linalg.eigvals(J) ** 2)
@@ -205,8 +206,9 @@ def test_jacobian_matches_finite_differences(point):
 
 
 # ----------------------------------------------------------------------------------- (b)
-def test_stable_orbit_attracts_small_perturbation():
-    p = params(*STABLE_POINTS[3])
+@pytest.mark.parametrize('point', STABLE_POINTS)
+def test_stable_orbit_attracts_small_perturbation(point):
+    p = params(*point)
     orbit = symmetric_two_impact_orbit(**p)
     assert orbit.stable
     V = orbit.Omega * orbit.amplitude
@@ -214,11 +216,13 @@ def test_stable_orbit_attracts_small_perturbation():
     impacts, _ = simulate(p, t0, y0, 60)
     dev = cycle_deviation(orbit, impacts)
     assert len(dev) == 30 and np.all(np.isfinite(dev))
-    assert dev[-1] < 1e-3 * dev[0]
-    # decay rate per cycle consistent with the spectral radius of the computed multipliers
+    assert dev[-1] < 0.05 * dev[0]
+    # decay rate per cycle agrees with the spectral radius of the computed multipliers
+    # (fit above the integration noise floor)
     k = np.arange(10, 30)
+    k = k[dev[k] > 1e-10]
     rate = np.exp(np.polyfit(k, np.log(dev[k]), 1)[0])
-    assert rate == pytest.approx(orbit.spectral_radius, abs=0.1)
+    assert rate == pytest.approx(orbit.spectral_radius, abs=0.02)
 
 
 def test_unstable_orbit_departs_at_predicted_rate():

@@ -299,8 +299,8 @@ def linear_steady_amplitude(M, K, c, F0, Omega):
 # --------------------------------------------------------------------------- flight checks
 def _root(f, a, b):
     """Root of ``f`` in the bracket ``[a, b]`` to machine precision."""
-    return brentq(f, a, b, xtol=1e-3 * np.finfo(float).eps * (b - a), rtol=4.0 * np.finfo(float).eps,
-                  maxiter=500)
+    eps = np.finfo(float).eps
+    return brentq(f, a, b, xtol=1e-3 * eps * (b - a), rtol=4.0 * eps, maxiter=500)
 
 
 def _bracketed_roots(f, t, y):
@@ -363,7 +363,8 @@ def _phase_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance):
     h = np.pi / Omega
     I_plus_Phi = osc.transition(h) + np.eye(2)
     if abs(np.linalg.det(I_plus_Phi)) < 1e-12 * (1.0 + np.abs(I_plus_Phi).max() ** 2):
-        return osc, [], 'Phi(pi/Omega) has eigenvalue -1 (undamped, Omega = omega_n/odd): degenerate'
+        return osc, [], ('Phi(pi/Omega) has eigenvalue -1 (undamped, Omega = omega_n/odd): '
+                         'degenerate')
     gy, gu = -2.0 * mu * np.linalg.solve(I_plus_Phi, np.array([0.0, 1.0]))
     den = (1.0 + 2.0 * mu - e) - (1.0 + e) * (gu + 2.0 * mu)
     if abs(den) < 1e-12 * (1.0 + e):
@@ -401,7 +402,8 @@ def _admissibility(osc, D, t0, x0, v0, w0):
     # extrema measure how close the flight comes to a second contact.
     margin = D / 2.0 - float(max((abs(q) for q in r_at), default=0.0))
     if not (np.abs(r[1:-1]).max() < D / 2.0 and margin > _GRAZE_TOL * D):
-        return f'impactor reaches a wall during the flight (margin {margin:.3e} m)', V1, margin, None
+        why = f'impactor reaches a wall during the flight (margin {margin:.3e} m)'
+        return why, V1, margin, None
     amp = max(abs(x0), float(np.abs(x).max()),
               *(abs(float(osc.flow(t0, x0, v0, s)[0])) for s in x_ext))
     return '', float(V1), margin, amp
@@ -535,6 +537,8 @@ def orbit_state(orbit, t):
     t = np.asarray(t, dtype=float)
     h, t0 = orbit.half_period, orbit.t_impact
     k = np.floor((t - t0) / h)
+    # an impact instant rounded to just below t0 + k h still gets the post-impact state
+    k = np.where(t - t0 - k * h >= h * (1.0 - 1e-13), k + 1.0, k)
     tau = np.clip(t - t0 - k * h, 0.0, h)  # time since the last impact
     sign = np.where(np.mod(k, 2.0) == 0.0, 1.0, -1.0)  # odd half-cycles are mirrored
     x, v = osc.flow(t0, orbit.x_impact, orbit.xdot_post, t0 + tau)

@@ -20,17 +20,13 @@ _SYMMETRY_RTOL = 1e-10  # relative asymmetry tolerated in user-given symmetric m
 _SECTION_FIELDS = ('A', 'Iy', 'Iz', 'J', 'Ip', 'shear_coefficients')
 
 
-def _real(name, value, unit, *, lower=None, lower_open=False):
-    """Return ``value`` as a finite float, optionally bounded below, or raise ValueError."""
+def _real(name, value, unit, *, lower=None):
+    """Return ``value`` as a finite float (>= ``lower`` if given), or raise ValueError."""
     ok = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
     x = float(value) if ok else math.nan
-    if lower is None:
-        ok = math.isfinite(x)
-        allowed = 'a finite number'
-    else:
-        ok = math.isfinite(x) and (x > lower if lower_open else x >= lower)
-        allowed = f'a finite number {">" if lower_open else ">="} {lower:g}'
+    ok = math.isfinite(x) and (lower is None or x >= lower)
     if not ok:
+        allowed = 'a finite number' + ('' if lower is None else f' >= {lower:g}')
         raise ValueError(f'{name} must be {allowed} ({unit}); got {value!r}')
     return x
 
@@ -87,7 +83,7 @@ class FEModel:
     @property
     def nodes(self):
         """dict: ``{node_id: (x, y, z)}`` coordinates (m), a copy."""
-        return {k: tuple(v) for k, v in self._nodes.items()}
+        return {k: tuple(float(x) for x in v) for k, v in self._nodes.items()}
 
     @property
     def clamped(self):
@@ -361,9 +357,7 @@ class FEModel:
         r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
         keep = (r >= 0) & (c >= 0) & (v != 0.0)  # drop clamped rows/columns and exact zeros
         coo = sp.coo_matrix((v[keep], (r[keep], c[keep])), shape=(n, n))
-        out = coo.tocsr()  # sums duplicate entries
-        out.sum_duplicates()
-        return out
+        return coo.tocsr()  # sums the duplicate (row, column) entries
 
 
 def _is_numeric(value):

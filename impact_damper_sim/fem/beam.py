@@ -14,7 +14,7 @@ Conventions
   ``Phi_y = 12 E Iz / (kappa_y G A L^2)``; bending in the x-z plane (``uz``, ``ry``) uses
   ``E Iy`` and ``Phi_z = 12 E Iy / (kappa_z G A L^2)``. ``Phi = 0`` is Euler-Bernoulli.
 
-Reference: J. S. Przemieniecki, *Theory of Matrix Structural Analysis*, 1968, section 5.6.
+Reference: J. S. Przemieniecki, *Theory of Matrix Structural Analysis*, McGraw-Hill, 1968.
 """
 from __future__ import annotations
 
@@ -23,10 +23,13 @@ import numpy as np
 _PARALLEL_SIN = 1e-6  # sin of the angle below which a reference vector counts as parallel
 
 
-def _point(name, xyz):
-    p = np.asarray(xyz, dtype=float)
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise ValueError(f'{name} must be 3 finite coordinates (m); got {xyz!r}')
+def _point(name, xyz, unit='m'):
+    try:
+        p = np.asarray(xyz, dtype=float)
+    except (TypeError, ValueError):
+        p = None
+    if p is None or p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise ValueError(f'{name} must be 3 finite coordinates ({unit}); got {xyz!r}')
     return p
 
 
@@ -37,10 +40,13 @@ def _flag(name, value):
 
 
 def _length(length):
-    length = float(length)
-    if not np.isfinite(length) or length <= 0.0:
+    try:
+        value = float(length)
+    except (TypeError, ValueError):
+        value = np.nan
+    if not np.isfinite(value) or value <= 0.0:
         raise ValueError(f'length must be a finite number > 0 (m); got {length!r}')
-    return length
+    return value
 
 
 def shear_parameters(material, section, length, *, shear=True):
@@ -178,7 +184,7 @@ def beam_rotation(xyz_i, xyz_j, orientation=None):
         if np.linalg.norm(np.cross(ex, ref)) < _PARALLEL_SIN:
             ref = np.array([0.0, 1.0, 0.0])
     else:
-        ref = _point('orientation', orientation)
+        ref = _point('orientation', orientation, 'any unit')
         norm = np.linalg.norm(ref)
         if not norm > 0.0 or np.linalg.norm(np.cross(ex, ref / norm)) < _PARALLEL_SIN:
             raise ValueError(f'orientation must be a nonzero vector not parallel to the beam '

@@ -33,6 +33,18 @@ def _positive(name, value, unit):
     return x
 
 
+def _poisson(nu):
+    """Return ``nu`` as a float, or raise ValueError unless -1 < nu < 0.5 (dimensionless)."""
+    try:
+        ok = NU_RANGE[0] < float(nu) < NU_RANGE[1]
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f'nu must lie in the open interval {NU_RANGE} (dimensionless); '
+                         f'got {nu!r}')
+    return float(nu)
+
+
 @dataclass(frozen=True)
 class Material:
     """Isotropic linear-elastic material.
@@ -86,14 +98,7 @@ class Material:
             With ``G = E / (2 (1 + nu))`` (Pa).
         """
         E = _positive('E', E, 'Pa')
-        try:
-            ok = NU_RANGE[0] < float(nu) < NU_RANGE[1]
-        except (TypeError, ValueError):
-            ok = False
-        if not ok:
-            raise ValueError(f'nu must lie in the open interval {NU_RANGE} (dimensionless); '
-                             f'got {nu!r}')
-        nu = float(nu)
+        nu = _poisson(nu)
         return cls(E=E, G=E / (2.0 * (1.0 + nu)), rho=rho)
 
     @property

@@ -15,18 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from .materials import _positive, NU_RANGE
-
-
-def _check_nu(nu):
-    try:
-        ok = NU_RANGE[0] < float(nu) < NU_RANGE[1]
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
-        raise ValueError(f'nu must lie in the open interval {NU_RANGE} (dimensionless); '
-                         f'got {nu!r}')
-    return float(nu)
+from .materials import _poisson, _positive
 
 
 def cowper_hollow_circle(nu, m):
@@ -45,7 +34,7 @@ def cowper_hollow_circle(nu, m):
         ``6(1+nu)(1+m^2)^2 / ((7+6nu)(1+m^2)^2 + (20+12nu)m^2)`` (dimensionless); it tends to
         the thin-tube value ``2(1+nu)/(4+3nu)`` as m -> 1 (Cowper, J. Appl. Mech. 33, 1966).
     """
-    nu = _check_nu(nu)
+    nu = _poisson(nu)
     q = (1.0 + m * m) ** 2
     return 6.0 * (1.0 + nu) * q / ((7.0 + 6.0 * nu) * q + (20.0 + 12.0 * nu) * m * m)
 
@@ -221,7 +210,7 @@ class GeneralSection:
         nu : float
             Poisson's ratio (dimensionless), in (-1, 0.5); only validated.
         """
-        _check_nu(nu)
+        _poisson(nu)
         return tuple(math.inf if k is None else k for k in (self.kappa_y, self.kappa_z))
 
 

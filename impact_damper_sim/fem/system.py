@@ -41,7 +41,8 @@ def component_index(component):
             raise ValueError(f'unknown DOF component {component!r}; allowed: {DOF_NAMES}') from None
     # int() would silently truncate 1.7 -> 1 and accept True: allow integers only.
     if isinstance(component, (bool, np.bool_)) or not isinstance(component, numbers.Integral):
-        raise ValueError(f'DOF component must be 0..5 or one of {DOF_NAMES}; got {component!r}')
+        raise ValueError(
+            f'DOF component must be 0..5 or one of {DOF_NAMES}; got {component!r}')
     component = int(component)
     if not 0 <= component < DOFS_PER_NODE:
         raise ValueError(f'DOF component {component} out of range 0..5')
@@ -78,6 +79,11 @@ class Condensation:
     T: np.ndarray
     n_active: int
     _position: np.ndarray = field(repr=False)
+
+    @property
+    def K_sym(self):
+        """ndarray: Symmetric part of the condensed stiffness (N/m)."""
+        return 0.5 * (self.K + self.K.T)
 
     def recovery(self, active_rows):
         """Return ``R`` such that ``u[active_rows] = R @ u_master``.

@@ -10,9 +10,12 @@ EVENT_KINDS = ('impact', 'stick', 'release', 'graze')
 #: One record per event. ``normal`` is the unit contact normal in the housing plane (SDOF
 #: impactors use its first entry, +-1 for the wall hit); ``v_n`` the closing normal relative
 #: velocity before the event (m/s); ``impulse`` the impulse magnitude (N s); ``loss`` the
-#: kinetic energy dissipated (J).
+#: kinetic energy dissipated (J); ``v_n_after`` the normal relative velocity just after it and
+#: ``v_h_jump`` the jump of the housing's normal velocity (m/s), both measured from the
+#: simulated state after the impulse was applied.
 EVENT_DTYPE = np.dtype([('t', 'f8'), ('impactor', 'i8'), ('kind', 'i8'), ('normal', 'f8', (2,)),
-                        ('v_n', 'f8'), ('impulse', 'f8'), ('loss', 'f8')])
+                        ('v_n', 'f8'), ('impulse', 'f8'), ('loss', 'f8'), ('v_n_after', 'f8'),
+                        ('v_h_jump', 'f8')])
 
 # sticking rules
 STICK_RULES = ('paper', 'accumulation', 'none')
@@ -42,20 +45,6 @@ class Samples:
     displacement: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
-
-    def mean_acceleration(self, v_before):
-        """Mean acceleration over each sample interval, ``(v_k - v_{k-1})/dt`` (m/s^2).
-
-        This is what an ideal accelerometer averaged over the interval reads: impacts show as
-        their velocity jump divided by the interval. ``v_before`` is the velocity at the start
-        of the first interval (m/s).
-        """
-        if self.t.size == 0:
-            return self.velocity.copy()
-        v = np.vstack([np.asarray(v_before)[None, :], self.velocity])
-        dt = np.diff(np.concatenate([[self.t[0] - (self.t[1] - self.t[0]
-                                                   if self.t.size > 1 else np.nan)], self.t]))
-        return np.diff(v, axis=0) / dt[:, None]
 
 
 @dataclass

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
+from .kernels import exact as kernels
 from .events import EVENT_DTYPE, EnergyLedger, Samples, STICK_RULES
 from .flow import build_flow
 
@@ -97,6 +97,7 @@ class ExactPropagator:
         self._imp_last_t = np.full(ni, -np.inf)
         self._imp_last_wall = np.zeros(ni)
         self._imp_rel = np.zeros((ni, 2))
+        self._imp_grace = np.zeros(ni, dtype=np.int64)
         self._ledger = np.zeros(5)
         self._info = np.zeros(4, dtype=np.int64)
         self._cap = int(event_capacity)
@@ -210,7 +211,6 @@ class ExactPropagator:
         acc = np.empty((n_steps, ns))
         t_state = np.array([self.t])
         k = 0
-        ev = np.zeros(self._cap, dtype=EVENT_DTYPE)
         ev_t = np.empty(self._cap)
         ev_imp = np.empty(self._cap, dtype=np.int64)
         ev_kind = np.empty(self._cap, dtype=np.int64)
@@ -218,6 +218,7 @@ class ExactPropagator:
         ev_vn = np.empty(self._cap)
         ev_J = np.empty(self._cap)
         ev_loss = np.empty(self._cap)
+        ev_after = np.empty((self._cap, 2))
         ev_count = np.zeros(1, dtype=np.int64)
         model = self.model
         rule = _RULE_CODES[self.stick_rule]
@@ -230,10 +231,10 @@ class ExactPropagator:
                 cfg.part_minus, cfg.sensor_q, cfg.sensor_v, cfg.house_q, cfg.kick,
                 cfg.mobility, self._imp_dim, self._imp_mass, self._imp_cor, self._imp_limit,
                 self._imp_z, self._imp_v, self._stuck, self._imp_normal, self._imp_last_t,
-                self._imp_last_wall, self._imp_rel, rule, self.stick_time,
+                self._imp_last_wall, self._imp_rel, self._imp_grace, rule, self.stick_time,
                 self.max_events_per_step, self.ledger_on, model.C, self._K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
-                ev_count, self._info)
+                ev_after, ev_count, self._info)
             m = int(ev_count[0])
             if m:
                 chunk = np.zeros(m, dtype=EVENT_DTYPE)
@@ -244,6 +245,8 @@ class ExactPropagator:
                 chunk['v_n'] = ev_vn[:m]
                 chunk['impulse'] = ev_J[:m]
                 chunk['loss'] = ev_loss[:m]
+                chunk['v_n_after'] = ev_after[:m, 0]
+                chunk['v_h_jump'] = ev_after[:m, 1]
                 self._events.append(chunk)
             self.grazing_undecided = int(self._info[2])
             self.max_impacts_per_step = max(self.max_impacts_per_step, int(self._info[3]))
@@ -260,7 +263,6 @@ class ExactPropagator:
                 raise FloatingPointError(f'non-finite state at t = {self.t:.6g} s')
             raise RuntimeError(f'chatter not resolved at t = {self.t:.6g} s for impactor '
                                f'{model.impactors[int(self._info[1])].name!r}')
-        del ev
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
 

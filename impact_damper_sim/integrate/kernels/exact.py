@@ -134,19 +134,23 @@ def state_derivs_py(y, lam, W, uder, order, out):
 state_derivs = njit(cache=True)(state_derivs_py)
 
 
-def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w_start, w_end, u_abs, us_abs,
-                         omegas, amps, T, order, out):
-    """Bounds on ``|d^m y_k/dt^m|`` over an interval of length ``T`` (s), for ``m <= order``.
+def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs, us_abs,
+                         omegas, amps, order, ub, wu, out):
+    """Bounds on ``|d^m y_k/dt^m|`` over ``[tau, Th]`` (s) for ``m <= order``.
 
-    ``yh`` is the homogeneous-plus-hold part at the start, ``w_start``/``w_end`` the held
-    input terms ``W u`` at both ends, ``u_abs``/``us_abs`` bounds on the held inputs and their
-    slope. The bound on ``|yh_k|`` is ``exp(max(Re lam_k, 0) T) (|yh_k| + T max|W u|_k)``.
+    ``yh`` is the homogeneous-plus-hold part at ``tau``; the held input term is
+    ``W u = w0 + ws t``; ``u_abs``/``us_abs`` bound the held inputs and their slope; ``ub`` and
+    ``wu`` are scratch arrays. With ``T = Th - tau`` the bound on ``|yh_k|`` is
+    ``exp(max(Re lam_k, 0) T) (|yh_k| + T max|W u|_k)``, and
+    ``|y^(m)| <= |lam|^m |y| + sum_j |lam|^(m-1-j) |W u^(j)|``.
     """
     n2 = lam.size
     nf = W.shape[1]
     nh = omegas.size
-    # bounds on |d^j u_f/dt^j|
-    ub = np.zeros((order + 1, nf))
+    T = Th - tau
+    for j in range(order + 1):
+        for f in range(nf):
+            ub[j, f] = 0.0
     for f in range(nf):
         ub[0, f] = u_abs[f]
         if order >= 1:
@@ -160,12 +164,10 @@ def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w_start, w_end, u_ab
                 p *= omegas[h]
     for k in range(n2):
         grow = np.exp(max(lam[k].real, 0.0) * T)
-        b = grow * (abs(yh[k]) + T * max(abs(w_start[k]), abs(w_end[k])))
+        b = grow * (abs(yh[k]) + T * max(abs(w0[k] + ws[k] * tau), abs(w0[k] + ws[k] * Th)))
         for h in range(nh):
             b += abs(part_plus[h, k]) + abs(part_minus[h, k])
         lk = abs(lam[k])
-        # |y^(m)| <= |lam|^m b + sum_j |lam|^(m-1-j) |W u^(j)|
-        wu = np.zeros(order + 1)
         for j in range(order + 1):
             s = 0.0
             for f in range(nf):
@@ -334,13 +336,14 @@ fn_third_bound = njit(cache=True)(fn_third_bound_py)
 
 
 def fn_at_py(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
-             rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X):
-    """Event function values ``(f, f', f'')`` at ``t_cur + tau`` (fills the work arrays)."""
+             rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau, uder, yd, X):
+    """Event function ``(f + shift, f', f'')`` at ``t_cur + tau`` (fills the work arrays)."""
     order = 4 if fid == FN_RELEASE else 2
     point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
                order, yh_tau, y_tau, uder, yd)
     row_derivs(rows, n_rows, yd, order, X)
-    return fn_values(fid, X, z, v, tau, limit, normal)
+    f0, f1, f2 = fn_values(fid, X, z, v, tau, limit, normal)
+    return f0 + shift, f1, f2
 
 
 fn_at = njit(cache=True)(fn_at_py)
@@ -348,7 +351,7 @@ fn_at = njit(cache=True)(fn_at_py)
 
 def scan_py(fid, Th, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
             rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X, ybound, u_abs,
-            us_abs):
+            us_abs, ub, wu, grace):
     """First time in ``(0, Th]`` where event function ``fid`` reaches zero from above.
 
     Returns the time into the interval (s), ``-1`` if there is none, or ``-2`` if the
@@ -357,10 +360,24 @@ def scan_py(fid, Th, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, a
     """
     nf = u0.size
     tau = 0.0
+    shift = 0.0
+    if grace:
+        # Just stuck or released: contact force and relative motion vanish to round-off and
+        # the boundary we start on is being left. Shift it by a negligible physical amount so
+        # that round-off cannot create a contact (1e-9 of the clearance, or of the housing
+        # acceleration for the release function).
+        if fid == FN_RELEASE:
+            fn_at(fid, 0.0, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
+                  us, rows, n_rows, z, v, limit, normal, 0.0, yh_tau, y_tau, uder, yd, X)
+            shift = 1e-9 * (abs(X[2, 0]) + abs(X[2, 1])) + 1e-300
+        elif fid == FN_PLANAR:
+            shift = 1e-9 * limit * limit
+        else:
+            shift = 1e-9 * limit
     for _ in range(_MAX_SCAN):
         f0, f1, f2 = fn_at(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
-                           amps, u0, us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau,
-                           uder, yd, X)
+                           amps, u0, us, rows, n_rows, z, v, limit, normal, shift, yh_tau,
+                           y_tau, uder, yd, X)
         if f0 <= 0.0:
             if tau == 0.0 and (f1 > 0.0 or (f1 == 0.0 and f2 > 0.0)):
                 f0 = 1e-300  # leaving the boundary we start on
@@ -370,31 +387,31 @@ def scan_py(fid, Th, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, a
         for f in range(nf):
             u_abs[f] = max(abs(u0[f] + us[f] * tau), abs(u0[f] + us[f] * Th))
             us_abs[f] = abs(us[f])
-        derivative_bounds(yh_tau, lam, W, part_plus, part_minus, w0 + ws * tau, w0 + ws * Th,
-                          u_abs, us_abs, omegas, amps, T, 5 if fid == FN_RELEASE else 3, ybound)
+        derivative_bounds(yh_tau, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs,
+                          us_abs, omegas, amps, 5 if fid == FN_RELEASE else 3, ub, wu, ybound)
         g3 = fn_third_bound(fid, X, z, v, tau, limit, ybound, rows, n_rows, T)
         s = cubic_safe_step(f0, f1, f2, g3, T)
         if s >= T:
             return -1.0
         probe = tau + min(T, max(2.0 * s, 1e-3 * T))
         fp, _, _ = fn_at(fid, probe, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
-                         amps, u0, us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder,
-                         yd, X)
+                         amps, u0, us, rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau,
+                         uder, yd, X)
         if fp <= 0.0:
             return refine(fid, tau + s, probe, t_cur, yh, lam, W, w0, ws, part_plus,
                           part_minus, omegas, amps, u0, us, rows, n_rows, z, v, limit, normal,
-                          yh_tau, y_tau, uder, yd, X)
+                          shift, yh_tau, y_tau, uder, yd, X)
         tau = tau + s
     return -2.0
 
 
 def refine_py(fid, a, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
-              us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X):
+              us, rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau, uder, yd, X):
     """Illinois regula falsi on a bracket with ``f(a) > 0 >= f(b)``; returns the ``b`` side."""
     fa, _, _ = fn_at(fid, a, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
-                     us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X)
+                     us, rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau, uder, yd, X)
     fb, _, _ = fn_at(fid, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
-                     us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X)
+                     us, rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau, uder, yd, X)
     if fa <= 0.0:
         return a
     side = 0
@@ -406,7 +423,8 @@ def refine_py(fid, a, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omega
         if not (a < c < b):
             c = 0.5 * (a + b)
         fc, _, _ = fn_at(fid, c, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps,
-                         u0, us, rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X)
+                         u0, us, rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau, uder,
+                         yd, X)
         if fc > 0.0:
             a = c
             fa = fc
@@ -487,15 +505,27 @@ def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
 ledger_panel = njit(cache=True)(ledger_panel_py)
 
 
+
+def housing_velocity_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t,
+                        rows, n_rows, yh_tau, y_tau, uder, yd, X):
+    """Housing displacement and velocity rows at ``t`` from the current state into ``X``."""
+    point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t, 0.0, 1,
+               yh_tau, y_tau, uder, yd)
+    row_derivs(rows, n_rows, yd, 1, X)
+
+
+housing_velocity = njit(cache=True)(housing_velocity_py)
+
+
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                yh, lam, W, Vq, Vv, part_plus, part_minus, sensor_q, sensor_v,
                house_q, kick, mobility,
                imp_dim, imp_mass, imp_cor, imp_limit,
-               imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_last_wall, imp_rel,
+               imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_last_wall, imp_rel, imp_grace,
                stick_rule, stick_time, max_events_per_step,
                ledger_on, Cmat, Kskew, Bmat, ledger,
                out_disp, out_vel, out_acc,
-               ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_count, info):
+               ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, info):
     """Advance the model with its impactors over grid steps ``k_start .. n_steps-1``.
 
     Step ``k`` ends at ``t_base + (k + 1) h`` where sensor outputs are recorded; the
@@ -514,9 +544,12 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
     yd = np.empty((order_max + 1, n2), dtype=np.complex128)
     uder = np.empty((order_max + 1, nf))
     X = np.zeros((order_max + 1, 2))
+    Xa = np.zeros((order_max + 1, 2))
     ybound = np.empty((order_max + 1, n2))
     u_abs = np.empty(nf)
     us_abs = np.empty(nf)
+    ub = np.empty((order_max + 1, nf))
+    wu = np.empty(order_max + 1)
     w0 = np.empty(n2, dtype=np.complex128)
     ws = np.empty(n2, dtype=np.complex128)
     u0 = np.empty(nf)
@@ -560,7 +593,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                     te = scan(fid, best, t_cur, yh, lam, W, w0, ws, part_plus, part_minus,
                               omegas, amps, u0, us, house_q[j], n_rows, imp_z[j], imp_v[j],
                               imp_limit[j], imp_normal[j], yh_tau, y_tau, uder, yd, X, ybound,
-                              u_abs, us_abs)
+                              u_abs, us_abs, ub, wu, imp_grace[j] == 1)
                     if te == -2.0:
                         info[2] += 1
                     elif te >= 0.0 and (te < best or best_j < 0):
@@ -581,6 +614,9 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                     for r in range(imp_dim[j]):
                         imp_z[j, r] += imp_v[j, r] * tau
             t_cur = t_cur + tau if best_j >= 0 else t_b
+            if tau > 0.0:
+                for j in range(ni):
+                    imp_grace[j] = 0
             if best_j < 0:
                 break
             # ---- an event at t_cur for impactor j
@@ -591,8 +627,15 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                 t_state[0] = t_cur
                 info[0] = k
                 return BUFFER_FULL
+            count_step[j] += 1
+            if count_step[j] > 4 * max_events_per_step + 16:
+                t_state[0] = t_cur
+                info[0] = k
+                info[1] = j
+                return CHATTER
             if best_fid == FN_RELEASE:
                 imp_stuck[j] = 0
+                imp_grace[j] = 1
                 for r in range(n_rows):
                     imp_z[j, r] = X[0, r] + imp_rel[j, r]
                     imp_v[j, r] = X[1, r]
@@ -606,6 +649,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                 ev_vn[e] = 0.0
                 ev_J[e] = 0.0
                 ev_loss[e] = 0.0
+                ev_after[e, 0] = 0.0
+                ev_after[e, 1] = 0.0
                 ev_count[0] = e + 1
                 t_state[0] = t_cur
                 info[0] = k
@@ -645,7 +690,6 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                     if n_rows == 2:
                         yh[i] += kick[j, 1, i] * (J * nrm1)
                 ledger[0] += loss
-                count_step[j] += 1
                 if count_step[j] > info[3]:
                     info[3] = count_step[j]
                 e = ev_count[0]
@@ -657,7 +701,19 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                 ev_vn[e] = v_n
                 ev_J[e] = J
                 ev_loss[e] = loss
+                vh0 = X[1, 0]
+                vh1 = X[1, 1] if n_rows == 2 else 0.0
+                housing_velocity(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
+                                 us, t_cur, house_q[j], n_rows, yh_tau, y_tau, uder, yd, Xa)
+                vh0a = Xa[1, 0]
+                vh1a = Xa[1, 1] if n_rows == 2 else 0.0
+                ev_after[e, 0] = (nrm0 * (imp_v[j, 0] - vh0a)
+                                  + nrm1 * ((imp_v[j, 1] - vh1a) if n_rows == 2 else 0.0))
+                ev_after[e, 1] = nrm0 * (vh0a - vh0) + nrm1 * (vh1a - vh1)
                 ev_count[0] = e + 1
+                # the lock below needs the housing velocity after this impulse
+                X[1, 0] = vh0a
+                X[1, 1] = vh1a
             # sticking: bounce-down detected, or a contact without closing velocity
             stick = v_n <= 0.0
             if same_wall and v_n > 0.0:
@@ -671,7 +727,18 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
             imp_last_t[j] = t_cur
             imp_normal[j, 0] = nrm0
             imp_normal[j, 1] = nrm1
-            pushes = (nrm0 * X[2, 0] + (nrm1 * X[2, 1] if n_rows == 2 else 0.0)) < 0.0
+            # Will the contact persist? The normal contact force per unit mass is -n . a_h, plus
+            # v_t^2/c for an impactor sliding round a cylindrical housing.
+            a_n = nrm0 * X[2, 0] + (nrm1 * X[2, 1] if n_rows == 2 else 0.0)
+            centripetal = 0.0
+            if n_rows == 2:
+                wr0 = imp_v[j, 0] - X[1, 0]
+                wr1 = imp_v[j, 1] - X[1, 1]
+                wn = nrm0 * wr0 + nrm1 * wr1
+                centripetal = (wr0 * wr0 + wr1 * wr1 - wn * wn) / imp_limit[j]
+            pushes = centripetal - a_n > 0.0
+            if count_step[j] > max_events_per_step:
+                pushes = True  # chatter: complete it plastically; release follows if not pressed
             if stick and pushes:
                 # plastic completion of the bounce-down: cancel the relative velocity
                 vr0 = imp_v[j, 0] - X[1, 0]
@@ -696,6 +763,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                         yh[i] += kick[j, 1, i] * P1
                 ledger[1] += lock_loss
                 imp_stuck[j] = 1
+                imp_grace[j] = 1
                 if n_rows == 1:
                     imp_rel[j, 0] = nrm0 * imp_limit[j]
                 else:
@@ -715,16 +783,17 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                 ev_vn[e] = nrm0 * vr0 + nrm1 * vr1
                 ev_J[e] = np.sqrt(P0 * P0 + P1 * P1)
                 ev_loss[e] = lock_loss
+                housing_velocity(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
+                                 us, t_cur, house_q[j], n_rows, yh_tau, y_tau, uder, yd, Xa)
+                ev_after[e, 0] = nrm0 * (imp_v[j, 0] - Xa[1, 0]) + (
+                    nrm1 * (imp_v[j, 1] - Xa[1, 1]) if n_rows == 2 else 0.0)
+                ev_after[e, 1] = nrm0 * (Xa[1, 0] - X[1, 0]) + (
+                    nrm1 * (Xa[1, 1] - X[1, 1]) if n_rows == 2 else 0.0)
                 ev_count[0] = e + 1
                 t_state[0] = t_cur
                 info[0] = k
                 info[1] = j
                 return CONFIG_CHANGE
-            if count_step[j] > 4 * max_events_per_step + 16:
-                t_state[0] = t_cur
-                info[0] = k
-                info[1] = j
-                return CHATTER
         # ---- end of step k: record outputs at t_b
         for f in range(nf):
             u0[f] = u_grid[k + 1, f]

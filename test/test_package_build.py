@@ -1,0 +1,349 @@
+"""The package builds with colcon and installs where ROS 2 tools look for it.
+
+Two groups of checks:
+
+* ``colcon``-marked tests build a copy of the source tree with ``colcon build`` into a temporary
+  directory (once per module, a few seconds) and inspect the install space: console scripts in
+  ``lib/<pkg>/`` (where ``ros2 run`` looks), ``config/`` and ``package.xml`` under
+  ``share/<pkg>/``, the ament index marker, every Python module, and a working ``study --help``.
+* Static checks (no build) of ``package.xml``, ``setup.cfg``, ``setup.py`` and the package layout.
+
+colcon comes from ``requirements.txt`` (``colcon-common-extensions``). If it is missing from the
+environment running pytest, the build tests fail rather than skip.
+"""
+import ast
+import configparser
+import filecmp
+import os
+from pathlib import Path
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+import pytest
+
+PKG = 'impact_damper_sim'
+ROOT = Path(__file__).resolve().parents[1]
+
+# Not copied into the build: local environments, colcon output, VCS and caches.
+_SKIP_AT_ROOT = {'.venv', 'build', 'install', 'log', '.git', 'out'}
+_SKIP_ANYWHERE = {'__pycache__', '.pytest_cache', '.mypy_cache', '.ruff_cache'}
+_SKIP_SUFFIXES = ('.egg-info', '.pyc', '.mcap')
+
+# A file the build copy gets under config/, two levels deep, so that the recursive data_files
+# rule in setup.py is exercised even while config/ holds no (or only flat) files.
+_CONFIG_PROBE = Path('config') / '_build_probe' / 'nested' / 'probe.txt'
+
+REQUIRED_EXEC_DEPENDS = {
+    'rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'diagnostic_msgs', 'rosgraph_msgs',
+    'python3-numpy', 'python3-scipy',
+    'python3-numba',  # rosdistro has no pip key for numba; see the comment in package.xml
+    'mcap-ros2-support',
+}
+REQUIRED_TEST_DEPENDS = {'python3-pytest'}
+
+
+# --------------------------------------------------------------------------- helpers
+
+def _setup_call(setup_py=ROOT / 'setup.py'):
+    """Return the ``setup(...)`` call node of setup.py, parsed without executing it."""
+    tree = ast.parse(setup_py.read_text(), filename=str(setup_py))
+    calls = [
+        node for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and ((isinstance(node.func, ast.Name) and node.func.id == 'setup')
+             or (isinstance(node.func, ast.Attribute) and node.func.attr == 'setup'))
+    ]
+    assert len(calls) == 1, f'expected exactly one setup(...) call in setup.py, found {len(calls)}'
+    return calls[0]
+
+
+def _setup_kwarg(name):
+    for kw in _setup_call().keywords:
+        if kw.arg == name:
+            return kw.value
+    raise AssertionError(f'setup.py: setup() has no {name}= keyword')
+
+
+def _console_scripts():
+    """Map script name -> 'module:func' from setup.py's entry_points literal."""
+    entry_points = ast.literal_eval(_setup_kwarg('entry_points'))
+    scripts = {}
+    for spec in entry_points.get('console_scripts', []):
+        name, sep, target = spec.partition('=')
+        assert sep, f'malformed console_scripts entry {spec!r}'
+        scripts[name.strip()] = target.strip()
+    return scripts
+
+
+def _ignore(root):
+    def ignore(directory, names):
+        skipped = set()
+        for name in names:
+            if Path(directory) == root and name in _SKIP_AT_ROOT:
+                skipped.add(name)
+            elif name in _SKIP_ANYWHERE or name.endswith(_SKIP_SUFFIXES):
+                skipped.add(name)
+        return skipped
+    return ignore
+
+
+def _files_under(directory):
+    return sorted(p.relative_to(directory) for p in directory.rglob('*') if p.is_file())
+
+
+def _colcon_env(venv_bin):
+    env = dict(os.environ)
+    env['PATH'] = os.pathsep.join([str(venv_bin), env.get('PATH', '')])
+    env['AMENT_PREFIX_PATH'] = sys.prefix
+    # Keep a developer's ~/.colcon/defaults.yaml (e.g. --symlink-install) out of the build.
+    for var in ('COLCON_DEFAULTS_FILE', 'COLCON_HOME', 'COLCON_LOG_PATH', 'PYTHONPATH'):
+        env.pop(var, None)
+    return env
+
+
+# --------------------------------------------------------------------------- the build
+
+@pytest.fixture(scope='module')
+def built(tmp_path_factory):
+    """Build a copy of the source tree with colcon; return the package's install prefix."""
+    venv_bin = Path(sys.executable).parent
+    colcon = venv_bin / 'colcon'
+    if not (colcon.is_file() and os.access(colcon, os.X_OK)):
+        pytest.fail(
+            f'colcon not found at {colcon}. It comes from requirements.txt '
+            f'(colcon-common-extensions, with ros-jazzy-ament-package): run `make test`, or '
+            f'`{sys.executable} -m pip install -r requirements.txt -c constraints.txt`.',
+            pytrace=False,
+        )
+
+    tmp = tmp_path_factory.mktemp('colcon')
+    src = tmp / 'src' / PKG
+    shutil.copytree(ROOT, src, symlinks=False, ignore=_ignore(ROOT))
+    probe = src / _CONFIG_PROBE
+    probe.parent.mkdir(parents=True)
+    probe.write_text('written by test/test_package_build.py\n')
+    (tmp / 'colcon_home').mkdir()
+    env = _colcon_env(venv_bin)
+    env['COLCON_HOME'] = str(tmp / 'colcon_home')
+
+    cmd = [
+        str(colcon), '--log-base', str(tmp / 'log'), 'build',
+        '--base-paths', str(src),
+        '--build-base', str(tmp / 'build'),
+        '--install-base', str(tmp / 'install'),
+        '--event-handlers', 'console_cohesion+',
+    ]
+    proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True, timeout=300)
+    if proc.returncode != 0:
+        pytest.fail(
+            f'colcon build failed (exit {proc.returncode}): {" ".join(cmd)}\n'
+            f'--- stdout ---\n{proc.stdout}\n--- stderr ---\n{proc.stderr}',
+            pytrace=False,
+        )
+    prefix = tmp / 'install' / PKG
+    assert prefix.is_dir(), f'colcon succeeded but {prefix} is missing:\n{proc.stdout}'
+    return {'tmp': tmp, 'src': src, 'prefix': prefix, 'env': env}
+
+
+def _site_packages(prefix):
+    found = sorted(prefix.glob('lib/python3*/site-packages'))
+    assert len(found) == 1, f'expected one lib/python3.*/site-packages under {prefix}: {found}'
+    return found[0]
+
+
+@pytest.mark.colcon
+def test_colcon_build_succeeds(built):
+    marker = built['prefix'] / 'share' / 'colcon-core' / 'packages' / PKG
+    assert marker.is_file(), f'colcon did not register {PKG} in its install space'
+
+
+@pytest.mark.colcon
+def test_console_scripts_installed_for_ros2_run(built):
+    scripts = _console_scripts()
+    assert scripts, "setup.py declares no entry_points['console_scripts']"
+    libexec = built['prefix'] / 'lib' / PKG
+    for name in scripts:
+        path = libexec / name
+        assert path.is_file(), (
+            f'console script {name!r} is not at {path}; `ros2 run {PKG} {name}` looks there '
+            f'(setup.cfg [install] install_scripts). lib/{PKG}/ holds: '
+            f'{sorted(p.name for p in libexec.iterdir()) if libexec.is_dir() else "nothing"}'
+        )
+        assert os.access(path, os.X_OK), f'{path} is not executable'
+        assert path.read_text().startswith('#!'), f'{path} has no shebang line'
+
+
+@pytest.mark.colcon
+def test_config_package_xml_and_ament_index_installed(built):
+    src, share = built['src'], built['prefix'] / 'share'
+    config_files = _files_under(src / 'config')
+    assert _CONFIG_PROBE.relative_to('config') in config_files
+    missing, differ = [], []
+    for rel in config_files:
+        installed = share / PKG / 'config' / rel
+        if not installed.is_file():
+            missing.append(str(rel))
+        elif not filecmp.cmp(src / 'config' / rel, installed, shallow=False):
+            differ.append(str(rel))
+    assert not missing, f'config files not installed under share/{PKG}/config/: {missing}'
+    assert not differ, f'installed config files differ from the source: {differ}'
+
+    assert (share / PKG / 'package.xml').is_file(), f'share/{PKG}/package.xml is missing'
+    marker = share / 'ament_index' / 'resource_index' / 'packages' / PKG
+    assert marker.is_file(), (
+        f'ament index marker {marker.relative_to(built["prefix"])} is missing: '
+        f'ament_index_python (and `ros2 pkg`/`ros2 run`) will not find the package'
+    )
+
+
+@pytest.mark.colcon
+def test_every_module_installed(built):
+    """find_packages silently drops a directory without __init__.py; nothing may go missing."""
+    src_pkg = built['src'] / PKG
+    inst_pkg = _site_packages(built['prefix']) / PKG
+    source = {p for p in _files_under(src_pkg) if p.suffix == '.py'}
+    installed = {p for p in _files_under(inst_pkg) if p.suffix == '.py'}
+    assert not source - installed, f'modules not installed: {sorted(map(str, source - installed))}'
+
+
+@pytest.mark.colcon
+def test_installed_study_runs(built):
+    prefix = built['prefix']
+    site = _site_packages(prefix)
+    env = dict(built['env'])
+    env['PYTHONPATH'] = str(site)
+    env['AMENT_PREFIX_PATH'] = os.pathsep.join([str(prefix), sys.prefix])
+    env.pop('COLCON_HOME', None)
+
+    # The installed copy, not the editable checkout, must be the one imported.
+    where = subprocess.run(
+        [sys.executable, '-c', f'import {PKG}; print({PKG}.__file__)'],
+        cwd=built['tmp'], env=env, capture_output=True, text=True, timeout=60,
+    )
+    assert where.returncode == 0, where.stderr
+    assert Path(where.stdout.strip()).is_relative_to(site), (
+        f'{PKG} imported from {where.stdout.strip()}, not from the install space {site}'
+    )
+
+    study = prefix / 'lib' / PKG / 'study'
+    proc = subprocess.run(
+        [str(study), '--help'],
+        cwd=built['tmp'], env=env, capture_output=True, text=True, timeout=60,
+    )
+    assert proc.returncode == 0, (
+        f'`{study} --help` exited {proc.returncode}\n'
+        f'--- stdout ---\n{proc.stdout}\n--- stderr ---\n{proc.stderr}'
+    )
+    assert proc.stdout.strip(), '`study --help` printed nothing'
+
+
+# --------------------------------------------------------------------------- static checks
+
+def _package_xml():
+    return ET.parse(ROOT / 'package.xml').getroot()
+
+
+def test_package_xml_format_and_build_type():
+    root = _package_xml()
+    assert root.tag == 'package' and root.get('format') == '3', 'package.xml must be format 3'
+    assert root.findtext('name') == PKG
+    assert [e.text for e in root.findall('export/build_type')] == ['ament_python']
+
+
+def test_package_xml_matches_setup_py():
+    root = _package_xml()
+    assert ast.literal_eval(_setup_kwarg('version')) == root.findtext('version')
+    name = _setup_kwarg('name')
+    if isinstance(name, ast.Name):  # name=package_name
+        tree = ast.parse((ROOT / 'setup.py').read_text())
+        values = [
+            node.value for node in tree.body
+            if isinstance(node, ast.Assign)
+            and any(isinstance(t, ast.Name) and t.id == name.id for t in node.targets)
+        ]
+        assert len(values) == 1, f'cannot resolve setup(name={name.id})'
+        name = values[0]
+    assert ast.literal_eval(name) == root.findtext('name') == PKG
+
+
+def test_package_xml_dependencies():
+    root = _package_xml()
+    exec_deps = {e.text.strip() for e in root.findall('exec_depend')}
+    exec_deps |= {e.text.strip() for e in root.findall('depend')}
+    test_deps = {e.text.strip() for e in root.findall('test_depend')}
+    assert not REQUIRED_EXEC_DEPENDS - exec_deps, (
+        f'package.xml lacks exec_depend: {sorted(REQUIRED_EXEC_DEPENDS - exec_deps)}'
+    )
+    assert not REQUIRED_TEST_DEPENDS - test_deps, (
+        f'package.xml lacks test_depend: {sorted(REQUIRED_TEST_DEPENDS - test_deps)}'
+    )
+
+
+def test_setup_cfg_installs_scripts_for_ros2_run():
+    cfg = configparser.ConfigParser(interpolation=None)
+    cfg.read(ROOT / 'setup.cfg')
+    assert cfg.get('install', 'install_scripts', fallback=None) == f'$base/lib/{PKG}'
+    assert cfg.get('develop', 'script_dir', fallback=None) == f'$base/lib/{PKG}'
+
+
+def test_setup_py_packages_and_test_extra():
+    packages = _setup_kwarg('packages')
+    assert (isinstance(packages, ast.Call) and isinstance(packages.func, ast.Name)
+            and packages.func.id == 'find_packages'), 'setup(packages=...) must be find_packages()'
+    exclude = {kw.arg: kw.value for kw in packages.keywords}.get('exclude')
+    assert exclude is not None, 'find_packages() must exclude the test directory'
+    assert 'test' in ast.literal_eval(exclude)
+
+    extras = ast.literal_eval(_setup_kwarg('extras_require'))
+    test_reqs = [r.split(';')[0].strip() for r in extras.get('test', [])]
+    assert any(r.split('[')[0].split('=')[0].split('<')[0].split('>')[0].strip() == 'pytest'
+               for r in test_reqs), (
+        "setup.py needs extras_require={'test': ['pytest']} (colcon test relies on it)"
+    )
+
+
+def _imports_rclpy(tree):
+    def is_rclpy(module):
+        return module == 'rclpy' or module.startswith('rclpy.')
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import) and any(is_rclpy(a.name) for a in node.names):
+            yield node.lineno
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and is_rclpy(node.module or ''):
+            yield node.lineno
+        elif (isinstance(node, ast.Call) and node.args
+              and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str)
+              and is_rclpy(node.args[0].value)
+              and ((isinstance(node.func, ast.Name) and node.func.id == '__import__')
+                   or (isinstance(node.func, ast.Attribute)
+                       and node.func.attr == 'import_module'))):
+            yield node.lineno
+
+
+def test_only_ros_subpackage_imports_rclpy():
+    pkg = ROOT / PKG
+    offenders = []
+    for path in sorted(pkg.rglob('*.py')):
+        rel = path.relative_to(pkg)
+        if rel.parts[0] == 'ros' or '__pycache__' in rel.parts:
+            continue
+        tree = ast.parse(path.read_text(), filename=str(path))
+        offenders += [f'{PKG}/{rel}:{line}' for line in _imports_rclpy(tree)]
+    assert not offenders, f'rclpy imported outside {PKG}/ros/: {offenders}'
+
+
+def test_every_subpackage_has_init():
+    pkg = ROOT / PKG
+    missing = []
+    for directory in sorted(d for d in [pkg, *pkg.rglob('*')] if d.is_dir()):
+        rel = directory.relative_to(ROOT)
+        if any(part == '__pycache__' or part.startswith('.') for part in rel.parts):
+            continue
+        has_python = any(p.suffix == '.py' for p in directory.rglob('*.py')
+                         if '__pycache__' not in p.parts)
+        if has_python and not (directory / '__init__.py').is_file():
+            missing.append(str(rel))
+    assert not missing, (
+        f'directories with Python code but no __init__.py (find_packages drops them): {missing}'
+    )
