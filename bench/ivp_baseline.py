@@ -257,7 +257,8 @@ class Result:
         Energy dissipated by impacts, ``sum 0.5 m_red (1 - e^2) v_rel^2`` (``e = 0`` for the
         plastic ones) (J).
     n_restarts : int
-        Number of ``solve_ivp`` calls (one per flight or stuck phase, plus retries).
+        Number of flight and stuck-phase ``solve_ivp`` calls (the first run and one restart
+        per impact, stick or release); re-steps and graze checks are counted separately.
     n_rhs, n_jac, n_lu : int
         Right-hand-side evaluations, Jacobian evaluations and LU decompositions summed over
         all calls.

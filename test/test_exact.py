@@ -165,12 +165,14 @@ def test_free_decay_shows_bounce_down_then_impact_failure():
     events = prop.take_events()
     kinds = events['kind']
     assert np.sum(kinds == STICK) >= 3 and np.sum(kinds == RELEASE) >= 3
-    last_impact = events['t'][kinds == IMPACT].max()
-    after = samples.t > last_impact
-    # impact failure: still vibrating after the last impact, with amplitude below D/2
-    x_after = samples.displacement[after, 0]
-    assert samples.t[-1] - last_impact > 1.0
-    assert 0 < refined_peak(x_after) < 2e-3
+    # bounce-down happens early, at high amplitude
+    assert events['t'][kinds == STICK].min() < 1.0
+    # impact failure: over the last 4 s fewer than 0.2 impacts per cycle (regular impacting
+    # would be 2), with the structure's amplitude below D/2
+    f_n = np.sqrt(K / M) / (2 * np.pi)
+    late = events['t'][kinds == IMPACT] > samples.t[-1] - 4.0
+    assert np.sum(late) / (4.0 * f_n) < 0.2
+    assert 0 < refined_peak(samples.displacement[samples.t > samples.t[-1] - 4.0, 0]) < 1e-3
 
 
 def test_paper_and_accumulation_rules_both_stick():
@@ -239,10 +241,11 @@ def test_glancing_impacts_grow_by_one_over_cor():
     # chord meets the next wall at the angle it left the last one, so the incidence angle obeys
     # tan(a_{k+1}) = tan(a_k)/e exactly. This is why a planar impactor drifts into rolling
     # round its housing (paper section 2.4). Checked to 1e-9 over 6 impacts.
-    e, a0 = 0.8, np.radians(10.0)
+    e, c = 0.8, 1e-3
+    a0 = np.arcsin(0.2)  # started off-centre by 0.2 c, moving parallel to the y axis
     model = planar_model(1e12, 1e12 * 1e4, 0.0,
-                         dict(name='p', kind='planar', mass=0.1, cor=e, clearance=1e-3,
-                              velocity=[np.cos(a0), np.sin(a0)]))
+                         dict(name='p', kind='planar', mass=0.1, cor=e, clearance=c,
+                              position=[0.0, 0.2 * c], velocity=[1.0, 0.0]))
     prop = ExactPropagator(model, Forcing(2), dt=1e-4, stick_rule='none')
     prop.advance(2000)
     ev = prop.take_events()

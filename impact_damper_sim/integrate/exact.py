@@ -15,6 +15,36 @@ from .kernels import exact as kernels
 from .events import EVENT_DTYPE, EnergyLedger, Samples, STICK_RULES
 from .flow import build_flow
 
+class MassUpdate:
+    """Stuck impactors add their mass to the housing rows of the free coordinates.
+
+    The configuration-provider interface of :class:`ExactPropagator`:
+
+    * ``model(stuck)`` returns ``(LinearModel, stuck_masses)`` for a tuple of stuck flags:
+      the model whose coordinates the flow uses and the masses to add to its housing rows;
+    * ``transform(stuck_from, stuck_to)`` returns the matrix mapping coordinates (and
+      velocities) of one configuration to the other, or ``None`` for the identity;
+    * ``structure_energy(stuck, q, qd)`` returns the kinetic plus potential energy of the
+      structure alone (J), without the stuck impactors' kinetic energy.
+
+    Here the coordinates never change, so switching is exact (no loss).
+    """
+
+    def __init__(self, model):
+        self.base = model
+        self._K_sym = model.K_sym
+
+    def model(self, stuck):
+        masses = tuple(imp.mass if s else 0.0 for imp, s in zip(self.base.impactors, stuck))
+        return self.base, masses
+
+    def transform(self, stuck_from, stuck_to):
+        return None
+
+    def structure_energy(self, stuck, q, qd):
+        return 0.5 * qd @ self.base.M @ qd + 0.5 * q @ self._K_sym @ q
+
+
 _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUMULATION,
                'none': kernels.STICK_NONE}
 
@@ -49,11 +79,15 @@ class ExactPropagator:
         Initial time (s).
     event_capacity : int
         Size of the event buffer flushed between kernel calls.
+    configurations : object, optional
+        How stuck impactors change the model: :class:`MassUpdate` (default, exact) or the
+        paper's second modal basis, :class:`~.basis_switch.BasisSwitch`. ``q0``/``qd0`` are
+        coordinates of the all-free configuration.
     """
 
     def __init__(self, model, forcing, dt, *, law='effective_mass', stick_rule='paper',
                  stick_fraction=0.002, max_events_per_step=64, ledger=True, q0=None, qd0=None,
-                 t0=0.0, event_capacity=4096):
+                 t0=0.0, event_capacity=4096, configurations=None):
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a positive time in s, got {dt}')
         if stick_rule not in STICK_RULES:
@@ -63,6 +97,7 @@ class ExactPropagator:
         if forcing.n_inputs != model.n_inputs:
             raise ValueError(f'forcing has {forcing.n_inputs} inputs, model has {model.n_inputs}')
         self.model = model
+        self.configurations = MassUpdate(model) if configurations is None else configurations
         self.forcing = forcing
         self.dt = float(dt)
         self.law = law
@@ -105,23 +140,24 @@ class ExactPropagator:
         self.n_config_changes = 0
         self.grazing_undecided = 0
         self.max_impacts_per_step = 0
-        self._M_free = model.M
-        self._K_sym = model.K_sym
-        self._K_skew = model.K_skew
         self._initial_energy = self._energy_now()[0] + self._energy_now()[1]
 
     # -- configuration ----------------------------------------------------------------------
-    def _stuck_masses(self):
-        return tuple(float(imp.mass) if s else 0.0
-                     for imp, s in zip(self.model.impactors, self._stuck))
+    def _key(self):
+        return tuple(int(s) for s in self._stuck)
 
     def _config(self):
-        key = tuple(int(s) for s in self._stuck)
-        cfg = self._configs.get(key)
-        if cfg is None:
-            cfg = build_flow(self.model, self._stuck_masses(), self._omegas, self._amps, self.law)
-            self._configs[key] = cfg
-        return cfg
+        key = self._key()
+        entry = self._configs.get(key)
+        if entry is None:
+            model, masses = self.configurations.model(key)
+            entry = (build_flow(model, masses, self._omegas, self._amps, self.law), model)
+            self._configs[key] = entry
+        return entry[0]
+
+    def _config_model(self):
+        self._config()
+        return self._configs[self._key()][1]
 
     def _particular(self, cfg, t):
         yp = np.zeros(cfg.lam.size, dtype=complex)
@@ -152,7 +188,7 @@ class ExactPropagator:
         ni = len(self.model.impactors)
         rel = np.zeros((ni, 2))
         vel = np.zeros((ni, 2))
-        for j, imp in enumerate(self.model.impactors):
+        for j, imp in enumerate(self._config_model().impactors):
             d = imp.dim
             x_h = imp.rows @ q
             v_h = imp.rows @ qd
@@ -166,7 +202,7 @@ class ExactPropagator:
 
     def _energy_now(self):
         q, qd = self.state()
-        structure = 0.5 * qd @ self._M_free @ qd + 0.5 * q @ self._K_sym @ q
+        structure = self.configurations.structure_energy(self._key(), q, qd)
         _, vel, _ = self.impactor_states()
         impactors = 0.5 * float(np.sum(self._imp_mass * np.sum(vel * vel, axis=1))) \
             if self._imp_mass.size else 0.0
@@ -220,10 +256,11 @@ class ExactPropagator:
         ev_loss = np.empty(self._cap)
         ev_after = np.empty((self._cap, 2))
         ev_count = np.zeros(1, dtype=np.int64)
-        model = self.model
         rule = _RULE_CODES[self.stick_rule]
         while True:
+            key = self._key()
             cfg = self._config()
+            model = self._config_model()
             ev_count[0] = 0
             status = kernels.advance(
                 t_state, t_base, self.dt, k, n_steps, u_grid, self._omegas, self._amps,
@@ -232,7 +269,7 @@ class ExactPropagator:
                 cfg.mobility, self._imp_dim, self._imp_mass, self._imp_cor, self._imp_limit,
                 self._imp_z, self._imp_v, self._stuck, self._imp_normal, self._imp_last_t,
                 self._imp_last_wall, self._imp_rel, self._imp_grace, rule, self.stick_time,
-                self.max_events_per_step, self.ledger_on, model.C, self._K_skew, model.B,
+                self.max_events_per_step, self.ledger_on, model.C, model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
                 ev_after, ev_count, self._info)
             m = int(ev_count[0])
@@ -254,7 +291,7 @@ class ExactPropagator:
             if status == kernels.DONE:
                 break
             if status == kernels.CONFIG_CHANGE:
-                self._switch(float(t_state[0]), cfg)
+                self._switch(float(t_state[0]), cfg, key)
                 continue
             if status == kernels.BUFFER_FULL:
                 continue
@@ -266,10 +303,13 @@ class ExactPropagator:
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
 
-    def _switch(self, t_event, old_cfg):
-        """Carry the physical state across a change of the stuck set (exact: same q, qd)."""
+    def _switch(self, t_event, old_cfg, old_key):
+        """Carry the state across a change of the stuck set (same coordinates by default)."""
         y = self._yh + self._particular(old_cfg, t_event)
         q, qd = old_cfg.from_state(y)
+        T = self.configurations.transform(old_key, self._key())
+        if T is not None:
+            q, qd = T @ q, T @ qd
         new_cfg = self._config()
         self._yh = new_cfg.to_state(q, qd) - self._particular(new_cfg, t_event)
         self.n_config_changes += 1

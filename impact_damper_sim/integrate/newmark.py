@@ -29,6 +29,7 @@ round-off, not O(dt^2).
 from __future__ import annotations
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -48,18 +49,26 @@ _SPARSE_MIN_N = 400
 _EPS = np.finfo(float).eps
 
 
-def _omega_max(M, C, K):
-    """Largest ``|lambda|`` of the first-order system (1/s): sets the paper's stick time."""
+def _omega_max(M, C, K, sparse):
+    """Largest ``|lambda|`` of the first-order system (1/s): sets the paper's stick time.
+
+    Up to 200 coordinates this is the exact propagator's definition (eigenvalues of the
+    state matrix). Larger models use the highest undamped frequency of ``(K_sym, M)``, which
+    is the same unless the highest modes are overdamped.
+    """
     n = K.shape[0]
-    if n <= 1000:
+    if n <= 200:
         A = np.block([[np.zeros((n, n)), np.eye(n)],
                       [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
         lam = np.linalg.eigvals(A)
         return float(np.max(np.abs(lam))) if lam.size else 1.0
-    # large models: highest undamped mode of the symmetric part
-    w2 = spla.eigsh(sp.csc_matrix(0.5 * (K + K.T)), k=1, M=sp.csc_matrix(M), which='LA',
-                    return_eigenvectors=False)
-    return float(np.sqrt(max(w2[0], 0.0)))
+    K_sym = 0.5 * (K + K.T)
+    if sparse:
+        w2 = spla.eigsh(sp.csc_matrix(K_sym), k=1, M=sp.csc_matrix(M), which='LA',
+                        return_eigenvectors=False)[0]
+    else:
+        w2 = sla.eigh(K_sym, M, eigvals_only=True, subset_by_index=[n - 1, n - 1])[0]
+    return float(np.sqrt(max(w2, 0.0)))
 
 
 def _poly_eval(p, s):
@@ -77,13 +86,16 @@ def _first_crossing(p, H, tol):
     piece is monotone. Returns None when there is no crossing.
     """
     dp = np.arange(1, len(p)) * np.asarray(p[1:])
-    crit = []
-    if np.any(dp != 0.0):
-        for r in np.roots(dp[::-1]):
-            # near-real pairs are kept: an extra cut is harmless, a missing one is not
-            if abs(r.imag) <= 1e-6 * H and 0.0 < r.real < H:
-                crit.append(r.real)
-    knots = [0.0] + sorted(crit) + [H]
+    if len(p) == 4:     # SDOF gap: the critical points of a cubic in closed form
+        crit = _quadratic_roots(dp[2], dp[1], dp[0])
+    else:
+        crit = []
+        if np.any(dp != 0.0):
+            for r in np.roots(dp[::-1]):
+                # near-real pairs are kept: an extra cut is harmless, a missing one is not
+                if abs(r.imag) <= 1e-6 * H:
+                    crit.append(r.real)
+    knots = [0.0] + sorted(c for c in crit if 0.0 < c < H) + [H]
     pa = p[0]
     for a, b in zip(knots[:-1], knots[1:]):
         pb = _poly_eval(p, b)
@@ -94,6 +106,19 @@ def _first_crossing(p, H, tol):
                 return a   # rising from a wall, then turning back before leaving it
         pa = pb
     return None
+
+
+def _quadratic_roots(a, b, c):
+    """Real roots of ``a s^2 + b s + c`` (a double root once), numerically stable."""
+    if a == 0.0:
+        return [-c / b] if b != 0.0 else []
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0:
+        return []
+    qq = -0.5 * (b + np.copysign(np.sqrt(disc), b))
+    if qq == 0.0:
+        return [0.0]
+    return [qq / a, c / qq]
 
 
 def _refine(p, a, b, fa, fb, tol):
@@ -265,7 +290,8 @@ class NewmarkIntegrator:
         self._imp_limit = np.array([imp.limit for imp in model.impactors], dtype=float)
         self._stuck = np.zeros(ni, dtype=np.int64)
         self._configs = {}
-        self.stick_time = stick_fraction * 2 * np.pi / _omega_max(model.M, model.C, model.K)
+        self.stick_time = stick_fraction * 2 * np.pi / _omega_max(model.M, model.C, model.K,
+                                                                 self._sparse)
         self.t = float(t0)
         self._q = np.zeros(n) if q0 is None else np.array(q0, dtype=float).reshape(n)
         self._v = np.zeros(n) if qd0 is None else np.array(qd0, dtype=float).reshape(n)
@@ -572,7 +598,10 @@ class NewmarkIntegrator:
                                          x1[r], xd1[r], H, c[r])
             ah = R @ self._a
             if d == 1:
+                lo, hi = kernels.cubic_range(c[0], H)
                 for s in (1.0, -1.0):
+                    if (hi if s > 0 else -lo) < L and s * c[0, 0] < L:
+                        continue        # this wall is not reached in the step
                     g = np.array([L - s * c[0, 0], -s * c[0, 1], -s * c[0, 2], -s * c[0, 3]])
                     g2 = s * ah[0]                         # g'' from the true acceleration
                     tau = self._gap_event(g, g2, H, tol)
@@ -692,7 +721,11 @@ class NewmarkIntegrator:
         self._imp_last_t[j] = t
         self._imp_normal[j] = 0.0
         self._imp_normal[j, :d] = n_
-        pushes = float(n_ @ ah) < 0.0
+        # the wall must push to keep the contact: -n . a_h > 0, plus on a round wall the
+        # centripetal part |v_t|^2/c of a tangentially sliding impactor (zero for SDOF)
+        vr_now = self._imp_v[j, :d] - R @ self._v
+        v_t = vr_now - (n_ @ vr_now) * n_
+        pushes = float(n_ @ ah) - float(v_t @ v_t) / L < 0.0
         if stick and pushes:
             # plastic completion of the bounce-down: cancel the relative velocity
             vr = self._imp_v[j, :d] - R @ self._v

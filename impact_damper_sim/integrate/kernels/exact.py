@@ -49,13 +49,16 @@ _TWO_PI = 2.0 * np.pi
 def phis_py(z):
     """Return ``((e^z - 1)/z, (e^z - 1 - z)/z^2)`` for complex ``z``, accurate near 0."""
     if abs(z) < 0.2:
-        a = 0j
-        b = 0j
+        # Taylor series; |z|^k/k! < 1e-17 by k = 12 for |z| < 0.2
+        a = 1.0 + 0j
+        b = 0.5 + 0j
         term = 1.0 + 0j
-        for k in range(16):
+        for k in range(1, 14):
+            term *= z / k
             a += term / (k + 1)
             b += term / ((k + 1) * (k + 2))
-            term *= z / (k + 1)
+            if abs(term) < 1e-18:
+                break
         return a, b
     ez = np.exp(z)
     return (ez - 1.0) / z, (ez - 1.0 - z) / (z * z)
@@ -69,6 +72,10 @@ def propagate_py(yh, lam, tau, w0, ws, out):
 
     ``yh' = lam yh + w0 + ws t`` exactly, for ``t`` in ``[0, tau]``.
     """
+    if tau == 0.0:
+        for k in range(lam.size):
+            out[k] = yh[k]
+        return
     for k in range(lam.size):
         z = lam[k] * tau
         f1, f2 = phis(z)
@@ -76,6 +83,19 @@ def propagate_py(yh, lam, tau, w0, ws, out):
 
 
 propagate = njit(cache=True)(propagate_py)
+
+
+def step_factors_py(lam, h, e_h, p1_h, p2_h):
+    """Factors of the flow over a full step ``h`` (s): ``exp(lam h)``, ``h phi1``, ``h^2 phi2``."""
+    for k in range(lam.size):
+        z = lam[k] * h
+        f1, f2 = phis(z)
+        e_h[k] = np.exp(z)
+        p1_h[k] = h * f1
+        p2_h[k] = h * h * f2
+
+
+step_factors = njit(cache=True)(step_factors_py)
 
 
 def add_particular_py(yh, omegas, part_plus, part_minus, t, out):
@@ -173,10 +193,11 @@ def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_a
             for f in range(nf):
                 s += abs(W[k, f]) * ub[j, f]
             wu[j] = s
-        for m in range(order + 1):
-            acc = lk ** m * b
-            for j in range(m):
-                acc += lk ** (m - 1 - j) * wu[j]
+        # Horner-like recurrence: B_m = |lam| B_{m-1} + |W u^(m-1)|, B_0 = b
+        acc = b
+        out[0, k] = acc
+        for m in range(1, order + 1):
+            acc = lk * acc + wu[m - 1]
             out[m, k] = acc
 
 
@@ -556,6 +577,10 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
     us = np.empty(nf)
     count_step = np.zeros(ni, dtype=np.int64)
     cap = ev_t.size
+    e_h = np.empty(n2, dtype=np.complex128)
+    p1_h = np.empty(n2, dtype=np.complex128)
+    p2_h = np.empty(n2, dtype=np.complex128)
+    step_factors(lam, h, e_h, p1_h, p2_h)
     t_cur = t_state[0]
     for k in range(k_start, n_steps):
         t_k = t_base + k * h
@@ -579,6 +604,21 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
             best = horizon
             best_j = -1
             best_fid = -1
+            if ni > 0:
+                # one evaluation at the start, shared by every impactor: exact derivatives and
+                # bounds over the whole sub-interval; most impactors are cleared right here
+                any_stuck = False
+                for j in range(ni):
+                    if imp_stuck[j] == 1:
+                        any_stuck = True
+                order_pt = 4 if any_stuck else 2
+                point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
+                           t_cur, 0.0, order_pt, yh_tau, y_tau, uder, yd)
+                for f in range(nf):
+                    u_abs[f] = max(abs(u0[f]), abs(u0[f] + us[f] * horizon))
+                    us_abs[f] = abs(us[f])
+                derivative_bounds(yh, lam, W, part_plus, part_minus, w0, ws, 0.0, horizon,
+                                  u_abs, us_abs, omegas, amps, order_pt + 1, ub, wu, ybound)
             for j in range(ni):
                 n_rows = imp_dim[j]
                 if imp_stuck[j] == 1:
@@ -587,9 +627,19 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                     fids = (FN_WALL_POS, FN_WALL_NEG)
                 else:
                     fids = (FN_PLANAR, -1)
+                if imp_grace[j] == 0:
+                    row_derivs(house_q[j], n_rows, yd, 4 if imp_stuck[j] == 1 else 2, X)
                 for fid in fids:
                     if fid < 0:
                         continue
+                    if imp_grace[j] == 0:
+                        f0, f1, f2 = fn_values(fid, X, imp_z[j], imp_v[j], 0.0, imp_limit[j],
+                                               imp_normal[j])
+                        if f0 > 0.0:
+                            g3 = fn_third_bound(fid, X, imp_z[j], imp_v[j], 0.0, imp_limit[j],
+                                                ybound, house_q[j], n_rows, horizon)
+                            if cubic_safe_step(f0, f1, f2, g3, best) >= best:
+                                continue
                     te = scan(fid, best, t_cur, yh, lam, W, w0, ws, part_plus, part_minus,
                               omegas, amps, u0, us, house_q[j], n_rows, imp_z[j], imp_v[j],
                               imp_limit[j], imp_normal[j], yh_tau, y_tau, uder, yd, X, ybound,
@@ -605,10 +655,15 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                 ledger_panel(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
                              t_cur, tau, Vq, Vv, Cmat, Kskew, Bmat, yh_tau, y_tau, uder, yd,
                              ledger)
-            point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
-                       tau, 2, yh_tau, y_tau, uder, yd)
-            for i in range(n2):
-                yh[i] = yh_tau[i]
+            if best_j < 0 and t_cur == t_k:
+                # a whole step without events: the cached step factors
+                for i in range(n2):
+                    yh[i] = e_h[i] * yh[i] + p1_h[i] * w0[i] + p2_h[i] * ws[i]
+            else:
+                point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
+                           t_cur, tau, 2, yh_tau, y_tau, uder, yd)
+                for i in range(n2):
+                    yh[i] = yh_tau[i]
             for j in range(ni):
                 if imp_stuck[j] == 0:
                     for r in range(imp_dim[j]):
