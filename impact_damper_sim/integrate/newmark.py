@@ -161,11 +161,14 @@ class _Config:
         n = model.n
         self.kick = np.zeros((ni, n, 2))          # M^{-1} R^T per impactor (1/kg)
         self.mobility = np.zeros((ni, 2, 2))      # law mobility (1/kg)
+        self.rel_T = np.zeros((ni, 2, 2))         # release transforms (I - m G_s)^{-1}
         for j, imp in enumerate(model.impactors):
             d = imp.dim
             MinvRt = self.solve_M(rows[j, :d].T)
             self.kick[j, :, :d] = MinvRt
-            self.mobility[j, :d, :d] = law_mobility(rows[j, :d] @ MinvRt, imp.housing_mass, law)
+            G = rows[j, :d] @ MinvRt
+            self.mobility[j, :d, :d] = law_mobility(G, imp.housing_mass, law)
+            self.rel_T[j, :d, :d] = np.linalg.inv(np.eye(d) - stuck_masses[j] * G)
         self._S = {}
 
     def solve_M(self, r):
@@ -484,8 +487,8 @@ class NewmarkIntegrator:
                 k, k_stop, k0, self.substeps, h, u_grid, self._B, cfg.Sinv(h), self._C, self._K,
                 self._K_skew, self._q, self._v, self._a, self._f, self._rows, self._imp_dim,
                 self._imp_limit, self._imp_z, self._imp_v, self._stuck, self._imp_normal,
-                located, self.ledger_on, self._ledger, self.model.sensors, outs[0], outs[1],
-                outs[2], self._info)
+                cfg.rel_T, located, self.ledger_on, self._ledger, self.model.sensors, outs[0],
+                outs[1], outs[2], self._info)
             return status, int(self._info[0])
         # sparse models: the same loop in Python around splu solves
         S = self.model.sensors
@@ -494,7 +497,8 @@ class NewmarkIntegrator:
             q1, v1, a1 = self._trial(cfg, h, f1, True)
             j = kernels.event_flag(located, h, self._q, self._v, q1, v1, a1, self._rows,
                                    self._imp_dim, self._imp_limit, self._imp_z, self._imp_v,
-                                   self._stuck, self._imp_normal, np.empty((2, 4)))
+                                   self._stuck, self._imp_normal, cfg.rel_T,
+                                   np.empty((2, 4)))
             if j >= 0:
                 return kernels.FLAGGED, k
             self._commit(h, f1, q1, v1, a1)
@@ -517,7 +521,7 @@ class NewmarkIntegrator:
             d = self._imp_dim[j]
             R = self._rows[j, :d]
             if self._stuck[j]:
-                if -(self._imp_normal[j, :d] @ (R @ self._a)) <= 0.0:
+                if self._release_force(j, self._a) <= 0.0:
                     self._release(j, t_b)
                 continue
             r = self._imp_z[j, :d] - R @ self._q
@@ -577,9 +581,8 @@ class NewmarkIntegrator:
             R = self._rows[j, :d]
             L = self._imp_limit[j]
             if self._stuck[j]:
-                nj = self._imp_normal[j, :d]
-                f0 = -(nj @ (R @ self._a))
-                f1 = -(nj @ (R @ a1))
+                f0 = self._release_force(j, self._a)
+                f1 = self._release_force(j, a1)
                 if f0 > 0.0:
                     if f1 > 0.0:
                         continue
@@ -628,11 +631,8 @@ class NewmarkIntegrator:
         ``f(0) > 0 >= f(H)``. The returned ``end = (f, q, v, a)`` is a state with ``f <= 0``,
         so the freed impactor is not pushed straight back into its wall.
         """
-        d = self._imp_dim[j]
-        R = self._rows[j, :d]
-        nj = self._imp_normal[j, :d]
-        a, fa = 0.0, -(nj @ (R @ self._a))
-        b, fb = H, -(nj @ (R @ a1))
+        a, fa = 0.0, self._release_force(j, self._a)
+        b, fb = H, self._release_force(j, a1)
         end_b = (f_b, q1, v1, a1)
         s = tau
         side = 0
@@ -642,7 +642,7 @@ class NewmarkIntegrator:
                 s = 0.5 * (a + b)
             f_s = self._force_at(t + s)
             state = self._trial(cfg, s, f_s, False)
-            fc = -(nj @ (R @ state[2]))
+            fc = self._release_force(j, state[2])
             if fc > 0.0:
                 a, fa = s, fc
                 if side == 1:
@@ -747,6 +747,11 @@ class NewmarkIntegrator:
         if not self._stuck[j] and self._count[j] > 4 * self.max_events_per_step + 16:
             raise RuntimeError(f'chatter not resolved at t = {t:.6g} s for impactor '
                                f'{self.model.impactors[j].name!r}')
+
+    def _release_force(self, j, a):
+        """Normal contact force per unit mass of stuck impactor ``j`` for accelerations ``a``."""
+        return kernels.release_force(self._rows[j], self._imp_dim[j], self._config().rel_T[j],
+                                     self._imp_normal[j], a)
 
     def _release(self, j, t):
         """The stuck impactor ``j`` leaves its wall at ``t`` with the housing velocity."""

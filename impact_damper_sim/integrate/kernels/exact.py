@@ -54,14 +54,16 @@ def phis_py(z):
         b = 0.5 + 0j
         term = 1.0 + 0j
         for k in range(1, 14):
-            term *= z / k
-            a += term / (k + 1)
-            b += term / ((k + 1) * (k + 2))
+            term *= z * (1.0 / k)
+            a += term * (1.0 / (k + 1))
+            b += term * (1.0 / ((k + 1) * (k + 2)))
             if abs(term) < 1e-18:
                 break
         return a, b
     ez = np.exp(z)
-    return (ez - 1.0) / z, (ez - 1.0 - z) / (z * z)
+    # 1/z by real arithmetic: complex division is several times slower
+    inv = np.conj(z) * (1.0 / (z.real * z.real + z.imag * z.imag))
+    return (ez - 1.0) * inv, (ez - 1.0 - z) * inv * inv
 
 
 phis = njit(cache=True)(phis_py)
@@ -78,8 +80,14 @@ def propagate_py(yh, lam, tau, w0, ws, out):
         return
     for k in range(lam.size):
         z = lam[k] * tau
-        f1, f2 = phis(z)
-        out[k] = np.exp(z) * yh[k] + tau * f1 * w0[k] + tau * tau * f2 * ws[k]
+        if abs(z) < 0.2:
+            f1, f2 = phis(z)
+            out[k] = np.exp(z) * yh[k] + tau * f1 * w0[k] + tau * tau * f2 * ws[k]
+        else:
+            ez = np.exp(z)
+            inv = np.conj(lam[k]) * (1.0 / (lam[k].real * lam[k].real + lam[k].imag * lam[k].imag))
+            em1 = (ez - 1.0) * inv  # tau phi1
+            out[k] = ez * yh[k] + em1 * w0[k] + (em1 - tau) * inv * ws[k]
 
 
 propagate = njit(cache=True)(propagate_py)

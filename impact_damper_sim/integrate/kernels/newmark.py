@@ -21,8 +21,8 @@ Event screening inside :func:`run_steps` (the event logic itself is in Python,
   leaves the clearance somewhere in ``(0, h]`` (SDOF: exact extremum of the cubic; planar:
   eight samples of ``|r|^2`` plus the step end), or starts on a wall moving in. ``step_end``
   (the paper's baseline): the gap is violated at the step end with a closing velocity;
-* a stuck impactor's normal contact force per unit mass ``-n . a_h`` is ``<= 0`` at the step
-  end (release).
+* a stuck impactor's normal contact force (:func:`release_force`) is ``<= 0`` at the step end
+  (release).
 """
 from __future__ import annotations
 
@@ -187,14 +187,40 @@ def cubic_range_py(c, h):
 cubic_range = njit(cache=True)(cubic_range_py)
 
 
+def release_force_py(rows_j, d, rel_T_j, normal_j, a):
+    """Normal contact force per unit impactor mass of a stuck impactor (m/s^2).
+
+    ``-n . T (R a)``, with ``R a`` the housing acceleration in the stuck configuration and
+    ``T = (I - m G_s)^{-1}`` (``G_s = R M_s^{-1} R^T``); ``T R a`` is the housing acceleration
+    the same state would have with this impactor free, so the force is that of a frictionless
+    normal contact. For an SDOF impactor ``T`` is a positive scalar: the sign, hence the
+    release instant, is that of the exact kernel's ``-n . a_h``.
+    """
+    n = a.size
+    ah0 = 0.0
+    ah1 = 0.0
+    for k in range(n):
+        ah0 += rows_j[0, k] * a[k]
+        if d == 2:
+            ah1 += rows_j[1, k] * a[k]
+    if d == 1:
+        return -normal_j[0] * rel_T_j[0, 0] * ah0
+    return -(normal_j[0] * (rel_T_j[0, 0] * ah0 + rel_T_j[0, 1] * ah1)
+             + normal_j[1] * (rel_T_j[1, 0] * ah0 + rel_T_j[1, 1] * ah1))
+
+
+release_force = njit(cache=True)(release_force_py)
+
+
 def event_flag_py(located, h, q0, v0, q1, v1, a1, rows, imp_dim, imp_limit, imp_z, imp_v,
-                  imp_stuck, imp_normal, xw):
+                  imp_stuck, imp_normal, rel_T, xw):
     """Return the index of the first impactor that may have an event in this step, or -1.
 
     ``rows`` has shape ``(n_i, 2, n)``; ``imp_z``/``imp_v`` are impactor positions and
-    velocities at the step start (m, m/s); ``xw`` is scratch of shape ``(2, 4)``. The screen
-    is conservative in ``located`` mode (see the module docstring); the Python event logic
-    decides.
+    velocities at the step start (m, m/s); ``rel_T`` the release transforms of
+    :func:`release_force`, shape ``(n_i, 2, 2)``; ``xw`` is scratch of shape ``(2, 4)``. The
+    screen is conservative in ``located`` mode (see the module docstring); the Python event
+    logic decides.
     """
     ni = imp_dim.size
     n = q0.size
@@ -202,14 +228,8 @@ def event_flag_py(located, h, q0, v0, q1, v1, a1, rows, imp_dim, imp_limit, imp_
         d = imp_dim[j]
         L = imp_limit[j]
         if imp_stuck[j] == 1:
-            # release: contact force per unit mass -n . a_h at the step end
-            f = 0.0
-            for r in range(d):
-                acc = 0.0
-                for k in range(n):
-                    acc += rows[j, r, k] * a1[k]
-                f -= imp_normal[j, r] * acc
-            if f <= 0.0:
+            # release: the normal contact force at the step end is no longer compressive
+            if release_force(rows[j], d, rel_T[j], imp_normal[j], a1) <= 0.0:
                 return j
             continue
         for r in range(d):
@@ -265,8 +285,8 @@ event_flag = njit(cache=True)(event_flag_py)
 
 def run_steps_py(k_start, k_stop, out_base, substeps, h, u_grid, B, Sinv, C, K, Kskew,
                  q, v, a, f_cur, rows, imp_dim, imp_limit, imp_z, imp_v, imp_stuck,
-                 imp_normal, located, ledger_on, ledger, sensors, out_disp, out_vel, out_acc,
-                 info):
+                 imp_normal, rel_T, located, ledger_on, ledger, sensors, out_disp, out_vel,
+                 out_acc, info):
     """Newmark steps ``k_start .. k_stop-1`` of one configuration until an event is possible.
 
     Step ``k`` goes from ``u_grid[k]`` to ``u_grid[k + 1]`` (inputs, N). ``out_base + k + 1``
@@ -287,7 +307,7 @@ def run_steps_py(k_start, k_stop, out_base, substeps, h, u_grid, B, Sinv, C, K, 
         force(B, u_grid[k + 1], fn)
         step(Sinv, C, K, fn, h, q, v, a, qn, vn, an, work)
         j = event_flag(located, h, q, v, qn, vn, an, rows, imp_dim, imp_limit, imp_z, imp_v,
-                       imp_stuck, imp_normal, xw)
+                       imp_stuck, imp_normal, rel_T, xw)
         if j >= 0:
             info[0] = k
             info[1] = j

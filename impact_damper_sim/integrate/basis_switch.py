@@ -1,0 +1,383 @@
+"""The paper's stuck formulation: a second modal basis per stuck set (paper Eq. 2.3.7-2.3.14).
+
+While an impactor rides on a cavity wall the paper integrates a *different* modal model: the
+modes of the physical structure with the impactor mass added at its housing DOF(s). Switching
+between configurations maps the modal state by equating the two modal expansions of the
+physical displacement, with mass-normalized modes (``diag(1/m) = I``)::
+
+    q_b = T_ab q_a,    T_ab = Phi_b^T M_b Phi_a     (over the master DOFs of b)
+
+which is the paper's ``B Phi_f`` (free -> stuck, ``b`` stuck) and ``A Phi_s`` (stuck -> free,
+``b`` free), generalised to any pair of stuck sets (several impactors). The same matrix maps
+velocities: at a stick or release the impactor moves with its housing, so the physical
+velocity field is one and the same in both configurations.
+
+On complete bases ``T_ba T_ab = I`` and the two formulations of
+:mod:`impact_damper_sim.integrate.exact` agree to rounding (with zero tare damping, see
+below). On truncated bases each switch is an ``M_b``-orthogonal projection onto the retained
+modes of ``b``: the kinetic energy can only drop, the strain energy may move either way, and
+the energy ledger shows the sum as a residual. :class:`~.exact.MassUpdate` (the default) has
+no such loss.
+
+Tare damping is per mode, so it is *not* the same physical damping in the two bases: mode
+``k`` of a stuck basis gets the free basis' ratio ``zeta_k`` with its own ``omega_k``. Even on
+complete bases the two formulations then differ by ``O(zeta mu)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..modal.basis import modal_reduction
+from ..modal.stuck import add_point_mass
+from .model import LinearModel
+
+__all__ = ['BasisSwitch']
+
+#: Relative tolerance when checking the model's impactor rows against the free basis.
+_ROWS_RTOL = 1e-9
+
+
+def _key(stuck):
+    return tuple(int(bool(s)) for s in stuck)
+
+
+class BasisSwitch:
+    """Configuration provider of :class:`~.exact.ExactPropagator`: one modal basis per stuck set.
+
+    For each tuple of stuck flags it builds, on first use, the modal basis of the physical
+    system with every stuck impactor's mass added at its housing DOF(s) (one DOF for an SDOF
+    impactor, both in-plane translations for a planar one), keeping the free basis' number of
+    modes (all of them if the free basis is complete) and its tare damping ratios by mode
+    index; physical dashpots and cross-coupled stiffness are projected as usual. The stuck
+    masses are then inside the basis, so :meth:`model` returns zero stuck masses.
+
+    Parameters
+    ----------
+    system : AssembledSystem
+        Physical system without impactors (kg, N s/m, N/m).
+    free_basis : ModalBasis
+        Retained modes of ``system`` (mode shapes in 1/sqrt(kg)); ``model`` lives in it.
+    model : LinearModel
+        The free modal model (``M = I``, coordinates in m sqrt(kg)) with its impactors.
+    housing_indices : sequence of sequence of int
+        ``housing_indices[j]``: active DOF indices of impactor ``j``'s housing, one (sdof) or
+        two (planar), in the order of its rows (dimensionless).
+    sensor_indices, force_indices : sequence of int, optional
+        Active DOF index of each sensor row and force input (dimensionless). Default: found
+        by matching the model's rows against every active DOF's mode-shape row (an error if
+        that is ambiguous).
+    method : {'auto', 'dense', 'sparse'}
+        Eigen solver for the stuck bases, see :func:`~impact_damper_sim.modal.modal_reduction`.
+
+    Notes
+    -----
+    While an impactor is stuck, :meth:`ExactPropagator.state` returns coordinates of the stuck
+    basis (its length can differ from the free one when the basis is complete and the
+    impactor sits on a massless DOF).
+    """
+
+    def __init__(self, system, free_basis, model, housing_indices, *, sensor_indices=None,
+                 force_indices=None, method='auto'):
+        n = free_basis.n_modes
+        if model.n != n:
+            raise ValueError(f'model has {model.n} coordinates, free basis {n} modes')
+        if not np.allclose(model.M, np.eye(n), rtol=0, atol=1e-12):
+            raise ValueError('BasisSwitch needs a mass-normalized modal model (M = I)')
+        housing = tuple(tuple(int(k) for k in np.atleast_1d(idx)) for idx in housing_indices)
+        if len(housing) != len(model.impactors):
+            raise ValueError(f'{len(housing)} housing index sets for '
+                             f'{len(model.impactors)} impactors')
+        for imp, idx in zip(model.impactors, housing):
+            if len(idx) != imp.dim:
+                raise ValueError(f'impactor {imp.name!r} ({imp.kind}) needs {imp.dim} housing '
+                                 f'DOF index(es), got {list(idx)}')
+            # a wrong index would silently put the stuck mass elsewhere: check the rows agree
+            rows = free_basis.rows(list(idx))
+            scale = max(np.abs(rows).max(), np.abs(imp.rows).max())
+            if not np.allclose(rows, imp.rows, rtol=0, atol=_ROWS_RTOL * scale):
+                raise ValueError(f'impactor {imp.name!r}: housing DOFs {list(idx)} do not give '
+                                 "the model's housing rows")
+        self.system = system
+        self.free_basis = free_basis
+        self.base = model
+        self.housing_indices = housing
+        self.method = method
+        self.sensor_indices = self._indices(model.sensors, sensor_indices, 'sensor')
+        self.force_indices = self._indices(model.B.T, force_indices, 'force')
+        free = _key([0] * len(model.impactors))
+        self._free_key = free
+        self._bases = {free: free_basis}
+        self._models = {free: model}
+        self._K_sym = {}
+        self._transforms = {}
+
+    @classmethod
+    def from_scene(cls, scene_model):
+        """Build the provider of a :class:`~impact_damper_sim.scene.build.SceneModel`.
+
+        Parameters
+        ----------
+        scene_model : SceneModel
+            A built scene (its system, basis, modal model and DOF indices; the stuck bases
+            use its ``modal.solver``).
+
+        Returns
+        -------
+        BasisSwitch
+            The provider, with no stuck basis built yet.
+        """
+        return cls(scene_model.system, scene_model.basis, scene_model.model,
+                   scene_model.impactor_dofs, sensor_indices=scene_model.sensor_dofs,
+                   force_indices=scene_model.force_dofs,
+                   method=scene_model.scene['modal']['solver'])
+
+    def _indices(self, rows, given, what):
+        """Active DOF index of each row of ``rows`` (free-basis mode-shape rows)."""
+        if given is not None:
+            given = tuple(int(k) for k in given)
+            if len(given) != rows.shape[0]:
+                raise ValueError(f'{len(given)} {what} indices for {rows.shape[0]} {what} rows')
+            if given:
+                check = self.free_basis.rows(list(given))
+                scale = max(np.abs(check).max(), np.abs(rows).max(), 1e-300)
+                if not np.allclose(check, rows, rtol=0, atol=_ROWS_RTOL * scale):
+                    raise ValueError(f'{what} indices {list(given)} do not give the model\'s '
+                                     f'{what} rows')
+            return given
+        if rows.shape[0] == 0:
+            return ()
+        every = self.free_basis.rows(np.arange(self.system.n_dof))
+        scale = max(np.abs(every).max(), 1e-300)
+        found = []
+        for r, row in enumerate(rows):
+            match = np.flatnonzero(np.all(np.abs(every - row) <= _ROWS_RTOL * scale, axis=1))
+            if match.size != 1:
+                raise ValueError(f'{what} row {r} matches {match.size} active DOFs in the free '
+                                 f'basis; pass {what}_indices')
+            found.append(int(match[0]))
+        return tuple(found)
+
+    # -- bases and models ---------------------------------------------------------------------
+    def basis(self, stuck):
+        """Return the :class:`~impact_damper_sim.modal.ModalBasis` of a stuck set.
+
+        Parameters
+        ----------
+        stuck : sequence of bool or int
+            One flag per impactor (dimensionless).
+
+        Returns
+        -------
+        ModalBasis
+            The free basis for no stuck impactor; otherwise the basis of the system with the
+            stuck impactors' masses added (built once, then cached).
+        """
+        key = _key(stuck)
+        if len(key) != len(self.base.impactors):
+            raise ValueError(f'{len(key)} stuck flags for {len(self.base.impactors)} impactors')
+        found = self._bases.get(key)
+        if found is not None:
+            return found
+        system = self.system
+        for imp, idx, s in zip(self.base.impactors, self.housing_indices, key):
+            if s:
+                system = add_point_mass(system, list(idx), float(imp.mass))
+        free = self.free_basis
+        complete = free.n_modes == free.condensation.master.size
+        zeta = free.zeta
+        # mode k keeps the free ratio zeta_k; modes beyond the free count (a complete basis
+        # whose impactor turned a massless DOF into a master) take the highest free mode's
+        overrides = {k: float(z) for k, z in enumerate(zeta)}
+        basis = modal_reduction(system, n_modes=None if complete else free.n_modes,
+                                zeta=float(zeta[-1]), zeta_overrides=overrides,
+                                method=self.method)
+        self._bases[key] = basis
+        return basis
+
+    def model(self, stuck):
+        """Return ``(LinearModel, stuck_masses)`` of a stuck set (provider interface).
+
+        Parameters
+        ----------
+        stuck : sequence of bool or int
+            One flag per impactor (dimensionless).
+
+        Returns
+        -------
+        (LinearModel, tuple of float)
+            The modal model in the coordinates of :meth:`basis` (``M = I``; sensor, force and
+            housing rows of that basis, in 1/sqrt(kg)) and zero stuck masses (kg): the masses
+            are already in the basis.
+        """
+        key = _key(stuck)
+        found = self._models.get(key)
+        if found is None:
+            basis = self.basis(key)
+            base = self.base
+            n = basis.n_modes
+            B = (basis.rows(list(self.force_indices)).T if self.force_indices
+                 else np.zeros((n, 0)))
+            S = (basis.rows(list(self.sensor_indices)) if self.sensor_indices
+                 else np.zeros((0, n)))
+            impactors = tuple(imp.with_rows(basis.rows(list(idx)))
+                              for imp, idx in zip(base.impactors, self.housing_indices))
+            found = LinearModel(M=np.eye(n), C=basis.damping_matrix(),
+                                K=basis.stiffness_matrix(), B=B, sensors=S,
+                                sensor_names=base.sensor_names, impactors=impactors,
+                                kind='modal', input_names=base.input_names)
+            self._models[key] = found
+        return found, (0.0,) * len(key)
+
+    def transform(self, stuck_from, stuck_to):
+        """Return ``T = Phi_b^T M_b Phi_a`` mapping coordinates of ``a`` to ``b`` (provider).
+
+        Parameters
+        ----------
+        stuck_from, stuck_to : sequence of bool or int
+            Stuck flags of the configurations ``a`` and ``b`` (dimensionless).
+
+        Returns
+        -------
+        ndarray, shape (n_b, n_a), or None
+            Dimensionless; the same matrix maps velocities. ``None`` when ``a == b``.
+        """
+        a, b = _key(stuck_from), _key(stuck_to)
+        if a == b:
+            return None
+        T = self._transforms.get((a, b))
+        if T is None:
+            ba, bb = self.basis(a), self.basis(b)
+            cb = bb.condensation
+            # every mass sits on b's master DOFs: evaluate a's modes there (through a's own
+            # condensation recovery, since the master sets can differ)
+            T = bb.shapes.T @ cb.M @ ba.rows(cb.master)
+            T.setflags(write=False)
+            self._transforms[(a, b)] = T
+        return T
+
+    # -- energies -------------------------------------------------------------------------------
+    def _k_sym(self, key):
+        K = self._K_sym.get(key)
+        if K is None:
+            K = self._K_sym[key] = self.model(key)[0].K_sym
+        return K
+
+    def _kinetic(self, key, which, qd):
+        """``sum_j 0.5 m_j |R_j qd|^2`` over impactors flagged in ``which`` (J).
+
+        ``R_j`` are the housing rows of configuration ``key``, the one ``qd`` belongs to.
+        """
+        model = self.model(key)[0]
+        return sum(0.5 * imp.mass * float(np.sum((imp.rows @ qd) ** 2))
+                   for imp, w in zip(model.impactors, which) if w)
+
+    def structure_energy(self, stuck, q, qd):
+        """Return the structure's kinetic plus strain energy, without stuck impactors (J).
+
+        Parameters
+        ----------
+        stuck : sequence of bool or int
+            Stuck flags of the configuration ``q`` belongs to (dimensionless).
+        q : ndarray, shape (n,)
+            Modal coordinates (m sqrt(kg)).
+        qd : ndarray, shape (n,)
+            Modal velocities (m sqrt(kg)/s).
+
+        Returns
+        -------
+        float
+            ``0.5 |qd|^2 + 0.5 q^T K_sym q - sum_stuck 0.5 m_j |R_j qd|^2`` (J): the basis
+            carries the stuck impactors' mass, whose kinetic energy the propagator counts
+            with the impactors.
+        """
+        key = _key(stuck)
+        q = np.asarray(q, dtype=float)
+        qd = np.asarray(qd, dtype=float)
+        total = 0.5 * float(qd @ qd) + 0.5 * float(q @ self._k_sym(key) @ q)
+        return total - self._kinetic(key, key, qd)
+
+    def system_energy(self, stuck, riding, q, qd):
+        """Return the energy of the structure plus the impactors riding with it (J).
+
+        Parameters
+        ----------
+        stuck : sequence of bool or int
+            Stuck flags of the configuration ``q`` belongs to (dimensionless).
+        riding : sequence of bool or int
+            Impactors moving with their housing (dimensionless); must include ``stuck``.
+        q : ndarray, shape (n,)
+            Modal coordinates (m sqrt(kg)).
+        qd : ndarray, shape (n,)
+            Modal velocities (m sqrt(kg)/s).
+
+        Returns
+        -------
+        float
+            ``0.5 |qd|^2 + 0.5 q^T K_sym q`` plus ``0.5 m_j |R_j qd|^2`` of every riding
+            impactor the basis does not already hold (J).
+        """
+        key = _key(stuck)
+        riding = _key(riding)
+        if any(s and not r for s, r in zip(key, riding)):
+            raise ValueError('riding must include every stuck impactor')
+        q = np.asarray(q, dtype=float)
+        qd = np.asarray(qd, dtype=float)
+        return (0.5 * float(qd @ qd) + 0.5 * float(q @ self._k_sym(key) @ q)
+                + self._kinetic(key, [r and not s for r, s in zip(riding, key)], qd))
+
+    def switch_loss(self, stuck_from, stuck_to, q, qd):
+        """Return the energy one switch loses (J), at a stick or a release.
+
+        At the switch every impactor stuck in either configuration moves with its housing, so
+        the energy compared is that of the structure plus those impactors
+        (:meth:`system_energy`) before and after ``T`` (:meth:`transform`).
+
+        Parameters
+        ----------
+        stuck_from, stuck_to : sequence of bool or int
+            Stuck flags before and after (dimensionless).
+        q : ndarray, shape (n_a,)
+            Coordinates before the switch (m sqrt(kg)).
+        qd : ndarray, shape (n_a,)
+            Velocities before the switch (m sqrt(kg)/s).
+
+        Returns
+        -------
+        float
+            ``E_before - E_after`` (J); positive when the switch dissipates, 0 on complete
+            bases (to rounding).
+        """
+        a, b = _key(stuck_from), _key(stuck_to)
+        riding = tuple(int(x or y) for x, y in zip(a, b))
+        T = self.transform(a, b)
+        q2, qd2 = (q, qd) if T is None else (T @ q, T @ qd)
+        return self.system_energy(a, riding, q, qd) - self.system_energy(b, riding, q2, qd2)
+
+    def round_trip_loss(self, q, qd, stuck):
+        """Return the relative energy change of a free -> stuck -> free round trip.
+
+        Parameters
+        ----------
+        q : array_like, shape (n_f,)
+            Free modal coordinates (m sqrt(kg)).
+        qd : array_like, shape (n_f,)
+            Free modal velocities (m sqrt(kg)/s).
+        stuck : sequence of bool or int
+            Stuck flags of the intermediate configuration (dimensionless).
+
+        Returns
+        -------
+        float
+            ``1 - E_after/E_before`` (dimensionless) with ``E`` the free model's energy
+            ``0.5 |qd|^2 + 0.5 q^T K_sym q``: positive when the round trip loses energy,
+            0 for a zero state or a complete basis (to rounding).
+        """
+        q = np.asarray(q, dtype=float)
+        qd = np.asarray(qd, dtype=float)
+        free, key = self._free_key, _key(stuck)
+        before = self.structure_energy(free, q, qd)
+        if before == 0.0 or key == free:
+            return 0.0
+        there, back = self.transform(free, key), self.transform(key, free)
+        q2, qd2 = back @ (there @ q), back @ (there @ qd)
+        return 1.0 - self.structure_energy(free, q2, qd2) / before
