@@ -78,6 +78,7 @@ class Simulation:
         self.dt = float(dt)
         self.integrator = make_integrator(method, model, forcing, dt, physical_model, **options)
         self._last_velocity = self._sensor_velocity_now()
+        self._velocity_before_advance = self._last_velocity
 
     @property
     def t(self):
@@ -100,6 +101,7 @@ class Simulation:
 
     def advance(self, n_steps):
         """Advance ``n_steps`` sample periods and return their :class:`Samples`."""
+        self._velocity_before_advance = self._last_velocity
         samples = self.integrator.advance(int(n_steps))
         if samples.t.size:
             self._last_velocity = samples.velocity[-1].copy()
@@ -119,14 +121,17 @@ class Simulation:
             raise ValueError(f'cannot advance backwards from t = {self.t} s to {t_end} s')
         return self.advance(n)
 
-    def mean_acceleration(self, samples, v_before):
+    def mean_acceleration(self, samples, v_before=None):
         """Mean acceleration over each sample period (m/s^2), impacts included.
 
         An impact is an instantaneous velocity jump; its acceleration is a Dirac impulse that
         no sample can hold. ``(v_k - v_{k-1})/dt`` is the acceleration averaged over each
         period, what an ideal accelerometer integrating over the period reads, and it keeps
-        the impulse's effect on the signal.
+        the impulse's effect on the signal. ``v_before`` is the sensor velocity at the start
+        of the first period (m/s); by default, the one before the last :meth:`advance`.
         """
+        if v_before is None:
+            v_before = self._velocity_before_advance
         v = np.vstack([np.asarray(v_before, dtype=float)[None, :], samples.velocity])
         return np.diff(v, axis=0) / self.dt
 

@@ -334,3 +334,19 @@ def test_flow_matches_matrix_exponential_with_coupling_and_forcing():
     x_ref = sla.expm(A * t_end) @ x0
     np.testing.assert_allclose(samples.displacement[-1], x_ref[:n], rtol=1e-10, atol=1e-14)
     np.testing.assert_allclose(samples.velocity[-1], x_ref[n:2 * n], rtol=1e-10, atol=1e-13)
+
+
+def test_exact_error_is_round_off_at_every_step_size():
+    # Convergence "order" of the exact propagator: over 4 step sizes (T/10 .. T/80) the state
+    # at t_end and the impact times agree with a T/400 run to round-off (1e-11 of the
+    # amplitude and 1e-12 s), i.e. the error does not depend on the step at all.
+    results = []
+    for per_cycle in (10, 20, 40, 80, 400):
+        orbit, samples, events, period = run_on_orbit(ExactPropagator, *MC_POINTS[2], cycles=10,
+                                                       per_cycle=per_cycle)
+        results.append((samples.displacement[-1, 0], events['t'][events['kind'] == IMPACT]))
+    x_ref, t_ref = results[-1]
+    for x_end, times in results[:-1]:
+        assert abs(x_end - x_ref) < 1e-11 * orbit.amplitude
+        assert times.size == t_ref.size
+        assert np.max(np.abs(times - t_ref)) < 1e-12
