@@ -130,7 +130,6 @@ class ExactPropagator:
             self._imp_v[j, :imp.dim] = imp.velocity if imp.velocity is not None else v_h
         self._imp_normal = np.zeros((ni, 2))
         self._imp_last_t = np.full(ni, -np.inf)
-        self._imp_last_wall = np.zeros(ni)
         self._imp_rel = np.zeros((ni, 2))
         self._imp_grace = np.zeros(ni, dtype=np.int64)
         self._ledger = np.zeros(5)
@@ -268,7 +267,7 @@ class ExactPropagator:
                 cfg.part_minus, cfg.sensor_q, cfg.sensor_v, cfg.house_q, cfg.kick,
                 cfg.mobility, self._imp_dim, self._imp_mass, self._imp_cor, self._imp_limit,
                 self._imp_z, self._imp_v, self._stuck, self._imp_normal, self._imp_last_t,
-                self._imp_last_wall, self._imp_rel, self._imp_grace, rule, self.stick_time,
+                self._imp_rel, self._imp_grace, rule, self.stick_time,
                 self.max_events_per_step, self.ledger_on, model.C, model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
                 ev_after, ev_count, self._info)

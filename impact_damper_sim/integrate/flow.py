@@ -45,12 +45,9 @@ class FlowConfig:
         Input map (1/(N s) in modal units).
     sensor_q, sensor_v : ndarray of complex, shape (n_s, n2)
         Sensor displacement and velocity rows.
-    sensor_d : ndarray, shape (n_s, n_f)
-        Direct feed-through of the inputs to sensor acceleration.
-    house_q, house_v : ndarray of complex, shape (n_i, 2, n2)
-        Housing displacement and velocity rows (second row unused for SDOF impactors).
-    house_d : ndarray, shape (n_i, 2, n_f)
-        Feed-through of the inputs to housing acceleration.
+    house_q : ndarray of complex, shape (n_i, 2, n2)
+        Housing displacement rows (second row unused for SDOF impactors); velocities and
+        accelerations follow from the flow's derivatives of ``y``.
     kick : ndarray of complex, shape (n_i, 2, n2)
         Change of ``y`` per unit housing impulse on each row (1/(N s) scaled).
     mobility : ndarray, shape (n_i, 2, 2)
@@ -69,10 +66,7 @@ class FlowConfig:
     W: np.ndarray
     sensor_q: np.ndarray
     sensor_v: np.ndarray
-    sensor_d: np.ndarray
     house_q: np.ndarray
-    house_v: np.ndarray
-    house_d: np.ndarray
     kick: np.ndarray
     mobility: np.ndarray
     part_plus: np.ndarray
@@ -178,19 +172,14 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
     W = Vinv[:, n:] @ MinvB.astype(complex)
     sensor_q = model.sensors @ Vq
     sensor_v = model.sensors @ Vv
-    sensor_d = (sensor_v @ W).real
     n_i = len(model.impactors)
     house_q = np.zeros((n_i, 2, 2 * n), dtype=complex)
-    house_v = np.zeros_like(house_q)
     kick = np.zeros_like(house_q)
-    house_d = np.zeros((n_i, 2, model.n_inputs))
     mobility = np.zeros((n_i, 2, 2))
     for j, imp in enumerate(model.impactors):
         d = imp.dim
         R = imp.rows
         house_q[j, :d] = R @ Vq
-        house_v[j, :d] = R @ Vv
-        house_d[j, :d] = (house_v[j, :d] @ W).real
         MinvRt = np.linalg.solve(M, R.T)
         kick[j, :d] = (Vinv[:, n:] @ MinvRt).T
         mobility[j, :d, :d] = law_mobility(R @ MinvRt, imp.housing_mass, law)
@@ -207,5 +196,5 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
                              '(exact resonance): add damping or detune')
         part_plus[h] = (W @ U) / (2 * denom_p)
         part_minus[h] = (W @ U.conj()) / (2 * denom_m)
-    return FlowConfig(lam, V, Vinv, W, sensor_q, sensor_v, sensor_d, house_q, house_v, house_d,
-                      kick, mobility, part_plus, part_minus, M, condition)
+    return FlowConfig(lam, V, Vinv, W, sensor_q, sensor_v, house_q, kick, mobility, part_plus,
+                      part_minus, M, condition)

@@ -17,8 +17,24 @@ Impact law, sticking and release mirror :mod:`.kernels.exact`: the effective-mas
 law with the impulse applied through the model (``qd += M^{-1} R^T P``), the paper's or the
 accumulation sticking rule, the cap on impacts per output step, the plastic lock at stick
 entry, the stuck state (impactor mass added to the housing rows, ``M + m R^T R``) and release
-when the normal contact force ``-n . a_h`` reaches zero (step-end sign test; ``located``: linear
-interpolation of the force inside the step, then a re-step).
+when the normal contact force reaches zero (``step_end``: sign test at step ends; ``located``:
+linear interpolation of the force inside the step, refined by regula falsi on re-steps so that
+the released state has a non-compressive force). Differences from the exact kernel:
+
+* a stuck planar impactor's release force is that of a frictionless normal contact,
+  ``-n . (I - m G_s)^{-1} a_h`` (see :func:`.kernels.newmark.release_force`), which has the
+  sign of the lock criterion; the kernel's ``-n . a_h`` in the stuck configuration can
+  disagree with it when the mobility ``G`` is anisotropic, giving stick/release pairs at one
+  instant. For SDOF the factor is a positive scalar and the release instant is the kernel's;
+* instead of the kernel's "grace" shift after a stick or release, a closed gap that is at rest
+  on its wall or leaving it (``g' > 0``, or ``g' = 0`` with ``g'' >= 0``) is not an event;
+* event counts are reset once per output step (the kernel also restarts them whenever it
+  returns for a configuration change).
+
+Event loops are bounded as in the kernel: every event (impact, contact, stick, release)
+counts towards its impactor's total in the output step; above ``max_events_per_step`` a
+contact is completed plastically (the lock, released again at once if the wall does not
+press), above ``4 max_events_per_step + 16`` a ``RuntimeError`` is raised.
 
 Energy ledger: impact and lock losses are exact from the law. Damping dissipation, forcing
 work and circulatory work use the trapezoidal means of the step-end quantities
@@ -238,11 +254,15 @@ class NewmarkIntegrator:
         ``scipy.sparse.linalg.splu`` and a Python step loop, for large sparse physical
         models. ``'auto'`` picks sparse above 400 coordinates when ``M, C, K`` are under 5 %
         filled.
+    stick_time : float, optional
+        Sticking time of the rules (s); default ``stick_fraction * 2 pi / max|lambda|`` of this
+        model. A physical model's highest mode is far above a truncated modal model's: pass
+        the modal integrator's ``stick_time`` to apply the same rule to both.
     """
 
     def __init__(self, model, forcing, dt, *, impacts='located', law='effective_mass',
                  stick_rule='paper', stick_fraction=0.002, max_events_per_step=64, ledger=True,
-                 q0=None, qd0=None, t0=0.0, substeps=1, solver='auto'):
+                 q0=None, qd0=None, t0=0.0, substeps=1, solver='auto', stick_time=None):
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a positive time in s, got {dt}')
         if impacts not in IMPACT_MODES:
@@ -293,8 +313,12 @@ class NewmarkIntegrator:
         self._imp_limit = np.array([imp.limit for imp in model.impactors], dtype=float)
         self._stuck = np.zeros(ni, dtype=np.int64)
         self._configs = {}
-        self.stick_time = stick_fraction * 2 * np.pi / _omega_max(model.M, model.C, model.K,
-                                                                 self._sparse)
+        if stick_time is None:
+            stick_time = stick_fraction * 2 * np.pi / _omega_max(model.M, model.C, model.K,
+                                                                self._sparse)
+        elif not (np.isfinite(stick_time) and stick_time > 0):
+            raise ValueError(f'stick_time must be a positive time in s, got {stick_time}')
+        self.stick_time = float(stick_time)
         self.t = float(t0)
         self._q = np.zeros(n) if q0 is None else np.array(q0, dtype=float).reshape(n)
         self._v = np.zeros(n) if qd0 is None else np.array(qd0, dtype=float).reshape(n)
@@ -315,6 +339,7 @@ class NewmarkIntegrator:
         self._events = []
         self.n_config_changes = 0
         self.max_impacts_per_step = 0
+        self.grazing_undecided = 0    # interface parity with ExactPropagator (no scan here)
         self._info = np.zeros(2, dtype=np.int64)
         structure, impactors = self._energy_now()
         self._initial_energy = structure + impactors
@@ -536,7 +561,8 @@ class NewmarkIntegrator:
         """One step with every event inside it located and stepped to."""
         f_b = self._B @ u_b
         t = t_a
-        cap = 8 * self.max_events_per_step + 64
+        # per-impactor counts raise first (see _count_event); this only bounds the loop
+        cap = (4 * self.max_events_per_step + 17) * max(1, self._imp_dim.size) + 1
         for _ in range(cap):
             # the whole step uses the nominal h (cached factorization); the rest of a step
             # after an event is a fresh solve
@@ -561,7 +587,7 @@ class NewmarkIntegrator:
                     f_e = self._force_at(t_e)
                     end = (f_e,) + self._trial(cfg, tau, f_e, False)
                 self._commit(tau, *end)
-                t = t + tau
+                t = t_b if tau >= H else t + tau
             if self._stuck[j]:
                 self._release(j, t)
             else:
@@ -626,10 +652,11 @@ class NewmarkIntegrator:
     def _release_time(self, cfg, t, tau, H, f_b, q1, v1, a1, j):
         """Refine a release time on the re-stepped contact force; returns ``(tau, end)``.
 
-        The linear interpolation ``tau`` of ``f = -n . a_h`` starts an Illinois iteration on
-        ``f`` evaluated from Newmark steps of size ``s`` from the current state, bracketed by
-        ``f(0) > 0 >= f(H)``. The returned ``end = (f, q, v, a)`` is a state with ``f <= 0``,
-        so the freed impactor is not pushed straight back into its wall.
+        The linear interpolation ``tau`` of the release force ``f`` (:meth:`_release_force`)
+        starts an Illinois iteration on ``f`` evaluated from Newmark steps of size ``s`` from
+        the current state, bracketed by ``f(0) > 0 >= f(H)``. The returned
+        ``end = (force, q, v, a)`` is a state with ``f <= 0``, so the freed impactor is not
+        pushed straight back into its wall.
         """
         a, fa = 0.0, self._release_force(j, self._a)
         b, fb = H, self._release_force(j, a1)
@@ -673,6 +700,13 @@ class NewmarkIntegrator:
     def _record(self, t, j, kind, nrm, v_n, J, loss, v_after, vh_jump):
         self._events.append((t, j, kind, (nrm[0], nrm[1]), v_n, J, loss, v_after, vh_jump))
 
+    def _count_event(self, j, t):
+        """Count an event of impactor ``j`` in this output step; bounded as in the kernel."""
+        self._count[j] += 1
+        if self._count[j] > 4 * self.max_events_per_step + 16:
+            raise RuntimeError(f'chatter not resolved at t = {t:.6g} s for impactor '
+                               f'{self.model.impactors[j].name!r}')
+
     def _contact(self, j, t, nrm, project):
         """Contact of impactor ``j`` with its wall at ``t``: impact, then maybe the lock.
 
@@ -680,6 +714,7 @@ class NewmarkIntegrator:
         planar normal is recomputed from the positions here). ``project`` puts a bouncing
         impactor exactly on the wall (located events).
         """
+        self._count_event(j, t)
         cfg = self._config()
         d = self._imp_dim[j]
         R = self._rows[j, :d]
@@ -704,11 +739,11 @@ class NewmarkIntegrator:
             self._imp_v[j, :d] -= J * n_ / m_i
             self._v = self._v + cfg.kick[j, :, :d] @ (J * n_)
             self._ledger[0] += loss
-            self._count[j] += 1
             self.max_impacts_per_step = max(self.max_impacts_per_step, int(self._count[j]))
             vh_a = R @ self._v
             self._record(t, j, _EV_IMPACT, nrm, v_n, J, loss,
                          float(n_ @ (self._imp_v[j, :d] - vh_a)), float(n_ @ (vh_a - vh)))
+            vh = vh_a                     # the lock below starts from the post-impact state
         stick = v_n <= 0.0
         if same_wall and v_n > 0.0:
             if self.stick_rule == 'paper' and dt_prev < self.stick_time:
@@ -716,19 +751,18 @@ class NewmarkIntegrator:
             elif self.stick_rule == 'accumulation' and e_cor < 1.0 and \
                     dt_prev * e_cor / (1.0 - e_cor) < self.stick_time:
                 stick = True
-        if self._count[j] > self.max_events_per_step:
-            stick = True
+        chatter = self._count[j] > self.max_events_per_step
         self._imp_last_t[j] = t
         self._imp_normal[j] = 0.0
         self._imp_normal[j, :d] = n_
         # the wall must push to keep the contact: -n . a_h > 0, plus on a round wall the
         # centripetal part |v_t|^2/c of a tangentially sliding impactor (zero for SDOF)
-        vr_now = self._imp_v[j, :d] - R @ self._v
-        v_t = vr_now - (n_ @ vr_now) * n_
-        pushes = float(n_ @ ah) - float(v_t @ v_t) / L < 0.0
-        if stick and pushes:
+        vr = self._imp_v[j, :d] - vh
+        v_t = vr - (n_ @ vr) * n_
+        pushes = float(v_t @ v_t) / L - float(n_ @ ah) > 0.0
+        # chatter: complete it plastically; the release follows if the wall does not press
+        if (stick and pushes) or chatter:
             # plastic completion of the bounce-down: cancel the relative velocity
-            vr = self._imp_v[j, :d] - R @ self._v
             P = np.linalg.solve(np.eye(d) / m_i + G, vr)
             lock_loss = 0.5 * float(vr @ P)
             self._imp_v[j, :d] -= P / m_i
@@ -744,9 +778,6 @@ class NewmarkIntegrator:
         elif project:
             self._imp_z[j, :d] = R @ self._q + n_ * L
         self._a = self._accel(self._config(), self._f)
-        if not self._stuck[j] and self._count[j] > 4 * self.max_events_per_step + 16:
-            raise RuntimeError(f'chatter not resolved at t = {t:.6g} s for impactor '
-                               f'{self.model.impactors[j].name!r}')
 
     def _release_force(self, j, a):
         """Normal contact force per unit mass of stuck impactor ``j`` for accelerations ``a``."""
@@ -755,6 +786,7 @@ class NewmarkIntegrator:
 
     def _release(self, j, t):
         """The stuck impactor ``j`` leaves its wall at ``t`` with the housing velocity."""
+        self._count_event(j, t)
         d = self._imp_dim[j]
         R = self._rows[j, :d]
         self._stuck[j] = 0

@@ -23,7 +23,7 @@ import impact_damper_sim
 
 from ..units import UNITS
 from .schema import SceneError, apply_overrides, load_yaml, validate
-from .spec import DOF_NAMES, ROTATIONS, SCHEMA, SDOF_NODE
+from .spec import DOF_NAMES, ROTATIONS, SCHEMA, SDOF_NODE, STUCK_MODELS
 
 __all__ = ['SceneModel', 'available_scenes', 'build', 'load', 'resolve_scene', 'scene_dirs']
 
@@ -513,19 +513,38 @@ class SceneModel:
             Output sample period (s); default the scene's ``simulation.dt``.
         **options
             Integrator options; ``law``, ``stick_rule`` and ``stick_fraction`` default to
-            the scene's ``simulation`` values.
+            the scene's ``simulation`` values. ``stuck_model`` (``'mass_update'`` or
+            ``'basis_switch'``, default the scene's ``simulation.stuck_model``) chooses how
+            the exact method treats stuck impactors.
 
         Returns
         -------
         Simulation
             Starting at rest at t = 0 s (impactors at their ``position``).
+
+        Raises
+        ------
+        SceneError
+            ``stuck_model='basis_switch'`` with a method other than ``'exact'``.
         """
         from ..simulation import Simulation
         cfg = self.scene['simulation']
         method = cfg['method'] if method is None else method
         dt = cfg['dt'] if dt is None else dt
         opts = {k: cfg[k] for k in ('law', 'stick_rule', 'stick_fraction')}
+        stuck_model = options.pop('stuck_model', cfg['stuck_model'])
         opts.update(options)
+        if stuck_model not in STUCK_MODELS:
+            raise SceneError(f"scene key 'simulation.stuck_model': must be one of "
+                             f"{', '.join(STUCK_MODELS)}, got {stuck_model!r}", self.source)
+        if stuck_model == 'basis_switch':
+            if method != 'exact':
+                # Newmark and direct integrate one fixed set of coordinates
+                raise SceneError(f"scene key 'simulation.stuck_model': basis_switch is "
+                                 f"available with method exact only, not {method!r}; use "
+                                 f"mass_update", self.source)
+            from ..integrate.basis_switch import BasisSwitch
+            opts['configurations'] = BasisSwitch.from_scene(self)
         physical = self.physical_model if method == 'direct' else None
         return Simulation(self.model, self.forcing, method=method, dt=dt,
                           physical_model=physical, **opts)

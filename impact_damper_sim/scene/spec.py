@@ -40,7 +40,7 @@ from .schema import (
 )
 
 __all__ = ['SCHEMA', 'DOF_NAMES', 'TRANSLATIONS', 'ROTATIONS', 'SDOF_KEYS', 'BEAM_KEYS',
-           'SECTION_SHAPES', 'SDOF_NODE']
+           'SECTION_SHAPES', 'SDOF_NODE', 'STUCK_MODELS']
 
 #: Node DOF names in node order (same as :data:`impact_damper_sim.fem.DOF_NAMES`; kept here
 #: so that the schema does not import SciPy).
@@ -50,6 +50,9 @@ ROTATIONS = DOF_NAMES[3:]
 
 #: Node id of the single node of an SDOF structure.
 SDOF_NODE = 0
+
+#: Values of ``simulation.stuck_model`` (see :mod:`impact_damper_sim.integrate.basis_switch`).
+STUCK_MODELS = ('mass_update', 'basis_switch')
 
 _IDENT = r'[A-Za-z][A-Za-z0-9_]*'   # ROS-friendly names (topics, frames)
 
@@ -428,6 +431,9 @@ def _check_simulation(values):
                         f"{values['duration']:g} s")
     if values['dt'] > values['duration']:
         problems.append(f"dt {values['dt']:g} s exceeds duration {values['duration']:g} s")
+    if values['stuck_model'] == 'basis_switch' and values['method'] != 'exact':
+        problems.append(f"stuck_model basis_switch needs method exact (got method "
+                        f"{values['method']}); use stuck_model mass_update")
     return problems
 
 
@@ -451,6 +457,12 @@ _SIMULATION = Section(doc='defaults of study simulate and make_simulation', fiel
                                min_inclusive=False, max_inclusive=False,
                                doc='paper rule: second impact on one wall within this fraction '
                                    'of the period of the highest retained mode'),
+    'stuck_model': Choice(STUCK_MODELS, default='mass_update',
+                          doc='how a stuck impactor enters the modal model (method exact '
+                              'only): mass_update adds its mass to the free modal '
+                              'coordinates (no switching loss); basis_switch is the '
+                              "paper's second modal basis with the mass added, whose "
+                              'switches lose a little energy on truncated bases'),
 }, checks=[_check_simulation])
 
 
