@@ -124,14 +124,13 @@ class ExactPropagator:
         self._imp_z = np.zeros((ni, 2))
         self._imp_v = np.zeros((ni, 2))
         for j, imp in enumerate(model.impactors):
-            x_h = imp.rows @ q
-            v_h = imp.rows @ qd
-            self._imp_z[j, :imp.dim] = x_h + imp.position
-            self._imp_v[j, :imp.dim] = imp.velocity if imp.velocity is not None else v_h
+            self._imp_z[j, :imp.dim] = imp.rows @ q + imp.position
+            self._imp_v[j, :imp.dim] = imp.velocity
         self._imp_normal = np.zeros((ni, 2))
         self._imp_last_t = np.full(ni, -np.inf)
         self._imp_rel = np.zeros((ni, 2))
         self._imp_grace = np.zeros(ni, dtype=np.int64)
+        self._count_step = np.zeros(ni, dtype=np.int64)
         self._ledger = np.zeros(5)
         self._info = np.zeros(4, dtype=np.int64)
         self._cap = int(event_capacity)
@@ -139,7 +138,7 @@ class ExactPropagator:
         self.n_config_changes = 0
         self.grazing_undecided = 0
         self.max_impacts_per_step = 0
-        self._initial_energy = self._energy_now()[0] + self._energy_now()[1]
+        self._initial_energy = sum(self._energy_now())
 
     # -- configuration ----------------------------------------------------------------------
     def _key(self):
@@ -265,9 +264,10 @@ class ExactPropagator:
                 t_state, t_base, self.dt, k, n_steps, u_grid, self._omegas, self._amps,
                 self._yh, cfg.lam, cfg.W, cfg.V[:model.n], cfg.V[model.n:], cfg.part_plus,
                 cfg.part_minus, cfg.sensor_q, cfg.sensor_v, cfg.house_q, cfg.kick,
-                cfg.mobility, self._imp_dim, self._imp_mass, self._imp_cor, self._imp_limit,
+                cfg.mobility, cfg.release_map, self._imp_dim, self._imp_mass, self._imp_cor,
+                self._imp_limit,
                 self._imp_z, self._imp_v, self._stuck, self._imp_normal, self._imp_last_t,
-                self._imp_rel, self._imp_grace, rule, self.stick_time,
+                self._imp_rel, self._imp_grace, self._count_step, rule, self.stick_time,
                 self.max_events_per_step, self.ledger_on, model.C, model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
                 ev_after, ev_count, self._info)

@@ -52,6 +52,11 @@ class FlowConfig:
         Change of ``y`` per unit housing impulse on each row (1/(N s) scaled).
     mobility : ndarray, shape (n_i, 2, 2)
         Mobility each impactor's law uses (1/kg).
+    release_map : ndarray, shape (n_i, 2, 2)
+        For a stuck impactor, ``(I - m G_s)^{-1}`` with ``G_s`` its housing mobility in this
+        configuration: it maps the housing acceleration to the one the housing would have
+        without the impactor, whose normal component is the sign of the frictionless normal
+        contact force. Identity for free impactors.
     part_plus, part_minus : ndarray of complex, shape (n_h, n2)
         Harmonic particular-solution coefficients at ``+Omega_h`` and ``-Omega_h``.
     mass : ndarray, shape (n, n)
@@ -69,6 +74,7 @@ class FlowConfig:
     house_q: np.ndarray
     kick: np.ndarray
     mobility: np.ndarray
+    release_map: np.ndarray
     part_plus: np.ndarray
     part_minus: np.ndarray
     mass: np.ndarray
@@ -176,6 +182,7 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
     house_q = np.zeros((n_i, 2, 2 * n), dtype=complex)
     kick = np.zeros_like(house_q)
     mobility = np.zeros((n_i, 2, 2))
+    release_map = np.tile(np.eye(2), (n_i, 1, 1))
     for j, imp in enumerate(model.impactors):
         d = imp.dim
         R = imp.rows
@@ -183,6 +190,8 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
         MinvRt = np.linalg.solve(M, R.T)
         kick[j, :d] = (Vinv[:, n:] @ MinvRt).T
         mobility[j, :d, :d] = law_mobility(R @ MinvRt, imp.housing_mass, law)
+        if stuck_masses[j]:
+            release_map[j, :d, :d] = np.linalg.inv(np.eye(d) - stuck_masses[j] * (R @ MinvRt))
     omegas = np.asarray(omegas, dtype=float)
     amplitudes = np.asarray(amplitudes, dtype=complex).reshape(omegas.size, model.n_inputs)
     part_plus = np.zeros((omegas.size, 2 * n), dtype=complex)
@@ -196,5 +205,5 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
                              '(exact resonance): add damping or detune')
         part_plus[h] = (W @ U) / (2 * denom_p)
         part_minus[h] = (W @ U.conj()) / (2 * denom_m)
-    return FlowConfig(lam, V, Vinv, W, sensor_q, sensor_v, house_q, kick, mobility, part_plus,
-                      part_minus, M, condition)
+    return FlowConfig(lam, V, Vinv, W, sensor_q, sensor_v, house_q, kick, mobility, release_map,
+                      part_plus, part_minus, M, condition)

@@ -344,7 +344,7 @@ def fn_values_py(fid, X, z, v, tau, limit, normal):
 fn_values = njit(cache=True)(fn_values_py)
 
 
-def fn_third_bound_py(fid, X, z, v, tau, limit, ybound, rows, n_rows, T):
+def fn_third_bound_py(fid, X, z, v, tau, limit, normal, ybound, rows, n_rows, T):
     """Bound on the event function's third derivative over the next ``T`` seconds."""
     if fid == FN_WALL_POS or fid == FN_WALL_NEG:
         return row_bound(rows, n_rows, ybound, 3)
@@ -358,7 +358,8 @@ def fn_third_bound_py(fid, X, z, v, tau, limit, ybound, rows, n_rows, T):
         d1 = z[1] + v[1] * tau - X[0, 1]
         d = np.sqrt(d0 * d0 + d1 * d1) + T * dd
         return 2.0 * (3.0 * dd * x2 + d * x3)
-    return row_bound(rows, n_rows, ybound, 5)
+    return np.sqrt(normal[0] * normal[0] + normal[1] * normal[1]) * row_bound(rows, n_rows,
+                                                                              ybound, 5)
 
 
 fn_third_bound = njit(cache=True)(fn_third_bound_py)
@@ -408,7 +409,7 @@ def scan_py(fid, Th, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, a
                            amps, u0, us, rows, n_rows, z, v, limit, normal, shift, yh_tau,
                            y_tau, uder, yd, X)
         if f0 <= 0.0:
-            if tau == 0.0 and (f1 > 0.0 or (f1 == 0.0 and f2 > 0.0)):
+            if tau == 0.0 and (f1 > 0.0 or (f1 == 0.0 and f2 >= 0.0)):
                 f0 = 1e-300  # leaving the boundary we start on
             else:
                 return tau
@@ -418,7 +419,7 @@ def scan_py(fid, Th, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, a
             us_abs[f] = abs(us[f])
         derivative_bounds(yh_tau, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs,
                           us_abs, omegas, amps, 5 if fid == FN_RELEASE else 3, ub, wu, ybound)
-        g3 = fn_third_bound(fid, X, z, v, tau, limit, ybound, rows, n_rows, T)
+        g3 = fn_third_bound(fid, X, z, v, tau, limit, normal, ybound, rows, n_rows, T)
         s = cubic_safe_step(f0, f1, f2, g3, T)
         if s >= T:
             return -1.0
@@ -548,9 +549,9 @@ housing_velocity = njit(cache=True)(housing_velocity_py)
 
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                yh, lam, W, Vq, Vv, part_plus, part_minus, sensor_q, sensor_v,
-               house_q, kick, mobility,
+               house_q, kick, mobility, release_map,
                imp_dim, imp_mass, imp_cor, imp_limit,
-               imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace,
+               imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
                stick_rule, stick_time, max_events_per_step,
                ledger_on, Cmat, Kskew, Bmat, ledger,
                out_disp, out_vel, out_acc,
@@ -583,7 +584,12 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
     ws = np.empty(n2, dtype=np.complex128)
     u0 = np.empty(nf)
     us = np.empty(nf)
-    count_step = np.zeros(ni, dtype=np.int64)
+    # the normal of each release function: release_map^T n (frictionless contact force)
+    release_n = np.zeros((ni, 2))
+    for j in range(ni):
+        for r in range(2):
+            release_n[j, r] = (release_map[j, 0, r] * imp_normal[j, 0]
+                               + release_map[j, 1, r] * imp_normal[j, 1])
     cap = ev_t.size
     e_h = np.empty(n2, dtype=np.complex128)
     p1_h = np.empty(n2, dtype=np.complex128)
@@ -595,8 +601,10 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
         t_b = t_base + (k + 1) * h
         for f in range(nf):
             us[f] = (u_grid[k + 1, f] - u_grid[k, f]) / h
-        for j in range(ni):
-            count_step[j] = 0
+        if t_cur <= t_k:
+            # a fresh step (not a resumption after a configuration change): reset the counts
+            for j in range(ni):
+                count_step[j] = 0
         while True:
             for f in range(nf):
                 u0[f] = u_grid[k, f] + us[f] * (t_cur - t_k)
@@ -642,15 +650,16 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                         continue
                     if imp_grace[j] == 0:
                         f0, f1, f2 = fn_values(fid, X, imp_z[j], imp_v[j], 0.0, imp_limit[j],
-                                               imp_normal[j])
+                                               release_n[j])
                         if f0 > 0.0:
                             g3 = fn_third_bound(fid, X, imp_z[j], imp_v[j], 0.0, imp_limit[j],
-                                                ybound, house_q[j], n_rows, horizon)
+                                                release_n[j], ybound, house_q[j], n_rows,
+                                                horizon)
                             if cubic_safe_step(f0, f1, f2, g3, best) >= best:
                                 continue
                     te = scan(fid, best, t_cur, yh, lam, W, w0, ws, part_plus, part_minus,
                               omegas, amps, u0, us, house_q[j], n_rows, imp_z[j], imp_v[j],
-                              imp_limit[j], imp_normal[j], yh_tau, y_tau, uder, yd, X, ybound,
+                              imp_limit[j], release_n[j], yh_tau, y_tau, uder, yd, X, ybound,
                               u_abs, us_abs, ub, wu, imp_grace[j] == 1)
                     if te == -2.0:
                         info[2] += 1
