@@ -65,7 +65,7 @@ def stuck_fraction(events, n_impactors, t_start, t_end, stuck_at_start=None):
         if ev['kind'] == stick and np.isnan(since[j]):
             since[j] = ev['t']
         elif ev['kind'] == release and not np.isnan(since[j]):
-            total[j] += ev['t'] - max(since[j], t_start)
+            total[j] += max(ev['t'] - max(since[j], t_start), 0.0)
             since[j] = np.nan
     open_ = ~np.isnan(since)
     total[open_] += t_end - np.maximum(since[open_], t_start)

@@ -15,13 +15,23 @@ velocity field is one and the same in both configurations.
 On complete bases ``T_ba T_ab = I`` and the two formulations of
 :mod:`impact_damper_sim.integrate.exact` agree to rounding (with zero tare damping, see
 below). On truncated bases each switch is an ``M_b``-orthogonal projection onto the retained
-modes of ``b``: the kinetic energy can only drop, the strain energy may move either way, and
-the energy ledger shows the sum as a residual. :class:`~.exact.MassUpdate` (the default) has
-no such loss.
+modes of ``b``: the kinetic energy of the structure and the impactors stuck in ``b`` can only
+drop, the strain energy may move either way, and the energy ledger shows the sum as its
+residual (:meth:`BasisSwitch.switch_loss` gives it switch by switch).
+:class:`~.exact.MassUpdate` (the default) has no such loss.
 
 Tare damping is per mode, so it is *not* the same physical damping in the two bases: mode
 ``k`` of a stuck basis gets the free basis' ratio ``zeta_k`` with its own ``omega_k``. Even on
-complete bases the two formulations then differ by ``O(zeta mu)``.
+complete bases the two formulations then differ by ``O(zeta mu)``. The damping force, hence
+the housing acceleration, also jumps at every switch, so a release (zero contact force in the
+stuck basis) can meet a housing that pushes into the impactor again in the free basis: a few
+zero-length stick/release pairs follow.
+
+Limitation: the exact kernel releases on the frictionless normal contact force through
+``release_map = (I - m G_s)^-1``, which :func:`~.flow.build_flow` forms from the stuck masses.
+Here they are zero (the mass is in the basis), so the map is ``I``. For an SDOF impactor this
+changes nothing (a positive factor); for a planar impactor on a truncated basis the release
+uses the stuck housing acceleration instead of the frictionless criterion.
 """
 from __future__ import annotations
 
@@ -38,6 +48,7 @@ _ROWS_RTOL = 1e-9
 
 
 def _key(stuck):
+    """Stuck flags as a hashable tuple of 0/1 (the cache key of a configuration)."""
     return tuple(int(bool(s)) for s in stuck)
 
 
@@ -195,7 +206,7 @@ class BasisSwitch:
         return basis
 
     def model(self, stuck):
-        """Return ``(LinearModel, stuck_masses)`` of a stuck set (provider interface).
+        """Return ``(LinearModel, stuck_masses, carried_masses)`` of a stuck set.
 
         Parameters
         ----------
@@ -204,10 +215,10 @@ class BasisSwitch:
 
         Returns
         -------
-        (LinearModel, tuple of float)
+        (LinearModel, tuple of float, tuple of float)
             The modal model in the coordinates of :meth:`basis` (``M = I``; sensor, force and
-            housing rows of that basis, in 1/sqrt(kg)) and zero stuck masses (kg): the masses
-            are already in the basis.
+            housing rows of that basis, in 1/sqrt(kg)), zero stuck masses (kg): the masses
+            are already in the basis, and those carried masses (kg) for the release rule.
         """
         key = _key(stuck)
         found = self._models.get(key)
@@ -226,7 +237,8 @@ class BasisSwitch:
                                 sensor_names=base.sensor_names, impactors=impactors,
                                 kind='modal', input_names=base.input_names)
             self._models[key] = found
-        return found, (0.0,) * len(key)
+        carried = tuple(imp.mass if flag else 0.0 for imp, flag in zip(self.base.impactors, key))
+        return found, (0.0,) * len(key), carried
 
     def transform(self, stuck_from, stuck_to):
         """Return ``T = Phi_b^T M_b Phi_a`` mapping coordinates of ``a`` to ``b`` (provider).
@@ -293,18 +305,17 @@ class BasisSwitch:
         key = _key(stuck)
         q = np.asarray(q, dtype=float)
         qd = np.asarray(qd, dtype=float)
-        total = 0.5 * float(qd @ qd) + 0.5 * float(q @ self._k_sym(key) @ q)
-        return total - self._kinetic(key, key, qd)
+        return self.carried_energy(key, (0,) * len(key), q, qd)
 
-    def system_energy(self, stuck, riding, q, qd):
-        """Return the energy of the structure plus the impactors riding with it (J).
+    def carried_energy(self, stuck, carried, q, qd):
+        """Return the energy of the structure plus the impactors it carries (J).
 
         Parameters
         ----------
         stuck : sequence of bool or int
             Stuck flags of the configuration ``q`` belongs to (dimensionless).
-        riding : sequence of bool or int
-            Impactors moving with their housing (dimensionless); must include ``stuck``.
+        carried : sequence of bool or int
+            Impactors counted as moving with their housing (dimensionless).
         q : ndarray, shape (n,)
             Modal coordinates (m sqrt(kg)).
         qd : ndarray, shape (n,)
@@ -313,24 +324,26 @@ class BasisSwitch:
         Returns
         -------
         float
-            ``0.5 |qd|^2 + 0.5 q^T K_sym q`` plus ``0.5 m_j |R_j qd|^2`` of every riding
-            impactor the basis does not already hold (J).
+            ``0.5 |qd|^2 + 0.5 q^T K_sym q`` plus ``0.5 m_j |R_j qd|^2`` of each carried
+            impactor the basis does not hold, minus that of each impactor the basis holds but
+            that is not carried (J); :meth:`structure_energy` carries none.
         """
-        key = _key(stuck)
-        riding = _key(riding)
-        if any(s and not r for s, r in zip(key, riding)):
-            raise ValueError('riding must include every stuck impactor')
+        key, carried = _key(stuck), _key(carried)
         q = np.asarray(q, dtype=float)
         qd = np.asarray(qd, dtype=float)
+        add = [c and not s for c, s in zip(carried, key)]
+        drop = [s and not c for c, s in zip(carried, key)]
         return (0.5 * float(qd @ qd) + 0.5 * float(q @ self._k_sym(key) @ q)
-                + self._kinetic(key, [r and not s for r, s in zip(riding, key)], qd))
+                + self._kinetic(key, add, qd) - self._kinetic(key, drop, qd))
 
     def switch_loss(self, stuck_from, stuck_to, q, qd):
         """Return the energy one switch loses (J), at a stick or a release.
 
-        At the switch every impactor stuck in either configuration moves with its housing, so
-        the energy compared is that of the structure plus those impactors
-        (:meth:`system_energy`) before and after ``T`` (:meth:`transform`).
+        The propagator gives a sticking impactor its housing's velocity before the switch and
+        the new basis' housing velocity after it, while a released impactor leaves with the
+        velocity its housing had before the switch. So the energy a switch changes is that of
+        the structure plus the impactors stuck *after* it (:meth:`carried_energy`), before
+        and after ``T`` (:meth:`transform`); it is what the energy ledger shows as residual.
 
         Parameters
         ----------
@@ -348,10 +361,9 @@ class BasisSwitch:
             bases (to rounding).
         """
         a, b = _key(stuck_from), _key(stuck_to)
-        riding = tuple(int(x or y) for x, y in zip(a, b))
         T = self.transform(a, b)
         q2, qd2 = (q, qd) if T is None else (T @ q, T @ qd)
-        return self.system_energy(a, riding, q, qd) - self.system_energy(b, riding, q2, qd2)
+        return self.carried_energy(a, b, q, qd) - self.carried_energy(b, b, q2, qd2)
 
     def round_trip_loss(self, q, qd, stuck):
         """Return the relative energy change of a free -> stuck -> free round trip.

@@ -5,7 +5,7 @@ root finding on the gap functions with a grazing guard (see :mod:`.kernels`). A 
 impactor adds its mass to the housing rows of the *same* coordinates (a rank-one or rank-two
 mass update), so switching between free and stuck loses nothing: the coordinates and their
 velocities are continuous across the switch. The paper's alternative, a second modal basis,
-is :class:`BasisSwitchPropagator` in :mod:`.basis_switch`.
+is :class:`~.basis_switch.BasisSwitch`.
 """
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ class MassUpdate:
     The configuration-provider interface of :class:`ExactPropagator`:
 
     * ``model(stuck)`` returns ``(LinearModel, stuck_masses)`` for a tuple of stuck flags:
-      the model whose coordinates the flow uses and the masses to add to its housing rows;
+      the model whose coordinates the flow uses and the masses to add to its housing rows; a
+      third item, the masses its coordinates already carry (kg), may follow;
     * ``transform(stuck_from, stuck_to)`` returns the matrix mapping coordinates (and
       velocities) of one configuration to the other, or ``None`` for the identity;
     * ``structure_energy(stuck, q, qd)`` returns the kinetic plus potential energy of the
@@ -148,8 +149,10 @@ class ExactPropagator:
         key = self._key()
         entry = self._configs.get(key)
         if entry is None:
-            model, masses = self.configurations.model(key)
-            entry = (build_flow(model, masses, self._omegas, self._amps, self.law), model)
+            model, masses, *carried = self.configurations.model(key)
+            flow = build_flow(model, masses, self._omegas, self._amps, self.law,
+                              carried[0] if carried else None)
+            entry = (flow, model)
             self._configs[key] = entry
         return entry[0]
 

@@ -139,7 +139,8 @@ def _general_eigensystem(M, C, K):
     return lam.astype(complex), V, Vinv
 
 
-def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
+def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
+               carried_masses=None):
     """Build the exact-flow arrays for one configuration.
 
     Parameters
@@ -154,6 +155,9 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
         Harmonic forcing amplitudes (N), see ``Forcing.harmonic_table``.
     law : {'effective_mass', 'lumped_mass'}
         Impact law that sizes the impulses.
+    carried_masses : sequence of float, optional
+        Mass of each stuck impactor that the model's coordinates already hold (kg), e.g. a
+        basis computed with it; used, like ``stuck_masses``, for the release map only.
 
     Returns
     -------
@@ -190,8 +194,9 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass'):
         MinvRt = np.linalg.solve(M, R.T)
         kick[j, :d] = (Vinv[:, n:] @ MinvRt).T
         mobility[j, :d, :d] = law_mobility(R @ MinvRt, imp.housing_mass, law)
-        if stuck_masses[j]:
-            release_map[j, :d, :d] = np.linalg.inv(np.eye(d) - stuck_masses[j] * (R @ MinvRt))
+        riding = stuck_masses[j] or (carried_masses[j] if carried_masses is not None else 0.0)
+        if riding:
+            release_map[j, :d, :d] = np.linalg.inv(np.eye(d) - riding * (R @ MinvRt))
     omegas = np.asarray(omegas, dtype=float)
     amplitudes = np.asarray(amplitudes, dtype=complex).reshape(omegas.size, model.n_inputs)
     part_plus = np.zeros((omegas.size, 2 * n), dtype=complex)
