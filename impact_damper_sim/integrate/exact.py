@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from .kernels import exact as kernels
-from .events import EVENT_DTYPE, EnergyLedger, Samples, STICK_RULES
+from .base import IntegratorBase
+from .events import EVENT_DTYPE, Samples, STICK_RULES
 from .flow import build_flow
 
 class MassUpdate:
@@ -50,7 +51,7 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
                'none': kernels.STICK_NONE}
 
 
-class ExactPropagator:
+class ExactPropagator(IntegratorBase):
     """Exact flow of a :class:`~.model.LinearModel` with impactors.
 
     Parameters
@@ -173,48 +174,11 @@ class ExactPropagator:
         cfg = self._config()
         return cfg.from_state(self._yh + self._particular(cfg, self.t))
 
-    def impactor_states(self):
-        """Return relative positions (m), absolute velocities (m/s) and stuck flags.
+    def _housing_rows(self):
+        return [imp.rows for imp in self._config_model().impactors]
 
-        Returns
-        -------
-        rel : ndarray, shape (n_i, 2)
-            ``z - x_h`` (m); SDOF impactors use column 0.
-        vel : ndarray, shape (n_i, 2)
-            Absolute impactor velocity (m/s).
-        stuck : ndarray of bool, shape (n_i,)
-            True while the impactor rides its housing.
-        """
-        q, qd = self.state()
-        ni = len(self.model.impactors)
-        rel = np.zeros((ni, 2))
-        vel = np.zeros((ni, 2))
-        for j, imp in enumerate(self._config_model().impactors):
-            d = imp.dim
-            x_h = imp.rows @ q
-            v_h = imp.rows @ qd
-            if self._stuck[j]:
-                rel[j, :d] = self._imp_rel[j, :d]
-                vel[j, :d] = v_h
-            else:
-                rel[j, :d] = self._imp_z[j, :d] - x_h
-                vel[j, :d] = self._imp_v[j, :d]
-        return rel, vel, self._stuck.astype(bool)
-
-    def _energy_now(self):
-        q, qd = self.state()
-        structure = self.configurations.structure_energy(self._key(), q, qd)
-        _, vel, _ = self.impactor_states()
-        impactors = 0.5 * float(np.sum(self._imp_mass * np.sum(vel * vel, axis=1))) \
-            if self._imp_mass.size else 0.0
-        return structure, impactors
-
-    def energy(self):
-        """Return the :class:`~.events.EnergyLedger` now (J)."""
-        structure, impactors = self._energy_now()
-        led = self._ledger
-        return EnergyLedger(structure, impactors, led[0], led[1], led[2], led[3], led[4],
-                            self._initial_energy)
+    def _structure_energy(self, q, qd):
+        return self.configurations.structure_energy(self._key(), q, qd)
 
     def take_events(self):
         """Return the events recorded since the last call (see ``EVENT_DTYPE``) and clear."""

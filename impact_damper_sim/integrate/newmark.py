@@ -50,7 +50,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..dampers.law import law_mobility, IMPACT_LAWS
-from .events import EVENT_DTYPE, EVENT_KINDS, EnergyLedger, Samples, STICK_RULES
+from .base import IntegratorBase
+from .events import EVENT_DTYPE, EVENT_KINDS, Samples, STICK_RULES
 from .kernels import newmark as kernels
 
 IMPACT_MODES = ('located', 'step_end')
@@ -218,7 +219,7 @@ class _Config:
         return np.linalg.solve(self.S(h), r)
 
 
-class NewmarkIntegrator:
+class NewmarkIntegrator(IntegratorBase):
     """Average-acceleration Newmark integration of a :class:`~.model.LinearModel`.
 
     Parameters
@@ -390,46 +391,11 @@ class NewmarkIntegrator:
         """Return ``(q, qd)``: coordinates and their velocities now (copies)."""
         return self._q.copy(), self._v.copy()
 
-    def impactor_states(self):
-        """Return relative positions (m), absolute velocities (m/s) and stuck flags.
+    def _housing_rows(self):
+        return [self._rows[j, :d] for j, d in enumerate(self._imp_dim)]
 
-        Returns
-        -------
-        rel : ndarray, shape (n_i, 2)
-            ``z - x_h`` (m); SDOF impactors use column 0.
-        vel : ndarray, shape (n_i, 2)
-            Absolute impactor velocity (m/s).
-        stuck : ndarray of bool, shape (n_i,)
-            True while the impactor rides its housing.
-        """
-        ni = self._imp_dim.size
-        rel = np.zeros((ni, 2))
-        vel = np.zeros((ni, 2))
-        for j in range(ni):
-            d = self._imp_dim[j]
-            R = self._rows[j, :d]
-            if self._stuck[j]:
-                rel[j, :d] = self._imp_rel[j, :d]
-                vel[j, :d] = R @ self._v
-            else:
-                rel[j, :d] = self._imp_z[j, :d] - R @ self._q
-                vel[j, :d] = self._imp_v[j, :d]
-        return rel, vel, self._stuck.astype(bool)
-
-    def _energy_now(self):
-        q, v = self._q, self._v
-        structure = 0.5 * float(v @ (self.model.M @ v)) + 0.5 * float(q @ (self._K_sym @ q))
-        _, vel, _ = self.impactor_states()
-        impactors = 0.5 * float(np.sum(self._imp_mass * np.sum(vel * vel, axis=1))) \
-            if self._imp_mass.size else 0.0
-        return structure, impactors
-
-    def energy(self):
-        """Return the :class:`~.events.EnergyLedger` now (J)."""
-        structure, impactors = self._energy_now()
-        led = self._ledger
-        return EnergyLedger(structure, impactors, led[0], led[1], led[2], led[3], led[4],
-                            self._initial_energy)
+    def _structure_energy(self, q, qd):
+        return 0.5 * float(qd @ (self.model.M @ qd)) + 0.5 * float(q @ (self._K_sym @ q))
 
     def take_events(self):
         """Return the events recorded since the last call (see ``EVENT_DTYPE``) and clear."""

@@ -344,7 +344,6 @@ def _make_basis(system, cond, omega, phi, zeta, zeta_overrides, reason):
 
 def _solve_dense(K, M, n_modes, f_max, scale):
     """Lowest eigenpairs with LAPACK; returns (eigenvalues (rad/s)^2, M-normalized vectors)."""
-    n = K.shape[0]
     try:
         if n_modes is not None:
             return sla.eigh(K, M, subset_by_index=[0, n_modes - 1])
