@@ -379,62 +379,6 @@ def fn_at_py(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
 fn_at = njit(cache=True)(fn_at_py)
 
 
-def scan_py(fid, Th, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
-            rows, n_rows, z, v, limit, normal, yh_tau, y_tau, uder, yd, X, ybound, u_abs,
-            us_abs, ub, wu, grace):
-    """First time in ``(0, Th]`` where event function ``fid`` reaches zero from above.
-
-    Returns the time into the interval (s), ``-1`` if there is none, or ``-2`` if the
-    grazing guard could not decide within its iteration budget (a tangential touch with
-    vanishing normal velocity, which transfers no impulse).
-    """
-    nf = u0.size
-    tau = 0.0
-    shift = 0.0
-    if grace:
-        # Just stuck or released: contact force and relative motion vanish to round-off and
-        # the boundary we start on is being left. Shift it by a negligible physical amount so
-        # that round-off cannot create a contact (1e-9 of the clearance, or of the housing
-        # acceleration for the release function).
-        if fid == FN_RELEASE:
-            fn_at(fid, 0.0, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
-                  us, rows, n_rows, z, v, limit, normal, 0.0, yh_tau, y_tau, uder, yd, X)
-            shift = 1e-9 * (abs(X[2, 0]) + abs(X[2, 1])) + 1e-300
-        elif fid == FN_PLANAR:
-            shift = 1e-9 * limit * limit
-        else:
-            shift = 1e-9 * limit
-    for _ in range(_MAX_SCAN):
-        f0, f1, f2 = fn_at(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
-                           amps, u0, us, rows, n_rows, z, v, limit, normal, shift, yh_tau,
-                           y_tau, uder, yd, X)
-        if f0 <= 0.0:
-            if tau == 0.0 and (f1 > 0.0 or (f1 == 0.0 and f2 >= 0.0)):
-                f0 = 1e-300  # leaving the boundary we start on
-            else:
-                return tau
-        T = Th - tau
-        for f in range(nf):
-            u_abs[f] = max(abs(u0[f] + us[f] * tau), abs(u0[f] + us[f] * Th))
-            us_abs[f] = abs(us[f])
-        derivative_bounds(yh_tau, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs,
-                          us_abs, omegas, amps, 5 if fid == FN_RELEASE else 3, ub, wu, ybound)
-        g3 = fn_third_bound(fid, X, z, v, tau, limit, normal, ybound, rows, n_rows, T)
-        s = cubic_safe_step(f0, f1, f2, g3, T)
-        if s >= T:
-            return -1.0
-        probe = tau + min(T, max(2.0 * s, 1e-3 * T))
-        fp, _, _ = fn_at(fid, probe, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
-                         amps, u0, us, rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau,
-                         uder, yd, X)
-        if fp <= 0.0:
-            return refine(fid, tau + s, probe, t_cur, yh, lam, W, w0, ws, part_plus,
-                          part_minus, omegas, amps, u0, us, rows, n_rows, z, v, limit, normal,
-                          shift, yh_tau, y_tau, uder, yd, X)
-        tau = tau + s
-    return -2.0
-
-
 def refine_py(fid, a, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
               us, rows, n_rows, z, v, limit, normal, shift, yh_tau, y_tau, uder, yd, X):
     """Illinois regula falsi on a bracket with ``f(a) > 0 >= f(b)``; returns the ``b`` side."""
@@ -471,7 +415,112 @@ def refine_py(fid, a, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omega
 
 
 refine = njit(cache=True)(refine_py)
-scan = njit(cache=True)(scan_py)
+
+
+def scan_multi_py(n_cand, cand_j, cand_fid, Th, t_cur, yh, lam, W, w0, ws, part_plus,
+                  part_minus, omegas, amps, u0, us, house_q, imp_dim, imp_z, imp_v, imp_limit,
+                  release_n, imp_grace, yh_tau, y_tau, uder, yd, X, ybound, u_abs, us_abs, ub,
+                  wu, active, shifts, result):
+    """First time in ``(0, Th]`` where any candidate event function reaches zero from above.
+
+    Candidate ``c`` is the function ``cand_fid[c]`` of impactor ``cand_j[c]``. One state
+    evaluation per scan point serves every candidate; the scan advances by the smallest safe
+    step (cubic lower bound of each function, see :func:`cubic_safe_step`), probes, and
+    refines any bracket found, after which the horizon shrinks to that event and the scan
+    goes on for earlier ones. Writes ``result[0]`` = event time into the interval (s) or -1,
+    ``result[1]`` = candidate index; returns 1 if the iteration budget ran out (a tangential
+    touch with vanishing normal velocity), else 0.
+    """
+    nf = u0.size
+    any_release = False
+    for c in range(n_cand):
+        active[c] = True
+        shifts[c] = 0.0
+        if cand_fid[c] == FN_RELEASE:
+            any_release = True
+    order = 4 if any_release else 2
+    best_t = Th
+    best_c = -1
+    tau = 0.0
+    undecided = 1
+    for _ in range(_MAX_SCAN):
+        T = best_t - tau
+        n_active = 0
+        for c in range(n_cand):
+            if active[c]:
+                n_active += 1
+        if n_active == 0 or T <= 0.0:
+            undecided = 0
+            break
+        point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
+                   order, yh_tau, y_tau, uder, yd)
+        for f in range(nf):
+            u_abs[f] = max(abs(u0[f] + us[f] * tau), abs(u0[f] + us[f] * best_t))
+            us_abs[f] = abs(us[f])
+        derivative_bounds(yh_tau, lam, W, part_plus, part_minus, w0, ws, tau, best_t, u_abs,
+                          us_abs, omegas, amps, order + 1, ub, wu, ybound)
+        s_min = T
+        for c in range(n_cand):
+            if not active[c]:
+                continue
+            j = cand_j[c]
+            fid = cand_fid[c]
+            n_rows = imp_dim[j]
+            row_derivs(house_q[j], n_rows, yd, order, X)
+            if tau == 0.0 and imp_grace[j] == 1:
+                # just stuck or released: the boundary we start on is being left; shift it by
+                # a negligible physical amount so that round-off cannot create a contact
+                if fid == FN_RELEASE:
+                    shifts[c] = 1e-9 * (abs(X[2, 0]) + abs(X[2, 1])) + 1e-300
+                elif fid == FN_PLANAR:
+                    shifts[c] = 1e-9 * imp_limit[j] * imp_limit[j]
+                else:
+                    shifts[c] = 1e-9 * imp_limit[j]
+            f0, f1, f2 = fn_values(fid, X, imp_z[j], imp_v[j], tau, imp_limit[j], release_n[j])
+            f0 += shifts[c]
+            if f0 <= 0.0:
+                if tau == 0.0 and (f1 > 0.0 or (f1 == 0.0 and f2 >= 0.0)):
+                    f0 = 1e-300  # leaving the boundary we start on
+                else:
+                    result[0] = tau
+                    result[1] = c
+                    return 0
+            g3 = fn_third_bound(fid, X, imp_z[j], imp_v[j], tau, imp_limit[j], release_n[j],
+                                ybound, house_q[j], n_rows, T)
+            s = cubic_safe_step(f0, f1, f2, g3, T)
+            if s >= T:
+                active[c] = False  # no event before the current horizon
+            elif s < s_min:
+                s_min = s
+        if s_min >= T:
+            undecided = 0
+            break
+        probe = tau + min(T, max(2.0 * s_min, 1e-3 * T))
+        point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, probe,
+                   order, yh_tau, y_tau, uder, yd)
+        for c in range(n_cand):
+            if not active[c]:
+                continue
+            j = cand_j[c]
+            fid = cand_fid[c]
+            row_derivs(house_q[j], imp_dim[j], yd, order, X)
+            fp, _, _ = fn_values(fid, X, imp_z[j], imp_v[j], probe, imp_limit[j], release_n[j])
+            if fp + shifts[c] <= 0.0:
+                tc = refine(fid, tau + s_min, probe, t_cur, yh, lam, W, w0, ws, part_plus,
+                            part_minus, omegas, amps, u0, us, house_q[j], imp_dim[j], imp_z[j],
+                            imp_v[j], imp_limit[j], release_n[j], shifts[c], yh_tau, y_tau,
+                            uder, yd, X)
+                active[c] = False
+                if tc < best_t or best_c < 0:
+                    best_t = tc
+                    best_c = c
+        tau = tau + s_min
+    result[0] = best_t if best_c >= 0 else -1.0
+    result[1] = best_c
+    return undecided
+
+
+scan_multi = njit(cache=True)(scan_multi_py)
 
 
 def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
@@ -624,6 +673,11 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
     u_abs = np.empty(nf)
     us_abs = np.empty(nf)
     exc = np.empty(n2)
+    cand_j = np.empty(2 * ni + 1, dtype=np.int64)
+    cand_fid = np.empty(2 * ni + 1, dtype=np.int64)
+    active = np.empty(2 * ni + 1, dtype=np.bool_)
+    shifts = np.empty(2 * ni + 1)
+    scan_result = np.empty(2)
     ub = np.empty((order_max + 1, nf))
     wu = np.empty(order_max + 1)
     w0 = np.empty(n2, dtype=np.complex128)
@@ -682,6 +736,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                 derivative_bounds(yh, lam, W, part_plus, part_minus, w0, ws, 0.0, horizon,
                                   u_abs, us_abs, omegas, amps, order_pt + 1, ub, wu, ybound)
                 excursion_bounds(yh, lam, w0, ws, part_plus, part_minus, omegas, horizon, exc)
+            n_cand = 0
             for j in range(ni):
                 n_rows = imp_dim[j]
                 if imp_stuck[j] == 1:
@@ -691,8 +746,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                 else:
                     fids = (FN_PLANAR, -1)
                 if imp_grace[j] == 0 and imp_stuck[j] == 0:
-                    # excursion test: |x_h(t) - x_h(0)| <= 2 sum_k |H_k| max|y_k| and the
-                    # impactor moves on a straight line, so a gap that cannot close over the
+                    # excursion test: the housing moves by at most sum_k |H_k| exc_k and the
+                    # impactor on a straight line, so a gap that cannot close over the
                     # sub-interval needs no derivative-based guard at all
                     row_derivs(house_q[j], n_rows, yd, 0, X)
                     if excursion_clear(house_q[j], n_rows, exc, X, imp_z[j], imp_v[j],
@@ -712,16 +767,19 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps,
                                                 horizon)
                             if cubic_safe_step(f0, f1, f2, g3, best) >= best:
                                 continue
-                    te = scan(fid, best, t_cur, yh, lam, W, w0, ws, part_plus, part_minus,
-                              omegas, amps, u0, us, house_q[j], n_rows, imp_z[j], imp_v[j],
-                              imp_limit[j], release_n[j], yh_tau, y_tau, uder, yd, X, ybound,
-                              u_abs, us_abs, ub, wu, imp_grace[j] == 1)
-                    if te == -2.0:
-                        info[2] += 1
-                    elif te >= 0.0 and (te < best or best_j < 0):
-                        best = te
-                        best_j = j
-                        best_fid = fid
+                    cand_j[n_cand] = j
+                    cand_fid[n_cand] = fid
+                    n_cand += 1
+            if n_cand > 0:
+                info[2] += scan_multi(n_cand, cand_j, cand_fid, horizon, t_cur, yh, lam, W, w0,
+                                      ws, part_plus, part_minus, omegas, amps, u0, us, house_q,
+                                      imp_dim, imp_z, imp_v, imp_limit, release_n, imp_grace,
+                                      yh_tau, y_tau, uder, yd, X, ybound, u_abs, us_abs, ub, wu,
+                                      active, shifts, scan_result)
+                if scan_result[0] >= 0.0:
+                    best = scan_result[0]
+                    best_j = cand_j[int(scan_result[1])]
+                    best_fid = cand_fid[int(scan_result[1])]
             tau = best
             if ledger_on:
                 ledger_panel(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
