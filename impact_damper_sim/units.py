@@ -120,6 +120,7 @@ UNITS: dict[str, dict[str, float]] = {
     # mixing them is the classic 2*pi error.
     'frequency': _table(('Hz', 1), ('kHz', 1000), ('cpm', Fraction(1, _MIN))),
     'angular_speed': {'rad/s': 1.0, 'rpm': 2.0 * _PI / 60.0},
+    'angular_acceleration': {'rad/s^2': 1.0, 'rpm/s': 2.0 * _PI / 60.0},
     'angle': {'rad': 1.0, 'mrad': 1e-3, 'deg': _PI / 180.0},
     'velocity': _table(
         ('m/s', 1), ('mm/s', Fraction(1, 1000)), ('in/s', _IN), ('ft/s', _FT),

@@ -377,6 +377,14 @@ class SceneModel:
         Number of nodes of the finite-element model.
     sensor_dofs, force_dofs : tuple of int
         Active DOF index of each sensor and force.
+    unbalance_dofs : tuple of (int, int)
+        Active (uy, uz) DOF indices of each ``rotor.unbalance`` entry; their force inputs
+        follow the ``forcing`` inputs (see :attr:`input_dofs`, :attr:`input_names`).
+    speed_profile : SpeedProfile or None
+        The rotor speed profile (rad/s); a :class:`~impact_damper_sim.excitation.CommandedSpeed`
+        takes run-time commands. None without ``rotor``.
+    unbalance : UnbalanceForce or None
+        The unbalance forces (N), None without unbalance.
     impactor_dofs : tuple of tuple of int
         Active DOF indices of each impactor housing (one for sdof, two for planar).
     """
@@ -395,12 +403,19 @@ class SceneModel:
         self.force_dofs = tuple(
             self._dof(fe, f['node'], f['dof'], f'forcing[{i}]', errors)
             for i, f in enumerate(scene['forcing']))
+        rotor = scene['rotor']
+        # each unbalance adds two force inputs (uy, uz) after the forcing entries
+        self.unbalance_dofs = tuple(
+            tuple(self._dof(fe, u['node'], d, f'rotor.unbalance[{i}]', errors)
+                  for d in ('uy', 'uz'))
+            for i, u in enumerate(rotor['unbalance'] if rotor else ()))
         self.impactor_dofs = tuple(
             tuple(self._dof(fe, imp['node'], d, f'impactors[{i}]', errors,
                             'dof' if imp['kind'] == 'sdof' else 'plane')
                   for d in ([imp['dof']] if imp['kind'] == 'sdof' else imp['plane']))
             for i, imp in enumerate(scene['impactors']))
         errors.raise_if_any(source)
+        self.speed_profile, self.unbalance = self._make_rotor()
         self.forcing = self._make_forcing()
         impactors = self._make_impactors(errors)
         errors.raise_if_any(source)
@@ -416,17 +431,58 @@ class SceneModel:
             errors.add(f'{path}.{dof_key}', f'DOF {dof} at node {node} is clamped')
             return -1
 
+    @property
+    def input_dofs(self):
+        """tuple of int: Active DOF of every force input: forcing entries, then (uy, uz) of
+        each unbalance."""
+        return self.force_dofs + tuple(d for pair in self.unbalance_dofs for d in pair)
+
+    def _make_rotor(self):
+        """The speed profile and the unbalance force (None, None without a rotor)."""
+        from ..excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
+                                  PiecewiseLinearSpeed, UnbalanceForce)
+        rotor = self.scene['rotor']
+        if rotor is None:
+            return None, None
+        sp = rotor['speed']
+        kind = sp['kind']
+        if kind == 'constant':
+            profile = ConstantSpeed(sp['speed'])
+        elif kind == 'paper_ramp':
+            ramp = {k: v for k, v in (('omega_f', sp['final_speed']),
+                                      ('t_ramp', sp['ramp_time'])) if v is not None}
+            profile = PaperRamp(**ramp)
+        elif kind == 'piecewise':
+            profile = PiecewiseLinearSpeed(sp['times'], sp['speeds'])
+        else:
+            profile = CommandedSpeed(sp['speed'], sp['max_rate'])
+        if not self.unbalance_dofs:
+            return profile, None
+        first = len(self.force_dofs)
+        pairs = [(first + 2 * i, first + 2 * i + 1) for i in range(len(self.unbalance_dofs))]
+        unbalances = [(u['amount'], u['phase']) for u in rotor['unbalance']]
+        force = UnbalanceForce(profile, unbalances, pairs, rotor['multiplier'],
+                               n_inputs=len(self.input_dofs))
+        return profile, force
+
     def _make_forcing(self):
+        from ..excitation import unbalance_forcing
         from ..integrate.forcing import Forcing, Harmonic
         omega1 = float(self.basis.omega[0])
-        terms = []
+        forcing = Forcing(len(self.input_dofs))
         for k, f in enumerate(self.scene['forcing']):
             if f['frequency'] is not None:
                 omega = 2.0 * np.pi * f['frequency']
             else:
                 omega = f['frequency_ratio'] * omega1
-            terms.append(Harmonic(k, f['amplitude'], omega, f['phase']))
-        return Forcing(len(terms), terms)
+            forcing.add(Harmonic(k, f['amplitude'], omega, f['phase']))
+        if self.unbalance is not None:
+            # exact harmonics at constant speed; otherwise a sampled term that follows the
+            # live profile (commands) and multiplier
+            rotor_forcing = unbalance_forcing(forcing.n_inputs, self.unbalance)
+            for term in rotor_forcing.harmonics + rotor_forcing.sampled:
+                forcing.add(term)
+        return forcing
 
     def _housing_mass(self, i, imp, errors):
         if imp['housing_mass'] is not None:
@@ -460,13 +516,21 @@ class SceneModel:
         from ..integrate.model import LinearModel
         basis = self.basis
         n = basis.n_modes
-        B = basis.rows(list(self.force_dofs)).T if self.force_dofs else np.zeros((n, 0))
+        inputs = list(self.input_dofs)
+        B = basis.rows(inputs).T if inputs else np.zeros((n, 0))
         S = basis.rows(list(self.sensor_dofs)) if self.sensor_dofs else np.zeros((0, n))
         return LinearModel(
             M=np.eye(n), C=basis.damping_matrix(), K=basis.stiffness_matrix(), B=B, sensors=S,
             sensor_names=tuple(s['name'] for s in self.scene['sensors']),
             impactors=impactors, kind='modal',
-            input_names=tuple(f'force{k}' for k in range(len(self.force_dofs))))
+            input_names=self.input_names)
+
+    @property
+    def input_names(self):
+        """tuple of str: Name of every force input (``force<k>``, ``unbalance<i>_uy/_uz``)."""
+        return (tuple(f'force{k}' for k in range(len(self.force_dofs)))
+                + tuple(f'unbalance{i}_{d}' for i in range(len(self.unbalance_dofs))
+                        for d in ('uy', 'uz')))
 
     # -- public -------------------------------------------------------------------------------
     @property
@@ -494,7 +558,7 @@ class SceneModel:
         for mode, ratio in damping['modes'].items():
             zeta[mode - 1] = ratio
         return physical_model(
-            self.system, force_indices=list(self.force_dofs),
+            self.system, force_indices=list(self.input_dofs),
             sensor_indices=list(self.sensor_dofs),
             impactors=[(imp, dofs) for imp, dofs in zip(self.model.impactors,
                                                           self.impactor_dofs)],
@@ -590,12 +654,17 @@ class SceneModel:
 
         for s, idx in zip(self.scene['sensors'], self.sensor_dofs):
             add('sensor', s['name'], s['node'], s['dof'], idx)
+            shapes[-1]['lowpass_hz'] = s['lowpass']   # anti-alias cutoff, reported only
         for imp, dofs in zip(self.scene['impactors'], self.impactor_dofs):
             names = [imp['dof']] if imp['kind'] == 'sdof' else imp['plane']
             for dof, idx in zip(names, dofs):
                 add('impactor', imp['name'], imp['node'], dof, idx)
         for k, (f, idx) in enumerate(zip(self.scene['forcing'], self.force_dofs)):
             add('force', f'force{k}', f['node'], f['dof'], idx)
+        rotor = self.scene['rotor']
+        for i, pair in enumerate(self.unbalance_dofs):
+            for dof, idx in zip(('uy', 'uz'), pair):
+                add('unbalance', f'unbalance{i}_{dof}', rotor['unbalance'][i]['node'], dof, idx)
         impactors = []
         for imp, dofs in zip(self.model.impactors, self.impactor_dofs):
             mob = basis.impulse_mobility(list(dofs))

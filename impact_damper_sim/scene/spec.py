@@ -17,6 +17,9 @@ Layout
     Mode selection and per-mode "tare" damping.
 ``sensors``, ``forcing``, ``impactors``
     What is read, what drives the structure and the impact dampers.
+``rotor``
+    Optional: the rotor speed profile and its unbalance, whose forces enter as extra force
+    inputs (uy, uz) at each unbalance node.
 ``simulation``
     Defaults of ``study simulate`` (method, step, duration, ...).
 
@@ -40,7 +43,7 @@ from .schema import (
 )
 
 __all__ = ['SCHEMA', 'DOF_NAMES', 'TRANSLATIONS', 'ROTATIONS', 'SDOF_KEYS', 'BEAM_KEYS',
-           'SECTION_SHAPES', 'SDOF_NODE', 'STUCK_MODELS']
+           'SECTION_SHAPES', 'SDOF_NODE', 'SPEED_KINDS', 'STUCK_MODELS']
 
 #: Node DOF names in node order (same as :data:`impact_damper_sim.fem.DOF_NAMES`; kept here
 #: so that the schema does not import SciPy).
@@ -336,6 +339,9 @@ _SENSOR = Section({
     'node': _node('node id'),
     'dof': Choice(DOF_NAMES, doc='DOF read (m for translations, rad for rotations)'),
     'frame_id': Optional(String(), doc='frame_id for ROS messages; none = derived from the name'),
+    'lowpass': Optional(Quantity('frequency', min=0, min_inclusive=False),
+                        doc='cutoff of the anti-alias low-pass filter of the accelerometer '
+                            'output (stored and reported; not applied yet); none = no filter'),
 })
 
 
@@ -422,6 +428,73 @@ _IMPACTOR = Section({
 }, checks=[_check_impactor])
 
 
+# --- rotor ------------------------------------------------------------------------------------
+
+#: Keys of ``rotor.speed`` by kind: (required, optional).
+SPEED_KINDS = {
+    'constant': (('speed',), ()),
+    'paper_ramp': ((), ('final_speed', 'ramp_time')),
+    'piecewise': (('times', 'speeds'), ()),
+    'commanded': (('speed', 'max_rate'), ()),
+}
+
+
+def _check_speed(values):
+    kind = values['kind']
+    required, optional = SPEED_KINDS[kind]
+    allowed = set(required) | set(optional) | {'kind'}
+    problems = [f"kind {kind} needs key '{k}'" for k in required if values[k] is None]
+    problems += [f"key '{k}' does not apply to kind {kind} (keys of kind {kind}: kind"
+                 f"{''.join(', ' + a for a in required + optional)})"
+                 for k, v in values.items() if v is not None and k not in allowed]
+    if kind == 'piecewise' and values['times'] is not None and values['speeds'] is not None:
+        times, speeds = values['times'], values['speeds']
+        if len(times) != len(speeds):
+            problems.append(f'times and speeds must have the same length (got {len(times)} '
+                            f'and {len(speeds)})')
+        if any(b <= a for a, b in zip(times, times[1:])):
+            problems.append('times must be strictly increasing')
+    return problems
+
+
+_SPEED = Section(doc='rotor speed profile', checks=[_check_speed], fields={
+    'kind': Choice(tuple(SPEED_KINDS), default='constant',
+                   doc='constant: fixed speed; paper_ramp: linear ramp from rest to '
+                       'final_speed in ramp_time, then held (Eq. 4.3.1); piecewise: linear '
+                       'between (times, speeds) points, held outside; commanded: starts at '
+                       'speed and follows run-time commands under the rate limit max_rate'),
+    'speed': Optional(Quantity('angular_speed', min=0),
+                      doc='(constant) rotor speed; (commanded) initial speed'),
+    'final_speed': Optional(Quantity('angular_speed', min=0, min_inclusive=False),
+                            doc="(paper_ramp) running speed; none = the paper's 2400 rad/s"),
+    'ramp_time': Optional(Quantity('time', min=0, min_inclusive=False),
+                          doc="(paper_ramp) ramp duration; none = the paper's 5 s"),
+    'times': Optional(ListOf(Quantity('time', min=0, doc='(piecewise) a time'), min_len=1),
+                      doc='(piecewise) strictly increasing times'),
+    'speeds': Optional(ListOf(Quantity('angular_speed', min=0, doc='(piecewise) a speed'),
+                              min_len=1),
+                       doc='(piecewise) speeds at times'),
+    'max_rate': Optional(Quantity('angular_acceleration', min=0, min_inclusive=False),
+                         doc='(commanded) magnitude of the speed change rate'),
+})
+
+
+_ROTOR = Section(doc='rotating shaft: speed profile and unbalance (rotor axis along global '
+                     'X; unbalance forces act in uy and uz)', fields={
+    'speed': _SPEED,
+    'unbalance': ListOf(Section({
+        'node': _node('node id of the unbalance (uy and uz must be active)'),
+        'amount': Quantity('unbalance', min=0, doc='base unbalance m e (mass x eccentricity)'),
+        'phase': Quantity('angle', default=0,
+                          doc='angle of the unbalance relative to the rotor angle'),
+    }), default=[], doc='base unbalance distribution; F_y = X m e (phi\'^2 cos(phi + p) + '
+                        "phi'' sin(phi + p)), F_z = X m e (phi'^2 sin(phi + p) - phi'' "
+                        'cos(phi + p))'),
+    'multiplier': Quantity('dimensionless', default=1, min=0,
+                           doc="unbalance multiplier X of the paper (Sec. 4.3)"),
+})
+
+
 # --- simulation -------------------------------------------------------------------------------
 
 def _check_simulation(values):
@@ -486,6 +559,8 @@ SCHEMA = Section({
     'sensors': ListOf(_SENSOR, default=[], doc='displacement outputs'),
     'forcing': ListOf(_FORCE, default=[], doc='harmonic forces'),
     'impactors': ListOf(_IMPACTOR, default=[], doc='impact dampers; none = linear structure'),
+    'rotor': Optional(_ROTOR, doc='rotor speed and unbalance; none = no rotor (no unbalance '
+                                  'forces)'),
     'simulation': _SIMULATION,
 }, checks=[_check_scene])
 """The scene schema (:class:`~.schema.Section`); validate with :func:`~.schema.validate`."""
