@@ -6,14 +6,27 @@
     study simulate SCENE [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S]
                          [--window S] [--json]
     study keys [--markdown]
+    study frf SCENE (--ratio SPEC | --hz SPEC) [--tol X] [--max-duration S] [study options]
+    study sweep SCENE --grid KEY=V1,V2,... [--grid ...] [--phase NAME=T0:T1 ...]
+                      [--best-over KEY] [--objective acceleration|displacement] [study options]
+    study stability SCENE --kcc-key KEY [--kcc V1,V2,...] [--weight-key KEY --weights ...]
+                          [--clearance-key KEY --clearances ...] [--onset] [study options]
+
+study options: [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S] [--window S]
+[--json] [--csv PATH] [--plot PATH.png] [--workers N] [--executor process|serial|dask]
+[--dask-address ADDR] [--seed N] [--progress | --no-progress]
 
 SCENE is a ready-made scene name (``config/scenes/<name>.yaml``) or a path to a YAML file.
 ``--duration``, ``--method``, ``--dt`` and ``--window`` are shorthands for
 ``--set simulation.<key>=VALUE``, so they accept units (``--dt '50 us'``) and are checked
 like scene values. Bad input prints one message per problem to stderr and exits with 2.
 
-Importing this module is cheap: NumPy, SciPy and Numba are imported by the subcommands
-that need them.
+The studies (``frf``, ``sweep``, ``stability``; :mod:`impact_damper_sim.studies`) run their
+points in parallel; a point that fails is reported on stderr and the others are kept (exit
+status 0 if any point succeeded, 1 if none did).
+
+Importing this module is cheap: NumPy, SciPy, Numba, Dask and Matplotlib are imported by the
+subcommands that need them.
 """
 from __future__ import annotations
 
@@ -63,7 +76,100 @@ def _parser():
                           description='Every scene key with its type or unit, default, '
                                       'allowed range and meaning.')
     keys.add_argument('--markdown', action='store_true', help='print a Markdown table')
+    _study_parsers(sub, scene_args)
     return parser
+
+
+def _study_parsers(sub, scene_args):
+    def common(p):
+        scene_args(p)
+        for key, meta, text in (('duration', 'S', 'simulated time of each point (s)'),
+                                ('method', 'M', f'integration method: {_METHODS_HELP}'),
+                                ('dt', 'S', 'output sample period (s)'),
+                                ('window', 'S', 'trailing window (s)')):
+            p.add_argument(f'--{key}', metavar=meta, help=text)
+        p.add_argument('--csv', metavar='PATH', help='also write the table as CSV')
+        p.add_argument('--plot', metavar='PATH.png', help='also write a plot (PNG)')
+        p.add_argument('--workers', type=int, metavar='N',
+                       help='parallel workers (default: CPU count)')
+        p.add_argument('--executor', choices=('process', 'serial', 'dask'), default='process',
+                       help='where points run (default process; serial for debugging)')
+        p.add_argument('--dask-address', metavar='ADDR',
+                       help='Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)')
+        p.add_argument('--seed', type=int, default=0, help='study seed (default 0)')
+        p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
+                       help='progress bar on stderr (default: when stderr is a terminal)')
+
+    frf = sub.add_parser(
+        'frf', help='frequency response with and without impactors',
+        description='For each forcing frequency run the scene to a steady amplitude (peak '
+                    'over the trailing window) with its impactors and without them '
+                    '(impactors=[]). SPEC is START:STOP:N (N points, ends included) or a '
+                    'comma list. Every forcing entry gets the frequency.')
+    common(frf)
+    which = frf.add_mutually_exclusive_group(required=True)
+    which.add_argument('--ratio', metavar='SPEC',
+                       help='frequency ratios to the first retained mode, e.g. 0.8:1.2:21')
+    which.add_argument('--hz', metavar='SPEC', help='frequencies (Hz), e.g. 20:30:11')
+    frf.add_argument('--tol', type=float, default=0.005,
+                     help='settled when the last two window peaks differ by <= tol '
+                          '(relative, default 0.005)')
+    frf.add_argument('--max-duration', metavar='S',
+                     help='continue unsettled runs window by window up to this time (s)')
+
+    sweep = sub.add_parser(
+        'sweep', help='grid sweep with worst-case responses and reductions',
+        description='Run every combination of the --grid values with impactors, and each '
+                    'combination of the non-impactor keys without impactors as reference; '
+                    'report per phase the worst-case displacement and acceleration over the '
+                    'sensors, the reductions (without/with) and the best value of '
+                    '--best-over per combination of the other keys.')
+    common(sweep)
+    sweep.add_argument('--grid', action='append', default=[], metavar='KEY=V1,V2,...',
+                       help="scene key and values, e.g. 'impactors.0.clearance=1 mil,2 mil' "
+                            '(repeatable; commas inside [..] and {..} are kept)')
+    sweep.add_argument('--phase', action='append', default=[], metavar='NAME=T0:T1',
+                       help='time window (s) to report separately; T1 may be empty (end); '
+                            'default run=0: and steady = the trailing window (repeatable)')
+    sweep.add_argument('--best-over', metavar='KEY',
+                       help='grid key to optimize (default: the first with "clearance")')
+    sweep.add_argument('--objective', choices=('acceleration', 'displacement'),
+                       default='acceleration', help='what the best value minimizes')
+
+    stab = sub.add_parser(
+        'stability', help='stable/unstable map over Kcc, weight and clearance',
+        description='From a small seeded perturbation, run each Kcc (and weight, clearance) '
+                    'and classify: unstable when the RMS radial amplitude over the last '
+                    'window exceeds (1 + growth tol) times that of the previous window. '
+                    '--onset finds the linear onset Kcc without impactors by bisection on '
+                    'the least-damped eigenvalue.')
+    common(stab)
+    stab.add_argument('--kcc-key', required=True, metavar='KEY',
+                      help='scene key of the cross-coupling, e.g. '
+                           'structure.cross_couplings.0.kcc')
+    stab.add_argument('--kcc', default='', metavar='V1,V2,...',
+                      help="values, e.g. '8500 lb/in,11250 lb/in' (plain numbers: N/m)")
+    stab.add_argument('--weight-key', action='append', default=[], metavar='KEY',
+                      help='key(s) set to each weight, e.g. impactors.0.mass (repeatable)')
+    stab.add_argument('--weights', default='', metavar='V1,V2,...', help="e.g. '1.5 lb,3 lb'")
+    stab.add_argument('--clearance-key', action='append', default=[], metavar='KEY',
+                      help='key(s) set to each clearance, e.g. impactors.0.clearance')
+    stab.add_argument('--clearances', default='', metavar='V1,V2,...',
+                      help="e.g. '6.9 mil,1 mil'")
+    stab.add_argument('--sensors', default='', metavar='S1,S2',
+                      help='sensors of the radial amplitude (default: all)')
+    stab.add_argument('--perturbation', default='1 um', metavar='LENGTH',
+                      help='initial displacement at the sensors (default 1 um)')
+    stab.add_argument('--growth-tol', type=float, default=0.05,
+                      help='unstable when R_last/R_previous > 1 + tol (default 0.05)')
+    stab.add_argument('--max-amplitude', metavar='LENGTH',
+                      help='also unstable above this RMS radial amplitude')
+    stab.add_argument('--no-baseline', action='store_true',
+                      help='skip the runs without impactors')
+    stab.add_argument('--onset', action='store_true',
+                      help='also find the linear onset Kcc without impactors')
+    stab.add_argument('--onset-bracket', metavar='LO,HI',
+                      help='onset bracket (N/m or with units; default: 0 and doubling)')
 
 
 def main(argv=None):
@@ -89,6 +195,9 @@ def main(argv=None):
             return _keys(args)
         if args.command == 'modes':
             return _modes(args)
+        if args.command in ('frf', 'sweep', 'stability'):
+            from .studies import run_study
+            return run_study(args)
         return _simulate(args)
     except SceneError as exc:
         _error(str(exc))

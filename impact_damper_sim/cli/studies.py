@@ -1,0 +1,285 @@
+"""The ``study frf|sweep|stability`` subcommands: argument handling and output.
+
+The studies themselves are in :mod:`impact_damper_sim.studies`; Matplotlib is imported only
+when ``--plot`` is given.
+"""
+from __future__ import annotations
+
+import csv
+import sys
+
+from .study import EXIT_USAGE, _error, _g, _print_json, _table
+
+_SHORTHANDS = ('duration', 'method', 'dt', 'window')
+
+
+class _Usage(Exception):
+    """Bad command-line input (exit 2)."""
+
+
+def run_study(args):
+    """Run the study named by ``args.command`` and print/write its results.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed ``study`` arguments.
+
+    Returns
+    -------
+    int
+        0 if every point (or at least one) succeeded, 1 if all failed, 2 for bad input.
+    """
+    try:
+        result = {'frf': _frf, 'sweep': _sweep, 'stability': _stability}[args.command](args)
+    except (_Usage, ValueError) as exc:   # UnitError is a ValueError
+        _error(str(exc))
+        return EXIT_USAGE
+    module = _module(args.command)
+    try:
+        if args.csv:
+            _write_csv(args.csv, result['rows'])
+        if args.plot:
+            module.plot(result, args.plot)
+    except OSError as exc:
+        _error(f'cannot write output: {exc}')
+        return EXIT_USAGE
+    if args.json:
+        _print_json(result)
+    else:
+        {'frf': _print_frf, 'sweep': _print_sweep, 'stability': _print_stability}[
+            args.command](result)
+    for f in result['failures']:
+        labels = ', '.join(f'{k}={v}' for k, v in f['labels'].items())
+        print(f'study: warning: point failed ({labels}): {f["error"]}', file=sys.stderr)
+    n_points = len(result['points'])
+    return 1 if n_points and len(result['failures']) == n_points else 0
+
+
+def _module(command):
+    from ..studies import frf, stability, sweep
+    return {'frf': frf, 'sweep': sweep, 'stability': stability}[command]
+
+
+def _overrides(args):
+    out = list(args.overrides)
+    for key in _SHORTHANDS:
+        value = getattr(args, key)
+        if value is not None:
+            out.append(f'simulation.{key}={value}')
+    return out
+
+
+def _runner(args):
+    if args.workers is not None and args.workers < 1:
+        raise _Usage(f'--workers must be >= 1, got {args.workers}')
+    if args.dask_address and args.executor != 'dask':
+        raise _Usage('--dask-address needs --executor dask')
+    return dict(seed=args.seed, executor=args.executor, workers=args.workers,
+                dask_address=args.dask_address, progress=args.progress)
+
+
+def _length(text, option):
+    from ..units import parse_quantity
+    try:
+        return parse_quantity(text, 'length')
+    except ValueError as exc:
+        raise _Usage(f'{option}: {exc}') from None
+
+
+def parse_spec(text, option):
+    """Read ``START:STOP:N`` (N points, ends included) or a comma list of numbers.
+
+    Parameters
+    ----------
+    text : str
+        The specification.
+    option : str
+        Option name for messages.
+
+    Returns
+    -------
+    list of float
+    """
+    try:
+        if ':' in text:
+            a, b, n = text.split(':')
+            a, b, n = float(a), float(b), int(n)
+            if n < 1:
+                raise ValueError
+            # rounded so that 0.9:1.1:5 gives 0.95, not 0.9500000000000001
+            return [a] if n == 1 else [float(f"{a + (b - a) * k / (n - 1):.12g}")
+                                       for k in range(n)]
+        values = [float(v) for v in text.split(',') if v.strip()]
+    except ValueError:
+        raise _Usage(f'{option} {text!r}: expected START:STOP:N (N >= 1) or a comma list of '
+                     'numbers') from None
+    if not values:
+        raise _Usage(f'{option}: no values')
+    return values
+
+
+# --- frf ----------------------------------------------------------------------------------
+
+def _frf(args):
+    from ..studies.frf import frf
+    unit = 'ratio' if args.ratio is not None else 'hz'
+    values = parse_spec(args.ratio if unit == 'ratio' else args.hz, f'--{unit}')
+    if any(not v > 0 for v in values):
+        raise _Usage(f'--{unit}: frequencies must be > 0')
+    max_duration = None
+    if args.max_duration is not None:
+        from ..units import parse_quantity
+        max_duration = parse_quantity(args.max_duration, 'time', key='--max-duration')
+    if not args.tol >= 0:
+        raise _Usage(f'--tol must be >= 0, got {args.tol}')
+    return frf(args.scene, values, unit, _overrides(args), tol=args.tol,
+               max_duration=max_duration, **_runner(args))
+
+
+def _print_frf(r):
+    col = 'frequency_ratio' if r['unit'] == 'ratio' else 'frequency_hz'
+    header = ['r' if r['unit'] == 'ratio' else 'f (Hz)'] + (
+        ['f (Hz)'] if r['unit'] == 'ratio' else [])
+    for s in r['sensors']:
+        header += [f'{s} with (m)', f'{s} without (m)', f'{s} without/with']
+    header.append('settled')
+    rows = []
+    for row in r['rows']:
+        cells = [_g(row[col])] + ([_g(row['frequency_hz'])] if r['unit'] == 'ratio' else [])
+        for s in r['sensors']:
+            cells += [_g(row[f'{s}_with_m'], 4), _g(row[f'{s}_without_m'], 4),
+                      _g(row[f'{s}_reduction'], 3)]
+        cells.append('yes' if row['settled'] else 'no')
+        rows.append(cells)
+    print(f"frequency response of {r['scene']} ({r['source']}); steady amplitude = peak over "
+          'the trailing window')
+    print(_table(header, rows))
+    for s, cases in r['peaks'].items():
+        for case, peak in cases.items():
+            print(f"peak {s} {case} impactors: {_g(peak['amplitude_m'], 5)} m at "
+                  f"{col.replace('_', ' ')} {_g(peak[col])}")
+    print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
+
+
+# --- sweep --------------------------------------------------------------------------------
+
+def _sweep(args):
+    from ..studies.sweep import DEFAULT_PHASES, split_values, sweep
+    if not args.grid:
+        raise _Usage('sweep needs at least one --grid KEY=V1,V2,...')
+    grid = []
+    for text in args.grid:
+        key, sep, values = text.partition('=')
+        vals = split_values(values)
+        if not sep or not key.strip() or not vals:
+            raise _Usage(f'--grid {text!r}: expected KEY=V1,V2,...')
+        grid.append((key.strip(), vals))
+    phases = DEFAULT_PHASES
+    if args.phase:
+        phases = []
+        for text in args.phase:
+            name, sep, span = text.partition('=')
+            t0, sep2, t1 = span.partition(':')
+            try:
+                phases.append((name.strip(), float(t0) if t0.strip() else 0.0,
+                               float(t1) if t1.strip() else None))
+            except ValueError:
+                sep = ''
+            if not sep or not sep2 or not name.strip():
+                raise _Usage(f'--phase {text!r}: expected NAME=T0:T1 (s; T1 may be empty)')
+    return sweep(args.scene, grid, _overrides(args), phases=phases, best_over=args.best_over,
+                 objective=args.objective, **_runner(args))
+
+
+def _print_sweep(r):
+    keys = [g['key'] for g in r['grid']]
+    phases = [p['name'] for p in r['phases']]
+    header = list(keys)
+    for p in phases:
+        header += [f'{p} disp (m)', 'red', f'{p} acc (g)', 'red', 'impacts/s']
+    rows = []
+    for row in r['rows']:
+        cells = [row[k] for k in keys]
+        for p in phases:
+            cells += [_g(row[f'{p}_worst_displacement_m'], 4),
+                      _g(row[f'{p}_displacement_reduction'], 3),
+                      _g(row[f'{p}_worst_acceleration_g'], 4),
+                      _g(row[f'{p}_acceleration_reduction'], 3),
+                      _g(row[f'{p}_impacts_per_second'], 4)]
+        rows.append(cells)
+    print(f"sweep of {r['scene']} ({r['source']}); worst case over the sensors; red = "
+          'reduction without/with impactors')
+    print(_table(header, rows))
+    if r['best']:
+        unit = 'm' if r['objective'] == 'displacement' else 'm_s2'
+        field = f"worst_{r['objective']}_{unit}"
+        others = [k for k in keys if k != r['best_over']]
+        print(f"\nbest {r['best_over']} (least worst-case {r['objective']} over the phases):")
+        print(_table(others + [r['best_over'], field],
+                     [[b[k] for k in others] + [b[r['best_over']], _g(b[field], 4)]
+                      for b in r['best']]))
+    print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
+
+
+# --- stability ----------------------------------------------------------------------------
+
+def _stability(args):
+    from ..studies.stability import stability
+    from ..studies.sweep import split_values
+    from ..units import parse_quantity
+    kccs = split_values(args.kcc)
+    if not kccs and not args.onset:
+        raise _Usage('stability needs --kcc values, --onset, or both')
+    weights, clearances = split_values(args.weights), split_values(args.clearances)
+    if weights and not args.weight_key:
+        raise _Usage('--weights needs --weight-key (e.g. impactors.0.mass)')
+    if clearances and not args.clearance_key:
+        raise _Usage('--clearances needs --clearance-key (e.g. impactors.0.clearance)')
+    bracket = None
+    if args.onset_bracket:
+        parts = split_values(args.onset_bracket)
+        if len(parts) != 2:
+            raise _Usage(f'--onset-bracket {args.onset_bracket!r}: expected LO,HI')
+        bracket = [parse_quantity(v, 'stiffness', key='--onset-bracket') for v in parts]
+    max_amp = (_length(args.max_amplitude, '--max-amplitude')
+               if args.max_amplitude is not None else None)
+    return stability(args.scene, args.kcc_key, kccs, _overrides(args),
+                     weight_keys=args.weight_key, weights=weights,
+                     clearance_keys=args.clearance_key, clearances=clearances,
+                     baseline=not args.no_baseline,
+                     sensors=split_values(args.sensors) or None,
+                     perturbation=_length(args.perturbation, '--perturbation'),
+                     growth_tol=args.growth_tol, max_amplitude=max_amp,
+                     find_onset=args.onset, onset_bracket=bracket, **_runner(args))
+
+
+def _print_stability(r):
+    print(f"stability of {r['scene']} ({r['source']}); {r['criterion']} "
+          f"(window {_g(r['window_s'])} s, duration {_g(r['duration_s'])} s)")
+    if r['rows']:
+        rows = [[row['kcc'], _g(row['kcc_N_m']),
+                 row['weight'] if row['impactors'] else '-',
+                 row['clearance'] if row['impactors'] else '-', row['verdict'],
+                 _g(row['rms_radial_m'], 4), _g(row['growth_ratio'], 4),
+                 _g(row['growth_rate_1_s'], 3), _g(row['impacts_per_second'], 4)]
+                for row in r['rows']]
+        print(_table(['Kcc', 'Kcc (N/m)', 'weight', 'gap', 'verdict', 'rms radial (m)',
+                      'R_last/R_prev', 'growth (1/s)', 'impacts/s'], rows))
+    if r['onset']:
+        o = r['onset']
+        print(f"linear onset without impactors: {o['kcc_key']} = {_g(o['onset_kcc_N_m'], 7)} "
+              f"N/m (whirl {_g(o['whirl_frequency_hz'], 6)} Hz, {o['evaluations']} "
+              'eigenvalue evaluations)')
+    print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
+
+
+def _write_csv(path, rows):
+    fields = []
+    for row in rows:
+        fields += [k for k in row if k not in fields]
+    with open(path, 'w', newline='') as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: '' if v is None else v for k, v in row.items()})
