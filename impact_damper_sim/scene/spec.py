@@ -310,12 +310,30 @@ _STRUCTURE = Section(doc='the linear structure', fields={
 
 _RATIO = dict(min=0, max=1, max_inclusive=False)
 
-_MODAL = Section(doc='mode selection and tare damping', fields={
+#: Default margin of ``modal.cutoff: auto`` over the highest frequency of interest.
+CUTOFF_FACTOR = 1.5
+
+
+def _check_modal(values):
+    if values['cutoff'] == 'auto' and values['f_max'] is not None:
+        return "give f_max or cutoff: auto, not both (cutoff: auto derives f_max)"
+    return None
+
+
+_MODAL = Section(doc='mode selection and tare damping', checks=[_check_modal], fields={
     'n_modes': Optional(Integer(min=1),
-                        doc='keep the lowest n_modes modes; with f_max too, the smaller set; '
-                            'neither = all modes'),
+                        doc='keep the lowest n_modes modes; with f_max (or cutoff: auto) '
+                            'too, the smaller set; neither = all modes'),
     'f_max': Optional(Quantity('frequency', min=0, min_inclusive=False),
                       doc='keep every mode with frequency <= f_max'),
+    'cutoff': Choice(('none', 'auto'), default='none',
+                     doc='auto: f_max = cutoff_factor x the highest frequency of interest, '
+                         'the largest of the sensor low-pass cutoffs, the forcing frequencies '
+                         'and the highest rotor speed / 2 pi (commanded: its initial speed); '
+                         'none: f_max as given'),
+    'cutoff_factor': Quantity('dimensionless', default=CUTOFF_FACTOR, min=1,
+                              doc='(cutoff: auto) margin over the highest frequency of '
+                                  'interest'),
     'solver': Choice(('auto', 'dense', 'sparse'), default='auto',
                      doc='eigen solver: dense LAPACK, sparse shift-invert Lanczos (accurate '
                          'lowest modes of badly scaled models), auto = dense up to 2000 DOFs'),
