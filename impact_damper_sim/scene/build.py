@@ -709,6 +709,11 @@ class SceneModel:
             from ..integrate.basis_switch import BasisSwitch
             opts['configurations'] = BasisSwitch.from_scene(self)
         physical = self.physical_model if method == 'direct' else None
+        if method == 'direct' and 'stick_time' not in opts:
+            # the paper's rule uses the highest *retained* mode; the physical model's highest
+            # mode (massless-ish DOFs) would make it never fire
+            opts['stick_time'] = (opts['stick_fraction'] * 2 * np.pi
+                                  / float(np.max(self.basis.omega)))
         return Simulation(self.model, self.forcing, method=method, dt=dt,
                           physical_model=physical, **opts)
 
