@@ -619,10 +619,49 @@ class SceneModel:
         B = basis.rows(inputs).T if inputs else np.zeros((n, 0))
         S = basis.rows(list(self.sensor_dofs)) if self.sensor_dofs else np.zeros((0, n))
         return LinearModel(
-            M=np.eye(n), C=basis.damping_matrix(), K=basis.stiffness_matrix(), B=B, sensors=S,
+            M=np.eye(n), C=basis.damping_matrix() + self._gyroscopic_coupling(),
+            K=basis.stiffness_matrix(), B=B, sensors=S,
             sensor_names=tuple(s['name'] for s in self.scene['sensors']),
             impactors=impactors, kind='modal',
             input_names=self.input_names)
+
+    def _gyroscopic_coupling(self):
+        """Modal gyroscopic coupling ``Omega Phi^T G Phi`` (1/s); zero without ``rotor.gyroscopic``.
+
+        A disk of polar inertia ``Ip`` spinning at ``Omega`` about global X adds
+        ``Ip Omega theta_z'`` to the ``ry`` equation and ``-Ip Omega theta_y'`` to the ``rz``
+        one (the small-tilt change of its angular momentum): a skew-symmetric matrix that does
+        no work and splits each whirl pair into forward and backward modes.
+        """
+        n = self.basis.n_modes
+        rotor = self.scene['rotor']
+        gyro = rotor['gyroscopic'] if rotor else None
+        if gyro is None:
+            return np.zeros((n, n))
+        from ..excitation import ConstantSpeed
+        if not isinstance(self.speed_profile, ConstantSpeed):
+            raise SceneError("scene key 'rotor.gyroscopic': needs rotor.speed.kind constant "
+                             '(the flow is linear time-invariant per configuration)',
+                             self.source)
+        polar = {}
+        for pm in self.scene['structure']['point_masses'] or ():
+            if pm['inertia'] is not None:
+                polar[pm['node']] = polar.get(pm['node'], 0.0) + pm['inertia'][0]
+        coupling = np.zeros((n, n))
+        for i, node in enumerate(gyro['nodes']):
+            ip = polar.get(node, 0.0)
+            if ip <= 0.0:
+                raise SceneError(f"scene key 'rotor.gyroscopic.nodes[{i}]': node {node} has no "
+                                 'point-mass polar inertia (inertia about X) > 0', self.source)
+            try:
+                rows = self.basis.rows([self.system.index(node, 'ry'),
+                                        self.system.index(node, 'rz')])
+            except KeyError as exc:
+                raise SceneError(f"scene key 'rotor.gyroscopic.nodes[{i}]': {exc.args[0]}",
+                                 self.source) from None
+            # G[ry, rz] = +Ip, G[rz, ry] = -Ip
+            coupling += ip * (np.outer(rows[0], rows[1]) - np.outer(rows[1], rows[0]))
+        return float(self.speed_profile.speed(0.0)) * coupling
 
     @property
     def input_names(self):

@@ -510,6 +510,12 @@ _ROTOR = Section(doc='rotating shaft: speed profile and unbalance (rotor axis al
                         'cos(phi + p))'),
     'multiplier': Quantity('dimensionless', default=1, min=0,
                            doc="unbalance multiplier X of the paper (Sec. 4.3)"),
+    'gyroscopic': Optional(Section({
+        'nodes': ListOf(_node('node id of a spinning disk'), min_len=1,
+                        doc='nodes whose point-mass polar inertia (inertia about X) spins with '
+                            'the rotor'),
+    }), doc='speed-dependent gyroscopic coupling Omega G of the spinning disks, entering as a '
+            'dense modal damping-like coupling; needs a constant speed; none = off'),
 })
 
 
