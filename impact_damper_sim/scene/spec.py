@@ -359,7 +359,8 @@ _SENSOR = Section({
     'frame_id': Optional(String(), doc='frame_id for ROS messages; none = derived from the name'),
     'lowpass': Optional(Quantity('frequency', min=0, min_inclusive=False),
                         doc='cutoff of the anti-alias low-pass filter of the accelerometer '
-                            'output (stored and reported; not applied yet); none = no filter'),
+                            'output: a 4th-order Butterworth on the mean acceleration per '
+                            'sample period, below the Nyquist frequency; none = no filter'),
 })
 
 

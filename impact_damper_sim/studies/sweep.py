@@ -65,20 +65,22 @@ def peaks(point):
     dict
         ``phases``: per phase, per sensor ``peak_displacement_m`` (refined peak ``|x|``),
         ``peak_acceleration_m_s2`` (largest mean acceleration per sample period, impacts
-        included) and ``rms_displacement_m``; the worst case over the sensors
+        included, through the sensor's ``lowpass`` if it has one) and ``rms_displacement_m``; the worst case over the sensors
         (``worst_displacement_m``, ``worst_acceleration_m_s2``, with the sensor names) and
         ``impacts_per_second`` per impactor. ``resolved``: the ``keys``' SI values.
     """
     import numpy as np
 
     from ..analysis import refined_peak
+    from ..filters import scene_lowpass
     from .measure import load_point, lookup, start, window_impact_rates
     scene = load_point(point)
     cfg = scene.scene['simulation']
     sim = start(scene)
+    lowpass = scene_lowpass(scene, sim.dt)   # checks the cutoffs before the run
     v0 = sim.integrator.model.sensors @ sim.integrator.state()[1]
     samples = sim.advance_to(cfg['duration'])
-    acc = sim.mean_acceleration(samples, v0)
+    acc = lowpass.apply(sim.mean_acceleration(samples, v0))
     events = sim.take_events()
     t, x = samples.t, samples.displacement
     names = sim.sensor_names

@@ -1,0 +1,85 @@
+"""HPOTP rotor unbalance (paper section 4.3, Tables 4.3.1 and 4.3.2).
+
+The base unbalance of ``config/scenes/hpotp.yaml`` is ours, calibrated (docs/hpotp-model.md,
+"Unbalance calibration") so that, at X = 1 without impactors, the worst-case acceleration at
+node 1 (y or z, mean acceleration per sample period through the sensors' 800 Hz low-pass,
+sampled at 4 kHz) is 5.7 g during the ramp (criticals, t < 5 s; Table 4.3.1: 4.1 g with
+impactors x reduction 1.4) and 0.77 g at full speed (t > 5 s; Table 4.3.2).
+
+Tolerances: the calibration targets are read off the paper's tables, so +-20 %. With the
+scene's impactors (W = 25 lb, D = 1.7 mil) the paper's reductions during the ramp are 1.4 to
+2.5 (Table 4.3.1): we require >= 1.4. At full speed the paper's impactors *raise* the level
+(0.77 -> 0.9 g, 7.2 -> 9.1 g, Table 4.3.2): we require that they do not reduce it by more
+than 5 % (reduction <= 1.05). The runs with impactors take ~10 s (X = 1) to ~3 min
+(X = 10) each: marked slow. The X = 10 reduction at the criticals is not reached by this
+model (measured 1.07): an xfail, reported, not tuned.
+"""
+import functools
+
+import numpy as np
+import pytest
+
+from impact_damper_sim.analysis import G0
+from impact_damper_sim.filters import scene_lowpass
+from impact_damper_sim.scene.build import load
+
+DT = 2.5e-4          # 4 kHz sampling (the 800 Hz low-pass is 0.4 Nyquist)
+RAMP_END = 5.0       # s, Eq. (4.3.1)
+
+
+@functools.lru_cache(maxsize=None)
+def worst_g(scene_name, *overrides, duration=6.0):
+    """Worst-case |acceleration| over the node-1 sensors (g): (criticals, full speed)."""
+    scene = load(scene_name, list(overrides))
+    sim = scene.make_simulation('exact', DT, ledger=False)
+    lowpass = scene_lowpass(scene, DT)
+    v0 = sim.integrator.model.sensors @ sim.integrator.state()[1]
+    samples = sim.advance_to(duration)
+    acc = np.abs(lowpass.apply(sim.mean_acceleration(samples, v0))).max(axis=1) / G0
+    t = samples.t
+    full = acc[t > RAMP_END]
+    return float(acc[t < RAMP_END].max()), float(full.max()) if full.size else None
+
+
+def test_rotor_section():
+    rotor = load('hpotp').scene['rotor']
+    assert rotor['speed']['kind'] == 'paper_ramp'
+    assert rotor['speed']['final_speed'] == pytest.approx(2400.0)
+    assert rotor['speed']['ramp_time'] == pytest.approx(5.0)
+    assert sorted(u['node'] for u in rotor['unbalance']) == [4, 15]
+    assert rotor['multiplier'] == 1
+    assert load('hpotp_x10').scene['rotor']['multiplier'] == 10
+    assert [s['lowpass'] for s in load('hpotp').scene['sensors']] == [800.0, 800.0]
+
+
+def test_x1_calibration_without_impactors():
+    crit, full = worst_g('hpotp', 'impactors=[]')
+    assert crit == pytest.approx(5.7, rel=0.2)
+    assert full == pytest.approx(0.77, rel=0.2)
+
+
+def test_x10_is_ten_times_x1_without_impactors():
+    """Linear without impactors: the X = 10 defect scene is exactly 10 x the base."""
+    base = worst_g('hpotp', 'impactors=[]', duration=4.0)
+    x10 = worst_g('hpotp_x10', 'impactors=[]', duration=4.0)
+    assert x10[0] == pytest.approx(10 * base[0], rel=1e-9)
+
+
+X10_MISS = ('measured X = 10 reduction at the criticals 56.5 -> 52.7 g = 1.07 (paper 2.1, '
+            'Table 4.3.1); reported, tolerance not loosened')
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('scene_name', [
+    'hpotp', pytest.param('hpotp_x10', marks=pytest.mark.xfail(strict=True, reason=X10_MISS))])
+def test_impactors_reduce_the_criticals(scene_name):
+    """Ramp (t < 5 s): reduction >= 1.4 (Table 4.3.1). X = 1 measured 5.65 -> 4.03 g, 1.40."""
+    assert worst_g(scene_name, 'impactors=[]')[0] / worst_g(scene_name)[0] >= 1.4
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('scene_name', ['hpotp', 'hpotp_x10'])
+def test_impactors_do_not_reduce_full_speed(scene_name):
+    """Full speed (t > 5 s): no reduction (Table 4.3.2). Measured X = 1 0.770 -> 0.836 g,
+    X = 10 7.70 -> 12.1 g."""
+    assert worst_g(scene_name, 'impactors=[]')[1] / worst_g(scene_name)[1] <= 1.05
