@@ -13,7 +13,7 @@ export NUMBA_CACHE_DIR ?= $(abspath $(VENV))/numba-cache
 SCENE ?= cantilever
 PYTEST_ARGS ?=
 
-.PHONY: run test test-slow bench constraints clean
+.PHONY: run test test-slow bench constraints clean validation
 
 $(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,10 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -m slow $(PYTEST_ARGS)
+
+# the paper's results next to ours (docs/validation.md and docs/validation/*.png; minutes)
+validation: $(STAMP)
+	$(VENV)/bin/study validate --out docs/validation.md
 
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
 BENCHES := bench/sdof_methods.py bench/ivp_baseline.py

@@ -1,4 +1,4 @@
-"""The ``study frf|sweep|stability`` subcommands: argument handling and output.
+"""The ``study frf|sweep|stability|validate`` subcommands: argument handling and output.
 
 The studies themselves are in :mod:`impact_damper_sim.studies`; Matplotlib is imported only
 when ``--plot`` is given.
@@ -6,6 +6,7 @@ when ``--plot`` is given.
 from __future__ import annotations
 
 import csv
+import os
 import sys
 
 from .study import EXIT_USAGE, _error, _g, _print_json, _table
@@ -54,6 +55,32 @@ def run_study(args):
         print(f'study: warning: point failed ({labels}): {f["error"]}', file=sys.stderr)
     n_points = len(result['points'])
     return 1 if n_points and len(result['failures']) == n_points else 0
+
+
+def run_validate(args):
+    """Run ``study validate``: write the validation document and its plots.
+
+    Returns
+    -------
+    int
+        0 if every run succeeded, 1 if some failed (the document says which), 2 for bad input.
+    """
+    if args.workers is not None and args.workers < 1:
+        _error(f'--workers must be >= 1, got {args.workers}')
+        return EXIT_USAGE
+    from ..studies.validation import validate
+    try:
+        r = validate(args.out, quick=args.quick, workers=args.workers, seed=args.seed,
+                     progress=args.progress)
+    except OSError as exc:
+        _error(f'cannot write output: {exc}')
+        return EXIT_USAGE
+    print(f"wrote {r['path']} and {len(r['plots'])} plot(s) in "
+          f"{os.path.dirname(next(iter(r['plots'].values()))) or '.'}; "
+          f"{r['n_points']} runs in {_g(r['wall_time_s'], 3)} s")
+    for f in r['failures']:
+        print(f"study: warning: run failed ({f['labels']}): {f['error']}", file=sys.stderr)
+    return 1 if r['failures'] else 0
 
 
 def _module(command):

@@ -11,6 +11,7 @@
                       [--best-over KEY] [--objective acceleration|displacement] [study options]
     study stability SCENE --kcc-key KEY [--kcc V1,V2,...] [--weight-key KEY --weights ...]
                           [--clearance-key KEY --clearances ...] [--onset] [study options]
+    study validate [--out docs/validation.md] [--quick] [--workers N]
 
 study options: [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S] [--window S]
 [--json] [--csv PATH] [--plot PATH.png] [--workers N] [--executor process|serial|dask]
@@ -171,6 +172,22 @@ def _study_parsers(sub, scene_args):
     stab.add_argument('--onset-bracket', metavar='LO,HI',
                       help='onset bracket (N/m or with units; default: 0 and doubling)')
 
+    val = sub.add_parser(
+        'validate', help="validation document: the paper's results next to ours",
+        description="Run the paper's result studies (Figs. 4.1.2/4.1.3 FRFs, Tables 4.3.1, "
+                    '4.3.2 HPOTP sweep, Table 4.4.1 RBS stability, Table 4.4.2 HPOTP onset) '
+                    'in parallel and write a markdown document with the paper columns next to '
+                    'ours, plots next to it (OUT without .md, e.g. docs/validation/*.png).')
+    val.add_argument('--out', default='docs/validation.md', metavar='PATH.md',
+                     help='markdown file (default docs/validation.md)')
+    val.add_argument('--quick', action='store_true',
+                     help='small subset, short runs, no HPOTP runs (well under a minute)')
+    val.add_argument('--workers', type=int, metavar='N',
+                     help='parallel workers (default: CPU count; 1 runs serially in-process)')
+    val.add_argument('--seed', type=int, default=0, help='study seed (default 0)')
+    val.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
+                     help='progress bar on stderr (default: when stderr is a terminal)')
+
 
 def main(argv=None):
     """Run the ``study`` command.
@@ -198,6 +215,9 @@ def main(argv=None):
         if args.command in ('frf', 'sweep', 'stability'):
             from .studies import run_study
             return run_study(args)
+        if args.command == 'validate':
+            from .studies import run_validate
+            return run_validate(args)
         return _simulate(args)
     except SceneError as exc:
         _error(str(exc))
