@@ -424,7 +424,9 @@ def _compare(scene, duration, window, q0=None):
 
 @pytest.mark.slow
 def test_measure_formulations(capsys):
-    """Prints the table of docs/stuck-formulations.md (about 3 min)."""
+    """Prints the table of docs/stuck-formulations.md (about 3 min) and checks its claim that
+    with all 15 modes and physical (not tare) damping the formulations agree to 1e-9."""
+    complete_diffs = []
     lines = ['| case | modes | amplitude MU (m) | amplitude BS / MU - 1 | stuck fraction MU / BS '
              '| sticks MU / BS | loss per switch BS (J) | max response diff |',
              '|---|---|---|---|---|---|---|---|']
@@ -433,6 +435,9 @@ def test_measure_formulations(capsys):
         r, diff = _compare(scene, duration, window, q0)
         mu, bs = r['mass_update'], r['basis_switch']
         key = 'stuck' if q0 is None else 'stuck_all'
+        if scene.basis.n_modes == 15 and ('no damping' in case or 'tip dashpot' in case):
+            # tare ratios are a different damping while stuck, so only these rows must agree
+            complete_diffs.append(diff)
         lines.append(f"| {case} | {scene.basis.n_modes} | {mu['amp']:.5e} | "
                      f"{bs['amp'] / mu['amp'] - 1:+.2e} | {mu[key]:.4f} / {bs[key]:.4f} | "
                      f"{mu['sticks']} / {bs['sticks']} | {bs['per_switch']:.2e} | {diff:.1e} |")
@@ -457,3 +462,4 @@ def test_measure_formulations(capsys):
                 load('cantilever', overrides=sticky + extra + [f'modal.n_modes={n}']), 4.0, 0.5)
     with capsys.disabled():
         print('\nMU = mass_update, BS = basis_switch\n' + '\n'.join(lines))
+    assert complete_diffs and max(complete_diffs) < 1e-9
