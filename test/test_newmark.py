@@ -349,17 +349,14 @@ def test_kernels_match_python_twins():
     M = M @ M.T + n * np.eye(n)
     C = rng.standard_normal((n, n))
     K = rng.standard_normal((n, n)) * 50
-    Minv = np.linalg.inv(M)
     Sinv = np.linalg.inv(M + 1e-3 * C + 1e-6 * K)
     q, v, a, f, f1 = (rng.standard_normal(n) for _ in range(5))
     B = rng.standard_normal((n, nf))
     u = rng.standard_normal(nf)
-    for name, args in (('accel', (Minv, C, K, f, q, v)),
-                       ('force', (B, u))):
-        out_j, out_p = np.empty(n), np.empty(n)
-        getattr(kn, name)(*args, out_j)
-        getattr(kn, name + '_py')(*args, out_p)
-        _close(out_j, out_p)
+    out_j, out_p = np.empty(n), np.empty(n)
+    kn.force(B, u, out_j)
+    kn.force_py(B, u, out_p)
+    _close(out_j, out_p)
     outs = [[np.empty(n) for _ in range(4)] for _ in range(2)]
     kn.step(Sinv, C, K, f1, 2e-3, q, v, a, *outs[0])
     kn.step_py(Sinv, C, K, f1, 2e-3, q, v, a, *outs[1])

@@ -529,6 +529,16 @@ def _pyplot():
     return plt
 
 
+def _finish(plt, fig, ax, path, title, legend_size=8, grid_axis='both'):
+    """Title, grid, legend, save as PNG (120 dpi) and close."""
+    ax.set_title(title)
+    ax.grid(True, axis=grid_axis, alpha=0.3)
+    ax.legend(fontsize=legend_size)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def plot_frf(frfs, path):
     """SDOF and cantilever FRFs with and without impactors, in units of F0/K."""
     plt = _pyplot()
@@ -543,12 +553,7 @@ def plot_frf(frfs, path):
                     label=f'{name}, {case} impactors')
     ax.set_xlabel('frequency ratio r')
     ax.set_ylabel('steady amplitude / (F0/K)')
-    ax.set_title('Figs. 4.1.2 / 4.1.3: SDOF vs cantilever (mu = 4 %)')
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _finish(plt, fig, ax, path, 'Figs. 4.1.2 / 4.1.3: SDOF vs cantilever (mu = 4 %)')
 
 
 def plot_hpotp(rows, path):
@@ -568,12 +573,8 @@ def plot_hpotp(rows, path):
             label='paper full speed, with')
     ax.set_xlabel('unbalance multiplier X')
     ax.set_ylabel('worst-case acceleration (g)')
-    ax.set_title('Tables 4.3.1 / 4.3.2: HPOTP, W = 25 lb, D = 1.7 mil')
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _finish(plt, fig, ax, path, 'Tables 4.3.1 / 4.3.2: HPOTP, W = 25 lb, D = 1.7 mil',
+            legend_size=7)
 
 
 def plot_rbs(rows, path):
@@ -594,9 +595,4 @@ def plot_rbs(rows, path):
     ax.set_xticks(xs, labels, fontsize=6)
     ax.set_xlabel('Kcc (lb/in), W (lb) / D (mil); ours/paper verdict at the bottom')
     ax.set_ylabel('steady RMS radial amplitude (mil)')
-    ax.set_title('Table 4.4.1: RBS stability with impactors')
-    ax.grid(True, axis='y', alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _finish(plt, fig, ax, path, 'Table 4.4.1: RBS stability with impactors', grid_axis='y')

@@ -35,25 +35,6 @@ FLAGGED = 1
 NONFINITE = 3
 
 
-def accel_py(Minv, C, K, f, q, v, out):
-    """Acceleration from equilibrium: ``out = M^{-1} (f - C v - K q)`` (m/s^2 or modal)."""
-    n = q.size
-    r = np.empty(n)
-    for i in range(n):
-        acc = f[i]
-        for k in range(n):
-            acc -= C[i, k] * v[k] + K[i, k] * q[k]
-        r[i] = acc
-    for i in range(n):
-        acc = 0.0
-        for k in range(n):
-            acc += Minv[i, k] * r[k]
-        out[i] = acc
-
-
-accel = njit(cache=True)(accel_py)
-
-
 def step_py(Sinv, C, K, f1, h, q0, v0, a0, q1, v1, a1, work):
     """One average-acceleration step of ``h`` (s) with ``Sinv = S^{-1}`` precomputed.
 
