@@ -146,6 +146,19 @@ class Simulation:
                  'velocity': vel[j, :imp.dim].copy()}
                 for j, (imp, s) in enumerate(zip(self.integrator.model.impactors, stuck))]
 
+    @property
+    def impacts_enabled(self):
+        """bool: Whether the impact dampers act (see :meth:`set_impacts_enabled`)."""
+        return self.integrator.impacts_enabled
+
+    def set_impacts_enabled(self, enabled):
+        """Switch the impact dampers on or off from now on (True = on).
+
+        Off releases stuck impactors and lets every impactor fly free without walls; on puts
+        each back at its housing centre, moving with it. The structure's state is untouched.
+        """
+        self.integrator.set_impacts_enabled(enabled)
+
     def energy(self):
         """The :class:`~.integrate.events.EnergyLedger` now (J)."""
         return self.integrator.energy()

@@ -13,9 +13,56 @@ import numpy as np
 
 from .events import EnergyLedger
 
+#: Half-travel given to disabled impactors (m): larger than any structural motion, so they
+#: fly free and never reach a wall (1e6 m also keeps the planar gap ``L^2 - r^2`` well scaled).
+DISABLED_LIMIT = 1.0e6
+
 
 class IntegratorBase:
     """Impactor states and energy ledger from an integrator's own state (see module doc)."""
+
+    impacts_enabled = True
+
+    def _release_now(self, j):
+        """Release stuck impactor ``j`` at the current time with its housing's velocity."""
+        raise NotImplementedError
+
+    def set_impacts_enabled(self, enabled):
+        """Switch the impact dampers on or off during a run.
+
+        Off: stuck impactors are released with their housing's velocity and every impactor
+        flies free without walls (it no longer acts on the structure; its mass stays off the
+        structure, as in a free flight). On: each impactor is put back at its housing centre,
+        moving with the housing, and impacts resume. Both switches change no structural
+        state, so the response is continuous. The impactors' kinetic-energy change when they
+        are put back is added to the ledger's ``initial`` energy (it is not physics).
+
+        Parameters
+        ----------
+        enabled : bool
+            True to enable impacts (dimensionless).
+        """
+        enabled = bool(enabled)
+        if enabled == self.impacts_enabled:
+            return
+        if not enabled:
+            for j in np.flatnonzero(self._stuck):
+                self._release_now(int(j))
+            self._limits_enabled = self._imp_limit.copy()
+            self._imp_limit[:] = DISABLED_LIMIT
+        else:
+            before = self._energy_now()[1]
+            q, qd = self.state()
+            for j, R in enumerate(self._housing_rows()):
+                d = R.shape[0]
+                self._imp_z[j, :d] = R @ q
+                self._imp_v[j, :d] = R @ qd
+            self._imp_last_t[:] = -np.inf
+            self._imp_limit[:] = self._limits_enabled
+            # putting the impactors back is not physics: book its kinetic-energy change as
+            # a new reference so that the ledger keeps balancing
+            self._initial_energy += self._energy_now()[1] - before
+        self.impacts_enabled = enabled
 
     def _housing_rows(self):
         """Housing rows of each impactor in the current coordinates (list of arrays)."""

@@ -180,6 +180,18 @@ class ExactPropagator(IntegratorBase):
     def _structure_energy(self, q, qd):
         return self.configurations.structure_energy(self._key(), q, qd)
 
+    def _release_now(self, j):
+        old_key, old_cfg = self._key(), self._config()
+        q, qd = self.state()
+        R = self._housing_rows()[j]
+        d = R.shape[0]
+        self._imp_z[j, :d] = R @ q + self._imp_rel[j, :d]
+        self._imp_v[j, :d] = R @ qd
+        self._stuck[j] = 0
+        self._imp_grace[j] = 0
+        self._count_step[j] = 0
+        self._switch(self.t, old_cfg, old_key)
+
     def take_events(self):
         """Return the events recorded since the last call (see ``EVENT_DTYPE``) and clear."""
         if not self._events:

@@ -750,6 +750,9 @@ class NewmarkIntegrator(IntegratorBase):
         return kernels.release_force(self._rows[j], self._imp_dim[j], self._config().rel_T[j],
                                      self._imp_normal[j], a)
 
+    def _release_now(self, j):
+        self._release(j, self.t)
+
     def _release(self, j, t):
         """The stuck impactor ``j`` leaves its wall at ``t`` with the housing velocity."""
         self._count_event(j, t)
