@@ -37,6 +37,9 @@ setup(
     entry_points={
         'console_scripts': [
             'study = impact_damper_sim.cli.study:main',
+            'vibration_node = impact_damper_sim.ros.vibration_node:main',
+            'monitor = impact_damper_sim.ros.monitor:main',
+            'replay = impact_damper_sim.ros.replay:main',
         ],
     },
 )

@@ -12,6 +12,7 @@ Everything is SI.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import re
@@ -718,6 +719,11 @@ class SceneModel:
             the scene's ``simulation`` values. ``stuck_model`` (``'mass_update'`` or
             ``'basis_switch'``, default the scene's ``simulation.stuck_model``) chooses how
             the exact method treats stuck impactors.
+            ``outputs`` (``(names, rows)``: sensor names and modal rows, shape
+            ``(n_out, n_modes)``, 1/sqrt(kg)) replaces the scene's sensors, e.g. all six
+            DOFs of a node from ``basis.rows``; not with ``method='direct'`` nor
+            ``stuck_model='basis_switch'``, whose sensor rows come from the scene's sensor
+            DOFs.
 
         Returns
         -------
@@ -735,6 +741,16 @@ class SceneModel:
         dt = cfg['dt'] if dt is None else dt
         opts = {k: cfg[k] for k in ('law', 'stick_rule', 'stick_fraction')}
         stuck_model = options.pop('stuck_model', cfg['stuck_model'])
+        outputs = options.pop('outputs', None)
+        model = self.model
+        if outputs is not None:
+            if method == 'direct' or stuck_model == 'basis_switch':
+                raise SceneError(f"custom outputs need the modal model with stuck_model "
+                                 f"mass_update, not method {method!r} with {stuck_model!r}",
+                                 self.source)
+            names, rows = outputs
+            model = dataclasses.replace(model, sensors=np.asarray(rows, dtype=float),
+                                        sensor_names=tuple(names))
         opts.update(options)
         if stuck_model not in STUCK_MODELS:
             raise SceneError(f"scene key 'simulation.stuck_model': must be one of "
@@ -753,7 +769,7 @@ class SceneModel:
             # mode (massless-ish DOFs) would make it never fire
             opts['stick_time'] = (opts['stick_fraction'] * 2 * np.pi
                                   / float(np.max(self.basis.omega)))
-        return Simulation(self.model, self.forcing, method=method, dt=dt,
+        return Simulation(model, self.forcing, method=method, dt=dt,
                           physical_model=physical, **opts)
 
     def dof_counts(self):

@@ -1,0 +1,502 @@
+"""A scene stepped in chunks for a live stream: accelerometers, events, commands, pacing.
+
+This is the core that ``vibration_node`` owns; it imports no ROS, so callbacks' logic is
+tested here with plain NumPy. Everything is SI.
+
+* :class:`LiveSimulation` steps a scene's modal model and turns its output into what the
+  node publishes: per accelerometer, the node's acceleration on three axes (m/s^2, mean over
+  each integrator step, through the anti-alias low-pass, decimated to the output rate, plus
+  optional noise) and angular velocity (rad/s); impact events; impactor states; the applied
+  rotor speed and unbalance multiplier. Speed and unbalance commands are validated here.
+* :class:`Pacer` maps wall time to sim time for a real-time factor, and tells how far behind
+  the simulation is.
+
+The rotor of a live scene is always *commanded*: a scene whose speed profile is a ramp,
+constant or piecewise is converted to a commanded profile that starts at the profile's
+initial speed and is commanded at once to its final speed, under the rate limit (the paper's
+ramp becomes the same linear ramp at ``final_speed / ramp_time``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from .scene.schema import SceneError
+
+_TRANSLATIONS = ('ux', 'uy', 'uz')
+_ROTATIONS = ('rx', 'ry', 'rz')
+#: Default anti-alias cutoff of a sensor without a scene ``lowpass``, times the output rate
+#: (0.4 keeps a 4th-order Butterworth ~ -30 dB at the output Nyquist frequency).
+DEFAULT_LOWPASS_FRACTION = 0.4
+
+
+class CommandError(ValueError):
+    """A rejected command; the message names the command and its allowed range."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Accelerometer:
+    """A triaxial accelerometer (with rate gyro) at a node of the structure.
+
+    Attributes
+    ----------
+    name : str
+        Topic suffix (``accel/<name>``).
+    frame_id : str
+        Sensor frame (axes parallel to the global frame).
+    node : int
+        Finite-element node (dimensionless).
+    lowpass_hz : float
+        Anti-alias cutoff (Hz).
+    """
+
+    name: str
+    frame_id: str
+    node: int
+    lowpass_hz: float
+
+
+@dataclasses.dataclass
+class Batch:
+    """What one :meth:`LiveSimulation.step` produced.
+
+    Attributes
+    ----------
+    t : ndarray, shape (k,)
+        Output sample times (s).
+    linear_acceleration : ndarray, shape (k, n_acc, 3)
+        Accelerometer readings (m/s^2).
+    angular_velocity : ndarray, shape (k, n_acc, 3)
+        Rotational DOF rates (rad/s).
+    events : ndarray of EVENT_DTYPE
+        Impacts, sticks and releases in the chunk (times in s).
+    states_changed : bool
+        Some impactor changed between stuck and free during the chunk.
+    """
+
+    t: np.ndarray
+    linear_acceleration: np.ndarray
+    angular_velocity: np.ndarray
+    events: np.ndarray
+    states_changed: bool
+
+
+def live_scene(scene, overrides=(), *, speed_rate_limit=None):
+    """Load a scene for live stepping, with its rotor speed made commanded.
+
+    Parameters
+    ----------
+    scene : str or os.PathLike
+        Scene name or file.
+    overrides : sequence of str
+        ``key=value`` scene overrides.
+    speed_rate_limit : float, optional
+        Rate limit of speed commands (rad/s^2). Default: the scene's ``max_rate`` for a
+        commanded speed, ``final_speed / ramp_time`` for the paper's ramp, the steepest
+        segment for a piecewise profile, 100 rad/s^2 otherwise.
+
+    Returns
+    -------
+    scene_model : SceneModel
+        Built scene (rotor speed kind ``commanded``).
+    initial_target : float or None
+        Speed to command at start (rad/s): the original profile's final speed; None
+        without a rotor.
+
+    Raises
+    ------
+    SceneError
+        Any scene problem, naming the key.
+    """
+    from .scene.build import load
+    overrides = list(overrides)
+    first = load(scene, overrides=overrides)
+    rotor = first.scene['rotor']
+    if rotor is None:
+        return first, None
+    sp = rotor['speed']
+    profile = first.speed_profile
+    kind = sp['kind']
+    if kind == 'commanded':
+        rate = sp['max_rate'] if speed_rate_limit is None else speed_rate_limit
+        final = sp['speed']
+    else:
+        knots = profile._knots()
+        final = float(knots.w[-1])
+        slopes = np.abs(knots.s[:-1])
+        default = float(slopes.max()) if slopes.size and slopes.max() > 0 else 100.0
+        rate = default if speed_rate_limit is None else speed_rate_limit
+    if not (math.isfinite(rate) and rate > 0):
+        raise SceneError(f"parameter 'speed_rate_limit': must be a finite rate > 0 rad/s^2, "
+                         f'got {rate}')
+    initial = float(profile.speed(np.asarray(0.0)))
+    overrides.append(f'rotor.speed={{kind: commanded, speed: {initial!r}, '
+                     f'max_rate: {float(rate)!r}}}')
+    return load(scene, overrides=overrides), final
+
+
+def accelerometers(scene_model, sample_rate):
+    """The accelerometers of a scene: one per sensor frame.
+
+    Scene sensors sharing a ``frame_id`` (several DOFs of one node) form one triaxial
+    accelerometer named by that frame; a sensor without ``frame_id`` gets
+    ``<scene>_<sensor>``.
+
+    Parameters
+    ----------
+    scene_model : SceneModel
+        Built scene.
+    sample_rate : float
+        Output sample rate (Hz); sets the default anti-alias cutoff.
+
+    Returns
+    -------
+    list of Accelerometer
+    """
+    groups = {}
+    for s in scene_model.scene['sensors']:
+        frame = s['frame_id'] or f"{scene_model.name}_{s['name']}"
+        fc = s['lowpass'] if s['lowpass'] is not None else DEFAULT_LOWPASS_FRACTION * sample_rate
+        if frame in groups:
+            prev = groups[frame]
+            if prev.node != s['node']:
+                raise SceneError(f"scene key 'sensors': frame_id {frame!r} is used at nodes "
+                                 f"{prev.node} and {s['node']}; one frame is one node",
+                                 scene_model.source)
+            groups[frame] = dataclasses.replace(prev, lowpass_hz=min(prev.lowpass_hz, fc))
+        else:
+            groups[frame] = Accelerometer(frame, frame, s['node'], float(fc))
+    return list(groups.values())
+
+
+class LiveSimulation:
+    """A scene stepped chunk by chunk into accelerometer streams and events.
+
+    Parameters
+    ----------
+    scene_model : SceneModel
+        Built scene; its rotor, if any, must be commanded (see :func:`live_scene`).
+    sample_rate : float
+        Output sample rate (Hz), > 2 x every anti-alias cutoff. The integrator step is the
+        largest step not above the scene's ``simulation.dt`` that divides the output period.
+    initial_target : float, optional
+        Rotor speed commanded at t = 0 (rad/s).
+    max_speed : float, optional
+        Largest accepted speed command (rad/s); default twice ``initial_target`` (or
+        twice the initial speed, or 1e4 rad/s when both are zero).
+    max_unbalance : float
+        Largest accepted unbalance multiplier (dimensionless).
+    noise_std : float
+        Standard deviation of white noise added to each acceleration sample (m/s^2).
+    seed : int
+        Seed of the noise generator (dimensionless).
+    dampers_enabled : bool
+        Whether the impact dampers act.
+    method : str, optional
+        Integration method; default the scene's.
+    """
+
+    def __init__(self, scene_model, *, sample_rate=2000.0, initial_target=None,
+                 max_speed=None, max_unbalance=100.0, noise_std=0.0, seed=0,
+                 dampers_enabled=True, method=None):
+        from .filters import StreamingLowpass
+        sample_rate = float(sample_rate)
+        if not (math.isfinite(sample_rate) and sample_rate > 0):
+            raise SceneError(f"parameter 'sample_rate': must be a finite rate > 0 Hz, "
+                             f'got {sample_rate}')
+        self.scene = scene_model
+        self.sample_rate = sample_rate
+        self.accelerometers = accelerometers(scene_model, sample_rate)
+        for acc in self.accelerometers:
+            if not acc.lowpass_hz < 0.5 * sample_rate:
+                raise SceneError(f"parameter 'sample_rate': {sample_rate:g} Hz must exceed "
+                                 f'twice the anti-alias cutoff {acc.lowpass_hz:g} Hz of '
+                                 f'accelerometer {acc.name!r} (> {2 * acc.lowpass_hz:g} Hz)')
+        dt_scene = float(scene_model.scene['simulation']['dt'])
+        self.decimation = max(1, math.ceil(1.0 / (dt_scene * sample_rate) - 1e-9))
+        self.dt = 1.0 / (sample_rate * self.decimation)
+        method = method or scene_model.scene['simulation']['method']
+        if method == 'direct':
+            raise SceneError("scene key 'simulation.method': the live node steps the modal "
+                             "model; use exact, newmark or newmark_step_end")
+        names, rows = self._output_rows()
+        self.sim = scene_model.make_simulation(method=method, dt=self.dt,
+                                               outputs=(names, rows))
+        n_acc = len(self.accelerometers)
+        self._filters = [StreamingLowpass(a.lowpass_hz, 1.0 / self.dt, 3)
+                         for a in self.accelerometers]
+        self._v_prev = np.zeros(6 * n_acc)
+        self.max_unbalance = float(max_unbalance)
+        self.profile = scene_model.speed_profile
+        self.unbalance = scene_model.unbalance
+        if self.profile is not None:
+            w0 = float(self.profile.speed(np.asarray(0.0)))
+            reference = max(initial_target or 0.0, w0)
+            self.max_speed = float(max_speed) if max_speed else (
+                2.0 * reference if reference > 0 else 1e4)
+            if initial_target is not None:
+                self.command_speed(initial_target)
+        else:
+            self.max_speed = 0.0
+        self.noise_std = 0.0
+        self.set_noise(noise_std, seed)
+        self.sim.set_impacts_enabled(dampers_enabled)
+        self._stuck = self._stuck_flags()
+        self.failure = None
+        self.steps = 0
+        self.events_total = 0
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _output_rows(self):
+        """Sensor names and rows: per accelerometer ux, uy, uz, rx, ry, rz (zero if clamped)."""
+        scene = self.scene
+        names, rows = [], []
+        for acc in self.accelerometers:
+            for dof in _TRANSLATIONS + _ROTATIONS:
+                names.append(f'{acc.name}/{dof}')
+                try:
+                    index = scene.system.index(acc.node, dof)
+                except KeyError:   # clamped DOF: it does not move
+                    rows.append(np.zeros(scene.basis.n_modes))
+                    continue
+                rows.append(scene.basis.rows([index])[0])
+        return tuple(names), np.array(rows)
+
+    # -- commands -------------------------------------------------------------------------
+    @property
+    def has_rotor(self):
+        """bool: The scene has a rotor (speed commands apply)."""
+        return self.profile is not None
+
+    def command_speed(self, target):
+        """Command a rotor speed from now on, reached under the rate limit.
+
+        Parameters
+        ----------
+        target : float
+            Target speed (rad/s), finite, in ``[0, max_speed]``.
+
+        Raises
+        ------
+        CommandError
+            No rotor, or the target is out of range; nothing changes.
+        """
+        if not self.has_rotor:
+            raise CommandError(f'rotor/speed_command: scene {self.scene.name!r} has no rotor')
+        target = _checked(target, 'rotor/speed_command', 0.0, self.max_speed, 'rad/s')
+        self.profile.command(self.sim.t, target)
+
+    def command_unbalance(self, multiplier):
+        """Set the unbalance multiplier X from now on.
+
+        Parameters
+        ----------
+        multiplier : float
+            X (dimensionless), finite, in ``[0, max_unbalance]``.
+
+        Raises
+        ------
+        CommandError
+            No unbalance in the scene, or X out of range; nothing changes.
+        """
+        if self.unbalance is None:
+            raise CommandError(f'rotor/unbalance_command: scene {self.scene.name!r} has no '
+                               'rotor unbalance')
+        self.unbalance.multiplier = _checked(multiplier, 'rotor/unbalance_command', 0.0,
+                                             self.max_unbalance, '')
+
+    def set_noise(self, std, seed=None):
+        """Set the accelerometer noise (m/s^2 standard deviation) and optionally reseed it."""
+        std = float(std)
+        if not (math.isfinite(std) and std >= 0):
+            raise CommandError(f"parameter 'noise_std': must be finite and >= 0 m/s^2, "
+                               f'got {std}')
+        self.noise_std = std
+        if seed is not None:
+            self._rng = np.random.default_rng(int(seed))
+
+    def set_dampers_enabled(self, enabled):
+        """Switch the impact dampers on or off (see ``Simulation.set_impacts_enabled``)."""
+        self.sim.set_impacts_enabled(bool(enabled))
+        self._stuck = self._stuck_flags()
+
+    @property
+    def dampers_enabled(self):
+        """bool: Whether the impact dampers act."""
+        return self.sim.impacts_enabled
+
+    # -- state ----------------------------------------------------------------------------
+    @property
+    def t(self):
+        """float: Simulated time (s)."""
+        return self.sim.t
+
+    def rotor_state(self):
+        """Applied speed (rad/s), speed rate (rad/s^2) and multiplier X now (NaN/0 if none)."""
+        if self.profile is None:
+            return 0.0, 0.0, 0.0
+        t = np.asarray(self.sim.t)
+        x = self.unbalance.multiplier if self.unbalance is not None else 0.0
+        return (float(self.profile.speed(t)), float(self.profile.acceleration(t)), float(x))
+
+    def _stuck_flags(self):
+        return tuple(s['stuck'] for s in self.sim.impactor_states())
+
+    def impactor_states(self):
+        """The impactors' states: list of dicts (name, stuck, position m, velocity m/s).
+
+        Position and velocity are relative to the housing. Disabled dampers report zeros.
+        """
+        out = []
+        states = self.sim.impactor_states()
+        q, qd = self.sim.integrator.state()
+        rows = self.sim.integrator._housing_rows()
+        for s, R in zip(states, rows):
+            vh = R @ qd
+            rel_v = s['velocity'] - vh
+            if not self.dampers_enabled:
+                s = dict(s, position=np.zeros_like(s['position']))
+                rel_v = np.zeros_like(rel_v)
+            out.append({'name': s['name'], 'stuck': s['stuck'], 'position': s['position'],
+                        'velocity': rel_v})
+        return out
+
+    # -- stepping -------------------------------------------------------------------------
+    def step(self, n_samples):
+        """Advance ``n_samples`` output samples.
+
+        Parameters
+        ----------
+        n_samples : int
+            Number of output samples (dimensionless).
+
+        Returns
+        -------
+        Batch or None
+            None once the simulation has failed (see :attr:`failure`).
+        """
+        if self.failure is not None:
+            return None
+        n_steps = int(n_samples) * self.decimation
+        try:
+            samples = self.sim.advance(n_steps)
+        except (FloatingPointError, RuntimeError) as exc:
+            self.failure = f'{type(exc).__name__}: {exc}'
+            return None
+        vel = samples.velocity
+        if not np.all(np.isfinite(vel)):
+            self.failure = f'non-finite sensor velocity before t = {self.sim.t:.6g} s'
+            return None
+        n_acc = len(self.accelerometers)
+        v = np.vstack([self._v_prev[None, :], vel])
+        self._v_prev = v[-1].copy()
+        mean_acc = np.diff(v, axis=0) / self.dt           # (n_steps, 6 n_acc)
+        pick = slice(self.decimation - 1, None, self.decimation)
+        lin = np.empty((int(n_samples), n_acc, 3))
+        ang = np.empty((int(n_samples), n_acc, 3))
+        for a, filt in enumerate(self._filters):
+            cols = slice(6 * a, 6 * a + 3)
+            lin[:, a, :] = filt.apply(mean_acc[:, cols])[pick]
+            ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
+        if self.noise_std > 0:
+            lin += self._rng.normal(0.0, self.noise_std, lin.shape)
+        events = self.sim.take_events()
+        stuck = self._stuck_flags()
+        changed = stuck != self._stuck
+        self._stuck = stuck
+        self.steps += n_steps
+        self.events_total += events.size
+        return Batch(samples.t[pick], lin, ang, events, changed)
+
+    def linear_growth_rate(self):
+        """Largest real part of the free structure's eigenvalues now (1/s); > 0 = unstable.
+
+        Impactors can bound an unstable linear system's response, which is why the paper
+        used them; this is the rate the response grows at without them.
+        """
+        from scipy.linalg import eigvals
+        model = self.sim.integrator.model
+        n = model.n
+        A = np.block([[np.zeros((n, n)), np.eye(n)],
+                      [-np.linalg.solve(model.M, model.K), -np.linalg.solve(model.M, model.C)]])
+        return float(np.max(eigvals(A).real))
+
+
+def _checked(value, name, low, high, unit):
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise CommandError(f'{name}: must be a number, got {value!r}') from None
+    if not math.isfinite(value) or not low <= value <= high:
+        unit = f' {unit}' if unit else ''
+        raise CommandError(f'{name}: {value!r} is outside the allowed range '
+                           f'[{low:g}, {high:g}]{unit}; the last good command stays in force')
+    return value
+
+
+class Pacer:
+    """Maps wall time to the sim time the simulation should have reached.
+
+    Sim time advances with wall time x ``real_time_factor``; 0 means as fast as possible.
+    When the simulation falls more than ``max_lag`` (wall s) behind, the deficit is dropped
+    from the schedule (the physics is not skipped: the simulation just runs slower than
+    asked, and the node reports it), so it does not race afterwards.
+
+    Parameters
+    ----------
+    real_time_factor : float
+        Sim seconds per wall second (dimensionless), >= 0.
+    t_sim : float
+        Sim time now (s).
+    max_lag : float
+        Largest schedule deficit kept (wall s).
+    clock : callable
+        Wall clock (s), ``time.monotonic`` by default.
+    """
+
+    def __init__(self, real_time_factor, t_sim, *, max_lag=0.25, clock=time.monotonic):
+        self._clock = clock
+        self.max_lag = float(max_lag)
+        self.deficits = 0
+        self.reset(real_time_factor, t_sim)
+
+    def reset(self, real_time_factor, t_sim):
+        """Restart the schedule at sim time ``t_sim`` (s) with a new factor."""
+        rtf = float(real_time_factor)
+        if not (math.isfinite(rtf) and rtf >= 0):
+            raise CommandError(f"parameter 'real_time_factor': must be finite and >= 0, "
+                               f'got {rtf}')
+        self.real_time_factor = rtf
+        self._wall0 = self._clock()
+        self._sim0 = float(t_sim)
+
+    def target(self, t_sim):
+        """Sim time to reach now (s), given the current sim time ``t_sim`` (s); inf if 0.
+
+        Returns
+        -------
+        target : float
+            Sim time (s).
+        lag : float
+            How far the simulation is behind the schedule (wall s), before any deficit is
+            dropped.
+        """
+        if self.real_time_factor == 0:
+            return math.inf, 0.0
+        now = self._clock()
+        target = self._sim0 + (now - self._wall0) * self.real_time_factor
+        lag = (target - t_sim) / self.real_time_factor
+        if lag > self.max_lag:
+            # drop the deficit: re-anchor so the schedule is max_lag ahead of the simulation
+            self.deficits += 1
+            self._sim0 = t_sim + self.max_lag * self.real_time_factor
+            self._wall0 = now
+            target = self._sim0
+        return target, lag
+
+
+__all__ = ['Accelerometer', 'Batch', 'CommandError', 'LiveSimulation', 'Pacer',
+           'accelerometers', 'live_scene']

@@ -1,0 +1,526 @@
+"""``vibration_node``: a scene's vibration, stepped paced to the wall clock, on ROS 2 topics.
+
+A thin adapter over :class:`~impact_damper_sim.realtime.LiveSimulation`: it declares and
+validates the parameters, feeds commands to the core, paces it with
+:class:`~impact_damper_sim.realtime.Pacer` and publishes what it produces. The topics and
+their encodings are in :mod:`impact_damper_sim.ros.interface` and the README.
+
+Run it with ``ros2 run impact_damper_sim vibration_node`` (or the ``vibration_node`` console
+script), e.g. ``--ros-args -p scene:=rbs -r __ns:=/rbs``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                SetParametersResult)
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Float64
+
+from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
+from ..scene.schema import SceneError
+from . import interface as itf
+
+_IMPACT = 0   # EVENT_KINDS index of an impact
+
+
+def _float_range(low, high):
+    return [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+
+
+#: name: (default, description with unit, (low, high) or None, read_only)
+PARAMETERS = {
+    'scene': ('hpotp', 'scene name (config/scenes/<name>.yaml) or path to a scene file',
+              None, True),
+    'overrides': (Parameter.Type.STRING_ARRAY,
+                  "scene overrides 'key=value' (engineering units allowed, e.g. "
+                  "'impactors.0.clearance=2 mil')", None, True),
+    'method': ('', 'integration method: exact, newmark or newmark_step_end; empty = the '
+                   "scene's simulation.method", None, True),
+    'real_time_factor': (1.0, 'sim seconds per wall second; 0 = as fast as possible '
+                              '(dimensionless)', (0.0, 1000.0), False),
+    'sample_rate': (2000.0, 'accelerometer output sample rate (Hz); must exceed twice the '
+                            "anti-alias cutoff (scene sensors' lowpass, else 0.4 x rate)",
+                    (100.0, 100000.0), True),
+    'dampers_enabled': (True, 'impact dampers act (dynamic: compare with and without live)',
+                        None, False),
+    'noise_std': (0.0, 'white noise added to each acceleration sample, standard deviation '
+                       '(m/s^2)', (0.0, 1000.0), False),
+    'noise_seed': (0, 'seed of the noise generator; setting it restarts the noise sequence '
+                      '(dimensionless)', (0, 2**31 - 1), False),
+    'max_speed': (0.0, 'largest accepted speed command (rad/s); 0 = twice the scene speed',
+                  (0.0, 1.0e5), True),
+    'max_unbalance': (100.0, 'largest accepted unbalance multiplier X (dimensionless)',
+                      (0.0, 1.0e4), True),
+    'speed_rate_limit': (0.0, "rate limit of speed changes (rad/s^2); 0 = the scene's "
+                              '(ramp slope or max_rate)', (0.0, 1.0e6), True),
+    'publish_clock': (True, 'publish /clock (turn off on all but one node of a system)',
+                      None, True),
+    'tick_period': (0.01, 'period of the stepping loop (s): samples are published in '
+                           'bursts of about this length', (0.001, 0.1), True),
+    'state_period': (1.0, 'period of the impactor_state republish (s); it is also sent on '
+                          'every change', (0.01, 60.0), True),
+    'diagnostics_period': (1.0, 'period of /diagnostics (s)', (0.1, 60.0), True),
+    'max_lag': (0.25, 'largest schedule deficit kept before it is dropped and reported (s)',
+                (0.01, 10.0), True),
+}
+
+
+def _descriptor(name, description, bounds, read_only, default):
+    desc = ParameterDescriptor(name=name, description=description, read_only=read_only)
+    if bounds is not None:
+        if isinstance(default, bool) or not isinstance(default, (int, float)):
+            raise TypeError(name)
+        if isinstance(default, int):
+            desc.integer_range = [IntegerRange(from_value=int(bounds[0]),
+                                               to_value=int(bounds[1]), step=1)]
+        else:
+            desc.floating_point_range = _float_range(*bounds)
+    return desc
+
+
+def _stamp(t):
+    ns = int(round(t * 1e9))
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+class VibrationNode(Node):
+    """The live simulator node.
+
+    Parameters
+    ----------
+    node_name : str
+        Node name.
+    clock : callable
+        Wall clock for pacing (s); ``time.monotonic`` by default (tests may inject one).
+    start_stepping : bool
+        Start the stepping thread at once (default). Tests that drive :meth:`tick`
+        themselves pass False; :meth:`start` starts it later.
+    **kwargs
+        Passed to ``rclpy.node.Node`` (``context``, ``namespace``, ``parameter_overrides``,
+        ``cli_args``).
+
+    Raises
+    ------
+    SceneError
+        The scene or a start-up parameter is invalid (the message names it).
+    """
+
+    def __init__(self, node_name='vibration_node', *, clock=time.monotonic,
+                 start_stepping=True, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self._wall = clock
+        # commands, parameter changes and diagnostics (executor thread) and stepping
+        # (stepping thread) touch the simulation under this lock, one chunk at a time
+        self._lock = threading.RLock()
+        self._thread = None
+        self._stop = threading.Event()
+        for name, (default, description, bounds, read_only) in PARAMETERS.items():
+            self.declare_parameter(name, default,
+                                   _descriptor(name, description, bounds, read_only, default))
+        p = {name: self.get_parameter_or(name, Parameter(name, value=None)).value
+             for name in PARAMETERS}
+        rate_limit = p['speed_rate_limit'] or None
+        scene, target = live_scene(p['scene'], p['overrides'] or (),
+                                   speed_rate_limit=rate_limit)
+        self.live = LiveSimulation(
+            scene, sample_rate=p['sample_rate'], initial_target=target,
+            max_speed=p['max_speed'] or None, max_unbalance=p['max_unbalance'],
+            noise_std=p['noise_std'], seed=p['noise_seed'],
+            dampers_enabled=p['dampers_enabled'], method=p['method'] or None)
+        self.live.sim.integrator.ledger_on = False   # the ledger costs CPU per step; not published
+        self.live.step(0)   # load the compiled kernels now, not in the first paced tick
+        self.scene = scene
+        self._period = 1.0 / self.live.sample_rate
+        self._make_interfaces(p)
+        self.pacer = Pacer(p['real_time_factor'], self.live.t, max_lag=p['max_lag'],
+                           clock=self._wall)
+        self.stats = _Stats(self._wall(), time.process_time(), self.live.t)
+        self.rejected = 0
+        self.stats_total = {'samples': 0, 'impacts': 0}   # since start, per accelerometer
+        self._growth_rate = self.live.linear_growth_rate()
+        self._failure_logged = False
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._publish_state()
+        self.get_logger().info(
+            f'scene {scene.name!r}: {scene.basis.n_modes} modes, '
+            f'{len(scene.impactors)} impactors, integrator dt {self.live.dt:g} s, '
+            f'{len(self.live.accelerometers)} accelerometers at {self.live.sample_rate:g} Hz, '
+            f"real_time_factor {p['real_time_factor']:g}")
+        if start_stepping:
+            self.start()
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _make_interfaces(self, p):
+        self._imu = []
+        self._accel_pubs = []
+        for acc in self.live.accelerometers:
+            self._accel_pubs.append(self.create_publisher(Imu, itf.accel_topic(acc.name),
+                                                          itf.SENSOR_QOS))
+            msg = Imu()
+            msg.header.frame_id = acc.frame_id
+            msg.orientation_covariance[0] = -1.0   # orientation not measured (REP-145)
+            self._imu.append(msg)
+        self._set_noise_covariance()
+        self._impact_pub = self.create_publisher(WrenchStamped, itf.IMPACTS, itf.EVENT_QOS)
+        self._state_pub = self.create_publisher(JointState, itf.IMPACTOR_STATE,
+                                                itf.LATCHED_QOS)
+        self._speed_pub = self.create_publisher(Vector3Stamped, itf.ROTOR_SPEED,
+                                                itf.COMMAND_QOS)
+        self._clock_pub = (self.create_publisher(Clock, itf.CLOCK, itf.CLOCK_QOS)
+                           if p['publish_clock'] else None)
+        self._diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS,
+                                               itf.DIAGNOSTICS_QOS)
+        self.create_subscription(Float64, itf.SPEED_COMMAND, self.on_speed_command,
+                                 itf.COMMAND_QOS)
+        self.create_subscription(Float64, itf.UNBALANCE_COMMAND, self.on_unbalance_command,
+                                 itf.COMMAND_QOS)
+        imp_frames = {}
+        for i, imp in enumerate(self.scene.scene['impactors']):
+            frame = self._frame_of_node(imp['node'])
+            imp_frames[imp['name']] = f"{frame}/{imp['name']}"
+        self._impactor_frames = [imp_frames.get(imp.name, imp.name)
+                                 for imp in self.scene.impactors]
+        self._joint_names = []
+        for imp, spec in zip(self.scene.impactors, self.scene.scene['impactors']):
+            dofs = [spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
+            self._joint_names += [f'{imp.name}/{d}' for d in dofs]
+        self._tick_period = p['tick_period']
+        self._diag_timer = self.create_timer(p['diagnostics_period'], self.publish_diagnostics)
+        self._state_timer = self.create_timer(p['state_period'], self.publish_state)
+        self._max_work = 4.0 * p['tick_period']
+
+    def _frame_of_node(self, node):
+        for acc in self.live.accelerometers:
+            if acc.node == node:
+                return acc.frame_id
+        return f'{self.scene.name}_node{node}'
+
+    def _set_noise_covariance(self):
+        var = self.live.noise_std ** 2
+        for msg in self._imu:
+            msg.linear_acceleration_covariance = [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var]
+
+    # -- commands -------------------------------------------------------------------------
+    def on_speed_command(self, msg):
+        """Apply a ``rotor/speed_command`` (rad/s), or reject it with a throttled warning."""
+        self._command(self.live.command_speed, msg)
+
+    def on_unbalance_command(self, msg):
+        """Apply a ``rotor/unbalance_command`` (X >= 0), or reject it with a warning."""
+        self._command(self.live.command_unbalance, msg)
+
+    def _command(self, apply, msg):
+        try:
+            with self._lock:
+                apply(getattr(msg, 'data', msg))
+        except CommandError as exc:
+            self.rejected += 1
+            self.get_logger().warning(f'rejected: {exc}', throttle_duration_sec=1.0)
+            return False
+        self.stats.commands += 1
+        return True
+
+    def _on_set_parameters(self, params):
+        changes = {}
+        for prm in params:
+            name, value = prm.name, prm.value
+            if name == 'real_time_factor':
+                if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
+                    return SetParametersResult(successful=False, reason=(
+                        f'real_time_factor must be a finite float >= 0, got {value!r}'))
+            elif name == 'noise_std':
+                if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
+                    return SetParametersResult(successful=False, reason=(
+                        f'noise_std must be a finite float >= 0 m/s^2, got {value!r}'))
+            elif name == 'dampers_enabled':
+                if not isinstance(value, bool):
+                    return SetParametersResult(successful=False, reason=(
+                        f'dampers_enabled must be a bool, got {value!r}'))
+                if self.live.failure is None and value and not self.scene.impactors:
+                    return SetParametersResult(successful=False, reason=(
+                        f'scene {self.scene.name!r} has no impactors'))
+            elif name == 'noise_seed':
+                if not isinstance(value, int):
+                    return SetParametersResult(successful=False, reason=(
+                        f'noise_seed must be an integer, got {value!r}'))
+            changes[name] = value
+        # all valid: apply together
+        with self._lock:
+            self._apply(changes)
+        return SetParametersResult(successful=True)
+
+    def _apply(self, changes):
+        if 'real_time_factor' in changes:
+            self.pacer.reset(changes['real_time_factor'], self.live.t)
+        if 'noise_std' in changes or 'noise_seed' in changes:
+            self.live.set_noise(changes.get('noise_std', self.live.noise_std),
+                                changes.get('noise_seed'))
+            self._set_noise_covariance()
+        if 'dampers_enabled' in changes:
+            self.live.set_dampers_enabled(changes['dampers_enabled'])
+            self._publish_state()
+
+    # -- stepping -------------------------------------------------------------------------
+    def start(self):
+        """Start the stepping thread (idempotent).
+
+        Stepping runs in its own thread, not in an executor callback: the executor then only
+        wakes for commands, parameters and the slow timers, and a long chunk of physics
+        never starves them (each chunk holds the lock for a few ms at most).
+        """
+        if self._thread is not None:
+            return
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name='vibration_stepping',
+                                        daemon=True)
+        self._thread.start()
+
+    def stop(self):
+        """Stop the stepping thread and wait for it (idempotent)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    def _run(self):
+        next_tick = self._wall()
+        while not self._stop.is_set() and self.context.ok():
+            try:
+                self.tick()
+            except Exception as exc:   # a bug must not kill the node silently
+                with self._lock:
+                    self.live.failure = f'{type(exc).__name__}: {exc}'
+            next_tick += self._tick_period
+            delay = next_tick - self._wall()
+            if delay > 0:
+                self._stop.wait(delay)
+            else:
+                next_tick = self._wall()
+
+    def destroy_node(self):
+        """Stop stepping, then destroy the node."""
+        self.stop()
+        return super().destroy_node()
+
+    def tick(self):
+        """Step up to the paced sim time and publish (the stepping timer's callback).
+
+        Work per call is bounded (``4 x tick_period`` of wall time) so that subscriptions,
+        timers and ``/clock`` keep being served; a deficit shows up as lag.
+        """
+        live = self.live
+        if live.failure is not None:
+            self._report_failure()
+            return
+        target, lag = self.pacer.target(live.t)
+        self.stats.lag = max(self.stats.lag, lag)
+        start = self._wall()
+        chunk = max(1, int(round(0.01 * live.sample_rate)))   # ~10 ms of samples per step
+        while True:
+            n = (chunk if math.isinf(target)
+                 else int(math.floor((target - live.t) / self._period + 1e-9)))
+            if n <= 0:
+                break
+            with self._lock:
+                batch = live.step(min(n, chunk))
+                if batch is None:
+                    self._report_failure()
+                    return
+                self._publish_batch(batch)
+                self._publish_time()
+            if self._wall() - start > self._max_work:
+                self.stats.overruns += 1
+                break
+
+    def _publish_batch(self, batch):
+        for a, (pub, msg) in enumerate(zip(self._accel_pubs, self._imu)):
+            lin = batch.linear_acceleration[:, a, :]
+            ang = batch.angular_velocity[:, a, :]
+            la, av = msg.linear_acceleration, msg.angular_velocity
+            for k, t in enumerate(batch.t):
+                msg.header.stamp = _stamp(t)
+                la.x, la.y, la.z = float(lin[k, 0]), float(lin[k, 1]), float(lin[k, 2])
+                av.x, av.y, av.z = float(ang[k, 0]), float(ang[k, 1]), float(ang[k, 2])
+                pub.publish(msg)
+        self.stats.samples += batch.t.size
+        self.stats_total['samples'] += batch.t.size
+        peak = float(np.max(np.abs(batch.linear_acceleration))) if batch.t.size else 0.0
+        self.stats.peak = max(self.stats.peak, peak)
+        ev = batch.events
+        impacts = ev[ev['kind'] == _IMPACT]
+        for e in impacts:
+            self._publish_impact(e)
+        self.stats.impacts += impacts.size
+        self.stats_total['impacts'] += impacts.size
+        self.stats.steps = self.live.steps
+        stuck = sum(self.live._stuck)
+        self.stats.stuck_time += stuck * batch.t.size * self._period
+        if batch.states_changed:
+            self._publish_state()
+
+    def _publish_impact(self, e):
+        msg = WrenchStamped()
+        msg.header.stamp = _stamp(float(e['t']))
+        msg.header.frame_id = self._impactor_frames[int(e['impactor'])]
+        spec = self.scene.scene['impactors'][int(e['impactor'])]
+        n = e['normal']
+        J = float(e['impulse'])
+        axes = [spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
+        force = {'ux': 0.0, 'uy': 0.0, 'uz': 0.0}
+        for k, dof in enumerate(axes):
+            force[dof] = J * float(n[k])
+        msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = (
+            force['ux'], force['uy'], force['uz'])
+        msg.wrench.torque.x = abs(float(e['v_n']))
+        msg.wrench.torque.y = abs(float(e['v_n_after']))
+        msg.wrench.torque.z = float(e['loss'])
+        self._impact_pub.publish(msg)
+
+    def _publish_time(self):
+        t = self.live.t
+        stamp = _stamp(t)
+        if self._clock_pub is not None:
+            self._clock_pub.publish(Clock(clock=stamp))
+        if self.live.has_rotor:
+            speed, rate, x = self.live.rotor_state()
+            msg = Vector3Stamped()
+            msg.header.stamp = stamp
+            msg.vector.x, msg.vector.y, msg.vector.z = speed, rate, x
+            self._speed_pub.publish(msg)
+
+    def publish_state(self):
+        """Publish ``impactor_state`` now (the periodic timer's callback)."""
+        with self._lock:
+            self._publish_state()
+
+    def _publish_state(self):
+        msg = JointState()
+        msg.header.stamp = _stamp(self.live.t)
+        msg.name = list(self._joint_names)
+        pos, vel, eff = [], [], []
+        enabled = self.live.dampers_enabled
+        for s in self.live.impactor_states():
+            d = len(s['position'])
+            pos += [float(x) for x in s['position']]
+            vel += [float(x) for x in s['velocity']]
+            eff += [(1.0 if s['stuck'] else 0.0) if enabled else -1.0] * d
+        msg.position, msg.velocity, msg.effort = pos, vel, eff
+        self._state_pub.publish(msg)
+
+    # -- health ---------------------------------------------------------------------------
+    def _report_failure(self):
+        if not self._failure_logged:
+            self._failure_logged = True
+            self.get_logger().error(f'simulation stopped: {self.live.failure}; the node stays '
+                                    'up (diagnostics report ERROR)')
+            self.publish_diagnostics()
+
+    def publish_diagnostics(self):
+        """Publish ``/diagnostics``: pacing, CPU, impacts, stuck fraction, peak, health."""
+        with self._lock:
+            self._publish_diagnostics()
+
+    def _publish_diagnostics(self):
+        live, st = self.live, self.stats
+        wall, cpu = self._wall(), time.process_time()
+        d_wall = max(wall - st.wall, 1e-9)
+        d_sim = live.t - st.sim
+        achieved = d_sim / d_wall
+        n_imp = len(self.scene.impactors)
+        stuck_fraction = (st.stuck_time / (d_sim * n_imp)) if d_sim > 0 and n_imp else 0.0
+        status = DiagnosticStatus(name=f'{self.get_name()}: simulation',
+                                  hardware_id=self.scene.name)
+        level, messages = DiagnosticStatus.OK, []
+        rtf = self.pacer.real_time_factor
+        if live.failure is not None:
+            level = DiagnosticStatus.ERROR
+            messages.append(f'stopped: {live.failure}')
+        else:
+            if rtf > 0 and st.lag > self.pacer.max_lag:
+                level = DiagnosticStatus.WARN
+                messages.append(f'behind real time: achieved {achieved:.3g} of {rtf:g}')
+                self.get_logger().warning(messages[-1], throttle_duration_sec=5.0)
+            if self._growth_rate > 0:
+                level = max(level, DiagnosticStatus.WARN)
+                messages.append(f'linear model unstable: growth rate {self._growth_rate:.3g} '
+                                '1/s without impactors')
+            if st.growing >= 5:
+                level = max(level, DiagnosticStatus.WARN)
+                messages.append('response growing for 5 periods')
+        status.level = level
+        status.message = '; '.join(messages) or 'ok'
+        speed, _, x = live.rotor_state()
+        values = {
+            'sim_time_s': live.t, 'real_time_factor_requested': rtf,
+            'real_time_factor_achieved': achieved,
+            'cpu_percent': 100.0 * (cpu - st.cpu) / d_wall,
+            'step_rate_hz': (live.steps - st.steps0) / d_wall,
+            'samples_per_s': st.samples / d_sim if d_sim > 0 else 0.0,
+            'impacts_per_s': st.impacts / d_sim if d_sim > 0 else 0.0,
+            'stuck_fraction': stuck_fraction, 'peak_acceleration_g': st.peak / itf.G0,
+            'max_lag_s': st.lag, 'late_ticks': st.overruns,
+            'schedule_deficits_dropped': self.pacer.deficits,
+            'rejected_commands': self.rejected, 'dampers_enabled': live.dampers_enabled,
+            'rotor_speed_rad_s': speed, 'unbalance_multiplier': x,
+            'linear_growth_rate_1_s': self._growth_rate,
+        }
+        status.values = [KeyValue(key=k, value=f'{v:.6g}' if isinstance(v, float) else str(v))
+                         for k, v in values.items()]
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = _stamp(live.t)
+        self._diag_pub.publish(msg)
+        self.last_diagnostics = values | {'level': int.from_bytes(level, 'little')
+                                          if isinstance(level, bytes) else int(level),
+                                          'message': status.message}
+        # growth only counts at steady speed (a ramp through a critical also grows)
+        growing = st.peak > 1.2 * st.last_peak > 0 and live.rotor_state()[1] == 0.0
+        self.stats = _Stats(wall, cpu, live.t, steps0=live.steps,
+                            growing=st.growing + 1 if growing else 0, last_peak=st.peak)
+
+
+class _Stats:
+    """Counters of one diagnostics period."""
+
+    def __init__(self, wall, cpu, sim, steps0=0, growing=0, last_peak=0.0):
+        self.wall, self.cpu, self.sim, self.steps0 = wall, cpu, sim, steps0
+        self.steps = steps0
+        self.samples = self.impacts = self.commands = self.overruns = 0
+        self.stuck_time = self.peak = self.lag = 0.0
+        self.growing, self.last_peak = growing, last_peak
+
+
+def main(args=None):
+    """Entry point: ``ros2 run impact_damper_sim vibration_node [--ros-args ...]``."""
+    rclpy.init(args=args)
+    node = None
+    status = 0
+    try:
+        node = VibrationNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except SceneError as exc:
+        print(f'vibration_node: {exc}', file=sys.stderr)
+        status = 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())

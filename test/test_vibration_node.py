@@ -1,0 +1,342 @@
+"""vibration_node, launch-free: callbacks driven directly, topics, pacing, fuzz, namespaces.
+
+One rclpy context per test (``ros_context`` in conftest.py). Tests that drive the node's
+callbacks build it with ``start_stepping=False`` and a fake wall clock, so they are
+deterministic; the topic and pacing tests run the stepping thread for real.
+"""
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import Imu, JointState  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+
+from impact_damper_sim.ros import interface as itf  # noqa: E402
+from impact_damper_sim.ros.vibration_node import VibrationNode, main  # noqa: E402
+from impact_damper_sim.scene.schema import SceneError  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+LINEAR_HPOTP = ['impactors=[]']   # the HPOTP casing without impactors: a linear scene
+
+
+class FakeClock:
+    """Wall clock the test advances by hand (s)."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def make_node(ctx, scene='sdof', overrides=(), clock=None, **params):
+    overrides_param = [Parameter('overrides', value=list(overrides))] if overrides else []
+    return VibrationNode(
+        context=ctx, start_stepping=False, clock=clock or FakeClock(),
+        parameter_overrides=[Parameter('scene', value=scene), *overrides_param,
+                             *[Parameter(k, value=v) for k, v in params.items()]])
+
+
+def run_for(node, seconds):
+    """Advance the fake wall clock in ticks of 10 ms and step the node (sim s)."""
+    for _ in range(int(round(seconds / 0.01))):
+        node._wall.now += 0.01
+        node.tick()
+
+
+def test_speed_command_applied_within_the_rate_limit(ros_context):
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP, speed_rate_limit=500.0)
+    try:
+        run_for(node, 0.4)
+        w0 = node.live.rotor_state()[0]
+        assert w0 == pytest.approx(500.0 * 0.4, rel=1e-9)   # ramping to the scene's 2400
+        node.on_speed_command(Float64(data=150.0))   # below: ramps down at the limit
+        t0 = node.live.t
+        run_for(node, 0.05)
+        w1, rate, _ = node.live.rotor_state()
+        expected = max(150.0, w0 - 500.0 * (node.live.t - t0))
+        assert w1 == pytest.approx(expected, rel=1e-9)
+        run_for(node, 0.2)
+        w2, rate, _ = node.live.rotor_state()
+        assert w2 == 150.0 and rate == 0.0
+    finally:
+        node.destroy_node()
+
+
+def test_unbalance_command_scales_a_linear_scene_exactly(ros_context):
+    """Response is linear in the unbalance: X = 2.5 gives 2.5 x the X = 1 accelerations."""
+    outputs = []
+    for x in (1.0, 2.5):
+        node = make_node(ros_context, 'hpotp', LINEAR_HPOTP)
+        try:
+            node.on_unbalance_command(Float64(data=x))
+            batch = node.live.step(2000)   # 1 s at 2 kHz, through the ramp's start
+            outputs.append(batch.linear_acceleration)
+            assert node.live.rotor_state()[2] == x
+        finally:
+            node.destroy_node()
+    ref = outputs[0]
+    scale = np.abs(ref).max()
+    assert scale > 0.01   # the casing moves
+    np.testing.assert_allclose(outputs[1], 2.5 * ref, rtol=0, atol=1e-9 * 2.5 * scale)
+
+
+def test_dampers_enabled_switches_impacts(ros_context):
+    node = make_node(ros_context, 'sdof')
+    published = []
+    node._impact_pub.publish = published.append   # count what would go on the wire
+    try:
+        run_for(node, 1.0)
+        on = len(published)
+        assert on > 20   # ~2 impacts per 40 ms cycle
+        result = node.set_parameters([Parameter('dampers_enabled', value=False)])[0]
+        assert result.successful
+        run_for(node, 1.0)
+        assert len(published) == on
+        node.set_parameters([Parameter('dampers_enabled', value=True)])
+        run_for(node, 1.0)
+        assert len(published) > on + 20
+        assert all(isinstance(m, WrenchStamped) for m in published)
+        m = published[-1]
+        assert m.header.frame_id.endswith('/damper')
+        assert m.wrench.torque.x > 0 and m.wrench.torque.y == pytest.approx(
+            0.5 * m.wrench.torque.x, rel=1e-6)   # COR 0.5 on relative normal velocity
+    finally:
+        node.destroy_node()
+
+
+def test_invalid_parameter_updates_are_refused_with_reasons(ros_context):
+    node = make_node(ros_context, 'sdof')
+    try:
+        for name, value in [('real_time_factor', -1.0), ('real_time_factor', 1e9),
+                            ('noise_std', float('nan')), ('scene', 'rbs'),
+                            ('sample_rate', 4000.0)]:
+            result = node.set_parameters([Parameter(name, value=value)])[0]
+            assert not result.successful, name
+            assert result.reason, name
+        assert node.get_parameter('real_time_factor').value == 1.0
+        assert node.live.noise_std == 0.0
+    finally:
+        node.destroy_node()
+
+
+def test_bad_scene_is_a_clear_error(ros_context, capsys):
+    with pytest.raises(SceneError, match='impactors'):
+        make_node(ros_context, 'sdof', ['impactors.0.cor=1.5'])
+    # the console script prints the message and exits 2, no traceback
+    assert main(['--ros-args', '-p', 'scene:=no_such_scene']) == 2
+    err = capsys.readouterr().err
+    assert 'no_such_scene' in err and 'Traceback' not in err
+
+
+def test_fuzzed_commands_change_state_only_through_valid_ones(ros_context):
+    """1,200 random and invalid commands: the node stays up and keeps the last good one."""
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP)
+    rng = np.random.default_rng(7)
+    bad = [math.nan, math.inf, -math.inf, -1.0, -1e-300, 1e300, 1e5, -0.0 - 1e-9]
+    last_speed, last_x = node.live.profile.target, node.live.unbalance.multiplier
+    try:
+        for k in range(1200):
+            if rng.random() < 0.7:
+                value = float(rng.choice(bad)) if rng.random() < 0.8 else float(
+                    rng.normal(0, 1e6))
+            else:
+                value = float(rng.uniform(0, 4000))
+            if k % 2:
+                ok = value == value and 0 <= value <= node.live.max_speed
+                node.on_speed_command(Float64(data=value))
+                last_speed = value if ok else last_speed
+            else:
+                ok = value == value and 0 <= value <= node.live.max_unbalance
+                node.on_unbalance_command(Float64(data=value))
+                last_x = value if ok else last_x
+            if k % 100 == 0:
+                run_for(node, 0.01)
+            assert node.live.profile.target == last_speed
+            assert node.live.unbalance.multiplier == last_x
+        assert node.rejected > 500
+        assert node.live.failure is None
+        run_for(node, 0.05)
+        assert np.isfinite(node.live.t)
+    finally:
+        node.destroy_node()
+
+
+def test_numerical_blow_up_is_reported_and_the_node_stays_up(ros_context):
+    node = make_node(ros_context, 'sdof')
+    try:
+        run_for(node, 0.1)
+        node.live.sim.integrator._yh[:] = np.nan   # what an overflow leaves behind
+        run_for(node, 0.1)
+        assert node.live.failure is not None
+        t_failed = node.live.t
+        run_for(node, 0.1)
+        assert node.live.t == t_failed   # stepping stopped
+        node.publish_diagnostics()
+        assert node.last_diagnostics['level'] == 2   # ERROR
+        assert 'stopped' in node.last_diagnostics['message']
+        node.on_speed_command(Float64(data=1.0))   # still answers callbacks
+    finally:
+        node.destroy_node()
+
+
+class Collector(Node):
+    """Subscribes to every topic of one simulator namespace and keeps what arrives."""
+
+    def __init__(self, ctx, ns, sensors):
+        super().__init__('collector', namespace=ns, context=ctx)
+        self.got = {}
+        # a deep reader queue: rclpy takes one message per callback, slower than 2 kHz
+        # bursts arrive on a loaded machine (best effort drops what overflows the queue)
+        deep = QoSProfile(depth=20000, reliability=ReliabilityPolicy.BEST_EFFORT)
+        topics = [(itf.accel_topic(s), Imu, deep) for s in sensors] + [
+            (itf.IMPACTS, WrenchStamped, itf.EVENT_QOS),
+            (itf.IMPACTOR_STATE, JointState, itf.LATCHED_QOS),
+            (itf.ROTOR_SPEED, Vector3Stamped, itf.COMMAND_QOS),
+            (itf.CLOCK, Clock, itf.CLOCK_QOS)]
+        for topic, typ, qos in topics:
+            self.got[topic] = []
+            self.create_subscription(typ, topic, self.got[topic].append, qos)
+
+
+def _spin(executor, seconds):
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.02)
+
+
+def _sec(stamp):
+    return stamp.sec + 1e-9 * stamp.nanosec
+
+
+def test_in_process_subscriber_gets_every_topic(ros_context):
+    sim = VibrationNode(context=ros_context, namespace='/rig', parameter_overrides=[
+        Parameter('scene', value='sdof')])
+    sensor = sim.live.accelerometers[0]
+    sub = Collector(ros_context, '/rig', [sensor.name])
+    # the collector spins in its own thread: a Python subscriber at 2 kHz needs the CPU
+    ex_sub = SingleThreadedExecutor(context=ros_context)
+    ex_sub.add_node(sub)
+    spinner = threading.Thread(target=ex_sub.spin, daemon=True)
+    spinner.start()
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(sim)
+    try:
+        _spin(ex, 2.5)
+        sim.stop()
+        _spin(ex, 0.3)
+        published = sim.stats_total['samples']
+        imu = sub.got[itf.accel_topic(sensor.name)]
+        end = time.monotonic() + 20.0
+        while len(imu) < published and time.monotonic() < end:   # drain the backlog
+            time.sleep(0.2)
+        ex_sub.shutdown(timeout_sec=1.0)
+        imu = sub.got[itf.accel_topic(sensor.name)]
+        assert len(imu) == published   # none lost in process, best effort or not
+        t = np.array([_sec(m.header.stamp) for m in imu])
+        assert np.all(np.diff(t) > 0)   # monotonic stamps
+        rate = (len(t) - 1) / (t[-1] - t[0])
+        assert rate == pytest.approx(2000.0, rel=0.01)
+        assert {m.header.frame_id for m in imu} == {sensor.frame_id}
+        assert all(m.orientation_covariance[0] == -1.0 for m in imu[:10])
+        impacts = sub.got[itf.IMPACTS]
+        assert len(impacts) > 20
+        assert np.all(np.diff([_sec(m.header.stamp) for m in impacts]) > 0)
+        assert sub.got[itf.IMPACTOR_STATE][0].name == ['damper/uy']
+        clock = [_sec(m.clock) for m in sub.got[itf.CLOCK]]
+        assert len(clock) > 100 and np.all(np.diff(clock) > 0)
+        # QoS as documented
+        for topic, qos in [(itf.accel_topic(sensor.name), itf.SENSOR_QOS),
+                           (itf.IMPACTOR_STATE, itf.LATCHED_QOS),
+                           (itf.IMPACTS, itf.EVENT_QOS)]:
+            info = sim.get_publishers_info_by_topic('/rig/' + topic)
+            assert len(info) == 1, topic
+            assert info[0].qos_profile.reliability == qos.reliability
+            assert info[0].qos_profile.durability == qos.durability
+        assert itf.LATCHED_QOS.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        assert itf.SENSOR_QOS.reliability == ReliabilityPolicy.BEST_EFFORT
+    finally:
+        sim.destroy_node()
+        sub.destroy_node()
+
+
+def test_late_joiner_gets_the_latched_impactor_state(ros_context):
+    sim = make_node(ros_context, 'sdof')
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(sim)
+    try:
+        run_for(sim, 0.2)
+        late = Collector(ros_context, '/', [])
+        ex.add_node(late)
+        _spin(ex, 0.3)
+        states = late.got[itf.IMPACTOR_STATE]
+        assert len(states) == 1
+        assert states[0].effort[0] in (0.0, 1.0)
+        late.destroy_node()
+    finally:
+        sim.destroy_node()
+
+
+def test_two_namespaced_nodes_without_crosstalk(ros_context):
+    a = VibrationNode(context=ros_context, namespace='/a', start_stepping=False,
+                      clock=FakeClock(), parameter_overrides=[
+                          Parameter('scene', value='hpotp'),
+                          Parameter('overrides', value=LINEAR_HPOTP)])
+    b = VibrationNode(context=ros_context, namespace='/b', start_stepping=False,
+                      clock=FakeClock(), parameter_overrides=[
+                          Parameter('scene', value='hpotp'),
+                          Parameter('overrides', value=LINEAR_HPOTP),
+                          Parameter('publish_clock', value=False)])
+    cmd = Node('commander', context=ros_context)
+    pub = cmd.create_publisher(Float64, '/a/rotor/speed_command', itf.COMMAND_QOS)
+    sub_b = Collector(ros_context, '/b', [b.live.accelerometers[0].name])
+    ex = SingleThreadedExecutor(context=ros_context)
+    for n in (a, b, cmd, sub_b):
+        ex.add_node(n)
+    try:
+        pub.publish(Float64(data=100.0))
+        _spin(ex, 0.3)
+        assert a.live.profile.target == 100.0
+        assert b.live.profile.target == 2400.0
+        run_for(b, 0.1)
+        _spin(ex, 0.3)
+        assert len(sub_b.got[itf.accel_topic(b.live.accelerometers[0].name)]) > 0
+        assert a.live.t == 0.0   # b's stepping published nothing a consumed
+        assert not sub_b.got[itf.CLOCK]   # only a publishes /clock... and a never stepped
+    finally:
+        for n in (a, b, cmd, sub_b):
+            n.destroy_node()
+
+
+def test_pacing_at_real_time_and_as_fast_as_possible(ros_context):
+    sim = VibrationNode(context=ros_context, parameter_overrides=[
+        Parameter('scene', value='hpotp'), Parameter('overrides', value=LINEAR_HPOTP)])
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(sim)
+    try:
+        _spin(ex, 0.5)
+        sim.publish_diagnostics()   # start a fresh period
+        _spin(ex, 4.0)
+        sim.publish_diagnostics()
+        d = sim.last_diagnostics
+        assert d['real_time_factor_achieved'] == pytest.approx(1.0, abs=0.02)
+        assert 0 < d['cpu_percent'] < 200
+        sim.set_parameters([Parameter('real_time_factor', value=0.0)])
+        sim.publish_diagnostics()
+        _spin(ex, 1.0)
+        sim.publish_diagnostics()
+        assert sim.last_diagnostics['real_time_factor_achieved'] > 2.0
+    finally:
+        sim.destroy_node()
