@@ -1,0 +1,44 @@
+"""Record to MCAP exactly as rosbag2 (jazzy, ``rosbag2_storage_mcap``) writes it; recover crashes.
+
+* :class:`Rosbag2McapWriter` -- synchronous writer (schemas with dependencies, ``cdr``
+  channels with ``offered_qos_profiles`` and ``topic_type_hash``, the ``rosbag2`` record at
+  close), small chunks closed at least every 0.5 s.
+* :class:`AsyncRecorder` -- the same behind a queue and a writer thread, for the stepping loop.
+* :func:`recover` -- a finished copy of a file cut off by a crash (``study recover``).
+
+Messages arrive already serialized (``rclpy.serialization.serialize_message``): nothing here
+imports rclpy. QoS is an ``rclpy.qos.QoSProfile`` (read by attribute) or a plain dict.
+
+The names below are imported on first use, so that ``study`` (which imports
+:mod:`.cli` for its ``recover`` subcommand) does not pay for mcap and PyYAML.
+"""
+import importlib
+
+_EXPORTS = {
+    'AsyncRecorder': 'async_recorder',
+    'DEFAULT_CHUNK_SIZE': 'rosbag2_mcap',
+    'DEFAULT_FLUSH_PERIOD': 'rosbag2_mcap',
+    'DEFAULT_FSYNC_PERIOD': 'rosbag2_mcap',
+    'DefinitionNotFoundError': 'definitions',
+    'RecoveryError': 'recovery',
+    'RecoveryReport': 'recovery',
+    'Rosbag2McapWriter': 'rosbag2_mcap',
+    'message_definition': 'definitions',
+    'qos_dict': 'bag_metadata',
+    'recover': 'recovery',
+    'type_hash': 'definitions',
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    value = getattr(importlib.import_module(f'.{module}', __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -1,0 +1,239 @@
+"""Recover an MCAP file cut off by a crash (no summary, no footer) into a finished one.
+
+The input is read front to back with mcap's :class:`~mcap.stream_reader.StreamReader`
+(chunks whole, each checked against its CRC and size), through a file wrapper that treats a
+short read as the end of the data. Reading stops at the first record that is incomplete or
+broken; everything before it is copied: schemas, channels (with their QoS and type-hash
+metadata), messages (log and publish times and sequence kept), metadata records and
+attachments. A crashed recording therefore keeps everything up to its last complete chunk.
+The output is written in rosbag2's layout (:class:`.Rosbag2McapWriter`) with a fresh
+``rosbag2`` record counting what was recovered (a stale one in the input is dropped).
+
+Command: ``study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from .rosbag2_mcap import Rosbag2McapWriter
+
+MAGIC = b'\x89MCAP0\r\n'
+
+
+class RecoveryError(ValueError):
+    """The input is not a ROS 2 MCAP file that can be recovered (message says why)."""
+
+
+@dataclasses.dataclass
+class RecoveryReport:
+    """What :func:`recover` found and wrote.
+
+    Attributes
+    ----------
+    source, destination : str
+        Input and output paths.
+    messages : int
+        Messages written to the output (messages).
+    topics : dict of str to int
+        Messages per topic (messages), channels without messages included.
+    metadata : list of str
+        Names of the metadata records copied (``rosbag2`` is always rewritten).
+    attachments : int
+        Attachments copied.
+    complete : bool
+        True if the input had its footer (it was not cut off).
+    bytes_used, bytes_total : int
+        Input bytes up to the end of the last good record, and the input size (bytes).
+    stop_reason : str or None
+        Why reading stopped before the footer (None when complete).
+    skipped_messages : int
+        Messages of unknown channels (not written).
+    start_ns, end_ns : int or None
+        Earliest and latest recovered log time (ns since the epoch).
+    """
+
+    source: str
+    destination: str
+    messages: int = 0
+    topics: dict = dataclasses.field(default_factory=dict)
+    metadata: list = dataclasses.field(default_factory=list)
+    attachments: int = 0
+    complete: bool = False
+    bytes_used: int = 0
+    bytes_total: int = 0
+    stop_reason: str | None = None
+    skipped_messages: int = 0
+    start_ns: int | None = None
+    end_ns: int | None = None
+
+
+class _StrictReader:
+    """File wrapper for StreamReader: a short read raises (mcap would return short data)."""
+
+    def __init__(self, f):
+        self._f = f
+        self.position = 0
+
+    def read(self, n=-1):
+        from mcap.exceptions import EndOfFile
+        data = self._f.read(n)
+        if n is not None and n >= 0 and len(data) < n:
+            raise EndOfFile(f'file ends {n - len(data)} bytes into a record')
+        self.position += len(data)
+        return data
+
+
+def _chunk_records(chunk):
+    """Return the records of a chunk, checked against its CRC and size; raise if broken."""
+    from mcap.stream_reader import breakup_chunk, get_chunk_data_stream
+    _, length = get_chunk_data_stream(chunk)
+    if length != chunk.uncompressed_size:
+        raise ValueError(f'chunk holds {length} bytes, its header says {chunk.uncompressed_size}')
+    return breakup_chunk(chunk, validate_crc=True)
+
+
+def _check_source(path):
+    try:
+        size = os.path.getsize(path)
+        with open(path, 'rb') as f:
+            head = f.read(len(MAGIC))
+    except FileNotFoundError:
+        raise RecoveryError(f'{path}: no such file') from None
+    except IsADirectoryError:
+        raise RecoveryError(f'{path}: is a directory, not an MCAP file') from None
+    except OSError as exc:
+        raise RecoveryError(f'{path}: cannot read it: {exc.strerror or exc}') from None
+    if size == 0:
+        raise RecoveryError(f'{path}: the file is empty (0 bytes), nothing to recover')
+    if head != MAGIC[:len(head)] or len(head) < len(MAGIC):
+        what = 'is too short for' if head == MAGIC[:len(head)] else 'does not start with'
+        raise RecoveryError(f'{path}: not an MCAP file (it {what} the MCAP magic bytes)')
+    return size
+
+
+def recover(source, destination, *, overwrite=False):
+    """Copy the readable part of a (crashed) MCAP file into a finished rosbag2-layout file.
+
+    Parameters
+    ----------
+    source : str or os.PathLike
+        The cut-off MCAP file (a complete file works too).
+    destination : str or os.PathLike
+        Output file.
+    overwrite : bool, optional
+        Replace an existing output file.
+
+    Returns
+    -------
+    RecoveryReport
+
+    Raises
+    ------
+    RecoveryError
+        If the input is missing, empty, not MCAP, has no complete header, or is not a ROS 2
+        (profile ``ros2``) file, or if input and output are the same file.
+    FileExistsError
+        If the output exists and ``overwrite`` is false.
+    """
+    from mcap.records import (Attachment, Channel, Chunk, Footer, Header, Message, Metadata,
+                              Schema)
+    from mcap.stream_reader import StreamReader
+
+    source, destination = os.fspath(source), os.fspath(destination)
+    size = _check_source(source)
+    if os.path.exists(destination) and os.path.samefile(source, destination):
+        raise RecoveryError(f'{destination}: the output must not be the input file')
+    report = RecoveryReport(source, destination, bytes_total=size)
+    with open(source, 'rb') as f:
+        stream = _StrictReader(f)
+        records = iter(StreamReader(stream, emit_chunks=True, record_size_limit=size).records)
+        try:
+            header = next(records)
+        except Exception as exc:   # any parse failure of the first record means no header
+            raise RecoveryError(f'{source}: no complete MCAP header record ({exc})') from None
+        if not isinstance(header, Header):
+            raise RecoveryError(f'{source}: the first record is a {type(header).__name__}, '
+                                'not an MCAP header')
+        if header.profile != 'ros2':
+            raise RecoveryError(f"{source}: not a ROS 2 MCAP file (profile {header.profile!r},"
+                                " expected 'ros2')")
+        report.bytes_used = stream.position
+        schemas, in_channels, out_channels = {}, {}, {}
+        writer = Rosbag2McapWriter(destination, overwrite=overwrite, fsync_period=None)
+
+        def copy(record):
+            if isinstance(record, Schema):
+                schemas.setdefault(record.id, record)
+            elif isinstance(record, Channel):
+                if record.id not in in_channels:
+                    in_channels[record.id] = record
+                    out_channels[record.id] = _copy_channel(writer, record, schemas)
+                    report.topics.setdefault(record.topic, 0)
+            elif isinstance(record, Message):
+                channel = out_channels.get(record.channel_id)
+                if channel is None:
+                    report.skipped_messages += 1
+                    return
+                writer._add_message(channel, record.data, record.log_time, record.publish_time,
+                                    record.sequence)
+                report.topics[channel.topic] += 1
+                report.messages += 1
+                if report.start_ns is None or record.log_time < report.start_ns:
+                    report.start_ns = record.log_time
+                if report.end_ns is None or record.log_time > report.end_ns:
+                    report.end_ns = record.log_time
+            elif isinstance(record, Metadata) and record.name != 'rosbag2':
+                writer.add_metadata(record.name, record.metadata)
+                report.metadata.append(record.name)
+            elif isinstance(record, Attachment):
+                writer._mcap.add_attachment(record.create_time, record.log_time, record.name,
+                                            record.media_type, record.data)
+                report.attachments += 1
+
+        try:
+            while True:
+                try:
+                    record = next(records)
+                    inner = _chunk_records(record) if isinstance(record, Chunk) else [record]
+                except StopIteration:
+                    report.stop_reason = 'the file ends after a complete record, without a footer'
+                    break
+                except Exception as exc:   # any failure to read or check a record ends the data
+                    if report.bytes_used == size:
+                        report.stop_reason = ('the file ends after a complete record, without '
+                                              'a footer (the open chunk was never written)')
+                    else:
+                        report.stop_reason = (f'incomplete or broken record after byte '
+                                              f'{report.bytes_used}: {type(exc).__name__}: '
+                                              f'{exc}')
+                    break
+                for item in inner:
+                    copy(item)
+                report.bytes_used = stream.position
+                if isinstance(record, Footer):
+                    report.complete = True
+                    break
+        finally:
+            writer.close()
+    if writer.error is not None:
+        raise OSError(f'{destination}: writing failed: {writer.error}') from writer.error
+    return report
+
+
+def _copy_channel(writer, channel, schemas):
+    """Register ``channel`` (and its schema) in the output; return the output channel."""
+    import yaml
+    schema = schemas.get(channel.schema_id)
+    metadata = dict(channel.metadata)
+    try:
+        qos = yaml.safe_load(metadata.get('offered_qos_profiles', '')) or []
+    except yaml.YAMLError:
+        qos = []
+    out = writer._register(
+        channel.topic, schema.name if schema else '', schema.encoding if schema else '',
+        schema.data if schema else b'', channel.message_encoding,
+        qos if isinstance(qos, list) else [], metadata.get('topic_type_hash', ''), metadata)
+    if out is None:
+        raise OSError(f'{writer.path}: writing failed: {writer.error}')
+    return out
