@@ -1,0 +1,417 @@
+"""``monitor``: rolling vibration statistics of a running ``vibration_node``, on /diagnostics.
+
+A thin adapter over :class:`impact_damper_sim.monitoring.RollingVibrationStats`: it
+subscribes to ``accel/<sensor>`` (sensor_msgs/Imu), ``impacts`` (geometry_msgs/WrenchStamped)
+and ``impactor_state`` (sensor_msgs/JointState, latched) with the QoS of
+:mod:`impact_damper_sim.ros.interface`, feeds their header stamps (sim time) and values to
+the core, and every ``report_period`` logs one line per sensor and publishes a
+diagnostic_msgs/DiagnosticArray on ``/diagnostics``. Topic names are relative, so
+``ros2 run impact_damper_sim monitor --ros-args -r __ns:=/hpotp`` watches the simulator
+running in ``/hpotp``.
+
+Threads: the subscription callbacks only queue what they receive (a few microseconds a
+message). A report thread owns the core: it feeds it the queued batches, and computes and
+publishes the reports, so that a long window (at 60 s and 2 kHz, an FFT of 120,000 points a
+sensor) does not stall the executor while the 100-deep best-effort sample queues fill.
+
+Diagnostics (all values as text; units in the key names):
+
+``monitor: <namespace>/<sensor>`` (hardware_id: the sensor's frame_id), one per sensor
+    ``rms_g``, ``peak_g`` (vector magnitude), ``rms_g_x|y|z``, ``peak_g_x|y|z``,
+    ``dominant_hz`` (power summed over the axes), ``dominant_hz_x|y|z``, ``resolution_hz``,
+    ``samples_per_s``, ``samples_in_window``, ``rejected_samples`` (since start),
+    ``stamp_lag_s`` (newest stamp on any topic minus the sensor's newest, sim s),
+    ``last_sample_age_s`` (node-clock s since a valid sample last arrived), ``window_s``,
+    ``window_end_s`` (sim s). WARN when no valid sample arrived yet, when ``stamp_lag_s`` or
+    ``last_sample_age_s`` exceeds two windows (stale), or when samples were rejected since
+    the previous report.
+``monitor: <namespace>/impacts`` (hardware_id: the housing frame of the impacts)
+    ``impacts_per_s``, ``impacts_in_window``, ``stuck_fraction``, ``impactors``,
+    ``stuck_impactors``, ``rejected_impacts``, ``rejected_states``, ``time_resets``,
+    ``span_s``, ``window_s``, ``window_end_s``. WARN before any ``impactor_state`` or when
+    one was rejected since the previous report.
+"""
+from __future__ import annotations
+
+from array import array
+import math
+import threading
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import WrenchStamped
+import numpy as np
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu, JointState
+
+from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
+from .interface import (ACCEL_PREFIX, accel_topic, DIAGNOSTICS, DIAGNOSTICS_QOS, EVENT_QOS,
+                        IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS, TYPES)
+
+#: Samples (or impacts) queued on one stream before the batch goes to the report thread
+#: ahead of the report, so that memory stays bounded for long report periods.
+FLUSH_AT = 4096
+#: A sensor is stale after this many windows without a valid sample.
+STALE_WINDOWS = 2.0
+
+
+def _stamp_s(stamp):
+    """Return a builtin_interfaces/Time as float seconds."""
+    return stamp.sec + 1e-9 * stamp.nanosec
+
+
+def _text(value):
+    """Format a diagnostic value: 6 significant digits, ``nan`` for unknown."""
+    if isinstance(value, int):
+        return str(value)
+    return 'nan' if value is None or math.isnan(value) else f'{value:.6g}'
+
+
+class _Batch:
+    """Input the callbacks queued since the last hand-over to the report thread."""
+
+    def __init__(self, sensors=()):
+        self.samples = {name: array('d') for name in sensors}   # (t, ax, ay, az) rows
+        self.impacts = array('d')                                 # stamps (s)
+        self.states = []       # (stamp s, stuck flags), or None for a rejected message
+        self.clock_s = math.nan    # node clock at the hand-over (s)
+        self.report = False
+
+
+class VibrationMonitor(Node):
+    """Node that reports rolling vibration statistics of the ``accel/*`` topics.
+
+    Parameters
+    ----------
+    node_name : str
+        Node name (default ``monitor``).
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``namespace``,
+        ``parameter_overrides``, ...).
+
+    Attributes
+    ----------
+    last_report : VibrationReport or None
+        The latest report of the core (None before the first).
+    message_counts : dict of str to int
+        Messages received per stream (``accel``, ``impacts``, ``impactor_state``).
+    """
+
+    def __init__(self, node_name='monitor', **kwargs):
+        super().__init__(node_name, **kwargs)
+        sensors = self.declare_parameter(
+            'sensors', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
+                description='accelerometers to watch, on topics accel/<name> (relative to '
+                            'the namespace); unset or empty: discover the accel/* Imu '
+                            'topics of the namespace at start and every report period',
+                read_only=True)).value or []
+        window = self.declare_parameter('window', 2.0, ParameterDescriptor(
+            description='rolling window of the statistics (s, in header-stamp time)',
+            floating_point_range=[FloatingPointRange(from_value=0.1, to_value=60.0)]
+        )).value
+        period = self.declare_parameter('report_period', 1.0, ParameterDescriptor(
+            description='period of the logged lines and /diagnostics reports (s, node clock)',
+            floating_point_range=[FloatingPointRange(from_value=0.05, to_value=3600.0)],
+            read_only=True)).value
+        self.declare_parameter('log_reports', True, ParameterDescriptor(
+            description='log one INFO line per sensor and one for impacts every report'))
+        self.add_post_set_parameters_callback(self._on_parameters_set)
+
+        self.last_report = None
+        self.message_counts = {'accel': 0, 'impacts': 0, 'impactor_state': 0}
+        # owned by the report thread (or a caller of report()), under _core_lock
+        self._core_lock = threading.Lock()
+        self._stats = RollingVibrationStats(window)
+        self._window = window
+        self._last_arrival = {}     # sensor -> node-clock time of its latest valid sample (s)
+        self._rejected_reported = {}
+        self._rejected_states_reported = 0
+        # shared with the callbacks, under _queue (callbacks never wait on the core)
+        self._queue = threading.Condition()
+        self._batch = _Batch()
+        self._jobs = []
+        self._stopping = False
+        self._frames = {}           # sensor -> frame_id of its latest message
+        self._impact_frame = ''
+        self._accel_subscriptions = {}
+        self._discover_sensors = not sensors
+        for name in dict.fromkeys(sensors):   # ordered, without duplicates
+            self._watch(name)
+        self.create_subscription(WrenchStamped, IMPACTS, self._on_impact, EVENT_QOS)
+        self.create_subscription(JointState, IMPACTOR_STATE, self._on_state, LATCHED_QOS)
+        self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS,
+                                                  DIAGNOSTICS_QOS)
+        if self._discover_sensors:
+            self.discover()
+        self._worker = threading.Thread(target=self._work, name=f'{node_name}-report',
+                                        daemon=True)
+        self._worker.start()
+        self._timer = self.create_timer(period, self._on_timer)
+
+    @property
+    def sensors(self):
+        """Names of the watched sensors (tuple of str)."""
+        return tuple(self._accel_subscriptions)
+
+    def destroy_node(self):
+        """Stop the report thread, then destroy the node."""
+        with self._queue:
+            self._stopping = True
+            self._queue.notify()
+        self._worker.join(timeout=5.0)
+        return super().destroy_node()
+
+    # -- subscriptions -----------------------------------------------------------------
+    def _watch(self, sensor):
+        """Subscribe to ``accel/<sensor>``."""
+        try:
+            subscription = self.create_subscription(
+                Imu, accel_topic(sensor), lambda msg, name=sensor: self._on_accel(name, msg),
+                SENSOR_QOS)
+        except Exception as error:   # rclpy raises several kinds for a bad name
+            raise ValueError(f'sensor {sensor!r} does not make a valid topic name '
+                             f'{accel_topic(sensor)!r}: {error}') from error
+        self._accel_subscriptions[sensor] = subscription
+        with self._queue:
+            self._batch.samples.setdefault(sensor, array('d'))
+        self.get_logger().info(f'watching {self.resolve_topic_name(accel_topic(sensor))}')
+
+    def discover(self):
+        """Subscribe to every ``accel/*`` Imu topic of the namespace not yet watched."""
+        prefix = self.resolve_topic_name(ACCEL_PREFIX.rstrip('/')) + '/'
+        for topic, types in self.get_topic_names_and_types():
+            sensor = topic[len(prefix):]
+            if (topic.startswith(prefix) and sensor and TYPES[ACCEL_PREFIX] in types
+                    and sensor not in self._accel_subscriptions):
+                self._watch(sensor)
+
+    def _on_accel(self, sensor, msg):
+        # hot path (thousands a second): queue only
+        a = msg.linear_acceleration
+        row = (_stamp_s(msg.header.stamp), a.x, a.y, a.z)
+        with self._queue:
+            samples = self._batch.samples[sensor]
+            samples.extend(row)
+            if len(samples) >= 4 * FLUSH_AT:
+                self._hand_over(report=False)
+        self._frames[sensor] = msg.header.frame_id
+        self.message_counts['accel'] += 1
+
+    def _on_impact(self, msg):
+        with self._queue:
+            self._batch.impacts.append(_stamp_s(msg.header.stamp))
+            if len(self._batch.impacts) >= FLUSH_AT:
+                self._hand_over(report=False)
+        self._impact_frame = msg.header.frame_id.rpartition('/')[0]
+        self.message_counts['impacts'] += 1
+
+    def _on_state(self, msg):
+        self.message_counts['impactor_state'] += 1
+        try:
+            _, stuck = impactor_stuck_flags(msg.name, msg.effort)
+            state = (_stamp_s(msg.header.stamp), stuck)
+        except ValueError as error:
+            state = None
+            self.get_logger().warning(f'{IMPACTOR_STATE} rejected: {error}',
+                                      throttle_duration_sec=10.0)
+        with self._queue:
+            self._batch.states.append(state)
+
+    def _on_parameters_set(self, parameters):
+        for parameter in parameters:
+            if parameter.name == 'window':
+                self._window = parameter.value     # the report thread applies it
+
+    def _on_timer(self):
+        if self._discover_sensors:
+            self.discover()
+        with self._queue:
+            self._hand_over(report=True)
+
+    # -- the report thread -------------------------------------------------------------
+    def _hand_over(self, report):
+        """Queue the current batch for the report thread (call with ``_queue`` held)."""
+        batch = self._batch
+        batch.clock_s = self.get_clock().now().nanoseconds * 1e-9
+        batch.report = report
+        self._batch = _Batch(batch.samples)
+        self._jobs.append(batch)
+        self._queue.notify()
+
+    def _take_jobs(self):
+        with self._queue:
+            jobs, self._jobs = self._jobs, []
+        return jobs
+
+    def _work(self):
+        while True:
+            with self._queue:
+                self._queue.wait_for(lambda: self._jobs or self._stopping)
+                if self._stopping:
+                    return
+            # take the jobs under the core lock, so that batches are fed in their order
+            with self._core_lock:
+                try:
+                    self._process(self._take_jobs())
+                except Exception as error:   # keep monitoring whatever one batch did
+                    self.get_logger().error(f'report failed: {error!r}',
+                                            throttle_duration_sec=10.0)
+
+    def report(self):
+        """Feed the queued input to the core, then log and publish a report, in this thread.
+
+        The timer does the same in the report thread every ``report_period``.
+
+        Returns
+        -------
+        DiagnosticArray
+            The array published on ``/diagnostics``.
+        """
+        with self._core_lock:
+            with self._queue:
+                self._hand_over(report=True)
+            return self._process(self._take_jobs())
+
+    def _process(self, jobs):
+        """Feed batches to the core; publish a report if one of them asks for it."""
+        if self._window != self._stats.window:
+            self._stats.window = self._window
+        report_due = False
+        for job in jobs:
+            for sensor, values in job.samples.items():
+                self._stats.add_sensor(sensor)
+                if values:
+                    rows = np.frombuffer(values, dtype=float).reshape(-1, 4)
+                    if self._stats.add_samples(sensor, rows[:, 0], rows[:, 1:]):
+                        self._last_arrival[sensor] = job.clock_s
+            if job.impacts:
+                self._stats.add_impacts(np.frombuffer(job.impacts, dtype=float))
+            for state in job.states:
+                if state is None:
+                    self._stats.reject_state()
+                else:
+                    self._stats.update_stuck(*state)
+            report_due |= job.report
+        if not report_due:
+            return None
+        clock_now = self.get_clock().now()
+        clock_s = clock_now.nanoseconds * 1e-9
+        report = self._stats.report()
+        self.last_report = report
+        array_msg = DiagnosticArray()
+        array_msg.header.stamp = clock_now.to_msg()
+        array_msg.status = [self._sensor_status(report, sensor, clock_s)
+                            for sensor in report.sensors]
+        array_msg.status.append(self._impacts_status(report))
+        self._diagnostics.publish(array_msg)
+        if self.get_parameter('log_reports').value:
+            self._log(report, array_msg)
+        return array_msg
+
+    def _status_name(self, item):
+        return f'{self.get_name()}: {self.get_namespace().rstrip("/")}/{item}'
+
+    def _sensor_status(self, report, sensor, clock_s):
+        stats = report.sensors[sensor]
+        window = report.window
+        stale_after = STALE_WINDOWS * window
+        arrival = self._last_arrival.get(sensor)
+        age = clock_s - arrival if arrival is not None else math.nan
+        lag = (report.t - stats.last_sample_t if stats.last_sample_t is not None
+               else math.nan)
+        new_rejects = stats.rejected_samples - self._rejected_reported.get(sensor, 0)
+        self._rejected_reported[sensor] = stats.rejected_samples
+        problems = []
+        if arrival is None:
+            problems.append('no valid sample received')
+        elif age > stale_after:
+            problems.append(f'stale: no sample for {age:.3g} s')
+        elif lag > stale_after:
+            problems.append(f'stale: newest sample {lag:.3g} s behind the other topics')
+        if new_rejects:
+            problems.append(f'{new_rejects} samples rejected (non-finite or out of range)')
+        values = [('rms_g', stats.rms_g), ('peak_g', stats.peak_g)]
+        values += [(f'rms_g_{axis}', v) for axis, v in zip(AXES, stats.rms_g_axes)]
+        values += [(f'peak_g_{axis}', v) for axis, v in zip(AXES, stats.peak_g_axes)]
+        values.append(('dominant_hz', stats.dominant_hz))
+        values += [(f'dominant_hz_{axis}', v) for axis, v in zip(AXES, stats.dominant_hz_axes)]
+        values += [('resolution_hz', stats.resolution_hz),
+                   ('samples_per_s', stats.samples_per_s),
+                   ('samples_in_window', stats.samples),
+                   ('rejected_samples', stats.rejected_samples),
+                   ('stamp_lag_s', lag), ('last_sample_age_s', age),
+                   ('window_s', window), ('window_end_s', report.t)]
+        return DiagnosticStatus(
+            level=DiagnosticStatus.WARN if problems else DiagnosticStatus.OK,
+            name=self._status_name(sensor), message='; '.join(problems) or 'ok',
+            hardware_id=self._frames.get(sensor, ''),
+            values=[KeyValue(key=key, value=_text(v)) for key, v in values])
+
+    def _impacts_status(self, report):
+        new_rejects = report.rejected_states - self._rejected_states_reported
+        self._rejected_states_reported = report.rejected_states
+        problems = []
+        if math.isnan(report.stuck_fraction):
+            problems.append(f'no {IMPACTOR_STATE} received')
+        if new_rejects:
+            problems.append(f'{new_rejects} {IMPACTOR_STATE} messages rejected')
+        values = [('impacts_per_s', report.impacts_per_s),
+                  ('impacts_in_window', report.impacts),
+                  ('stuck_fraction', report.stuck_fraction),
+                  ('impactors', report.impactors),
+                  ('stuck_impactors', report.stuck_impactors),
+                  ('rejected_impacts', report.rejected_impacts),
+                  ('rejected_states', report.rejected_states),
+                  ('time_resets', report.time_resets),
+                  ('span_s', report.span), ('window_s', report.window),
+                  ('window_end_s', report.t)]
+        return DiagnosticStatus(
+            level=DiagnosticStatus.WARN if problems else DiagnosticStatus.OK,
+            name=self._status_name('impacts'), message='; '.join(problems) or 'ok',
+            hardware_id=self._impact_frame,
+            values=[KeyValue(key=key, value=_text(v)) for key, v in values])
+
+    def _log(self, report, array):
+        logger = self.get_logger()
+        for sensor, status in zip(report.sensors, array.status):
+            s = report.sensors[sensor]
+            if s.samples == 0:
+                logger.warning(f'{accel_topic(sensor)}: {status.message}')
+                continue
+            line = (f'{accel_topic(sensor)}: rms {s.rms_g:.4g} g (x {s.rms_g_axes[0]:.3g}, '
+                    f'y {s.rms_g_axes[1]:.3g}, z {s.rms_g_axes[2]:.3g}), '
+                    f'peak {s.peak_g:.4g} g, dominant {s.dominant_hz:.5g} Hz '
+                    f'(resolution {s.resolution_hz:.3g} Hz), {s.samples_per_s:.5g} samples/s')
+            if status.level == DiagnosticStatus.OK:
+                logger.info(line)
+            else:
+                logger.warning(f'{line}: {status.message}')
+        line = (f'{IMPACTS}: {report.impacts_per_s:.4g} /s, stuck fraction '
+                f'{report.stuck_fraction:.3g} ({report.stuck_impactors} of '
+                f'{report.impactors} impactors stuck now)')
+        if array.status[-1].level == DiagnosticStatus.OK:
+            logger.info(line)
+        else:
+            logger.warning(f'{line}: {array.status[-1].message}')
+
+
+def main(args=None):
+    """Run the ``monitor`` node until Ctrl-C or an external shutdown."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = VibrationMonitor()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()
