@@ -12,6 +12,8 @@
     study stability SCENE --kcc-key KEY [--kcc V1,V2,...] [--weight-key KEY --weights ...]
                           [--clearance-key KEY --clearances ...] [--onset] [study options]
     study validate [--out docs/validation.md] [--quick] [--workers N]
+    study report FILE.mcap [--json] [--plot PATH.png] [--csv PATH]
+    study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]
 
 study options: [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S] [--window S]
 [--json] [--csv PATH] [--plot PATH.png] [--workers N] [--executor process|serial|dask]
@@ -77,7 +79,21 @@ def _parser():
                           description='Every scene key with its type or unit, default, '
                                       'allowed range and meaning.')
     keys.add_argument('--markdown', action='store_true', help='print a Markdown table')
+    report = sub.add_parser(
+        'report', help='summarize a recorded MCAP log (rosbag2 layout)',
+        description='Per-topic counts and rates; per accelerometer (sensor_msgs/Imu) peak and '
+                    'RMS acceleration in g, spectrum and dominant frequency (a waterfall over '
+                    'rotor speed when rotor/speed spans a range); impacts per second; '
+                    'time-weighted stuck fraction per impactor; metadata records.')
+    report.add_argument('file', metavar='FILE.mcap', help='MCAP log with profile ros2')
+    report.add_argument('--json', action='store_true', help='print JSON instead of text')
+    report.add_argument('--plot', metavar='PATH.png',
+                        help='also plot spectra or waterfalls, impact rate and stuck state')
+    report.add_argument('--csv', metavar='PATH',
+                        help='also write the summary as CSV (section,name,quantity,value,unit)')
     _study_parsers(sub, scene_args)
+    from ..recording.cli import add_recover_parser
+    add_recover_parser(sub)
     return parser
 
 
@@ -218,6 +234,12 @@ def main(argv=None):
         if args.command == 'validate':
             from .studies import run_validate
             return run_validate(args)
+        if args.command == 'report':
+            from ..studies.report import run_report
+            return run_report(args)
+        if args.command == 'recover':
+            from ..recording.cli import run_recover
+            return run_recover(args)
         return _simulate(args)
     except SceneError as exc:
         _error(str(exc))

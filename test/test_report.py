@@ -1,0 +1,383 @@
+"""``study report``: counts, rates, accelerations, spectra, impact rate, stuck fraction, errors.
+
+The fixture logs are written with ``mcap_ros2.writer.Writer`` (its own CDR encoder, no
+rclpy) with schemas concatenated by rosbag2's rule from the installed ``.msg`` files, so the
+report reads them the way it reads a rosbag2 log.
+"""
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from impact_damper_sim.cli.study import main as study
+from impact_damper_sim.studies.report import (G0, analyze, impact_rate, stuck_fractions,
+                                              welch)
+
+mcap_ros2_writer = pytest.importorskip('mcap_ros2.writer')
+
+T0 = 1_700_000_000_000_000_000   # log_time epoch of the fixtures (ns)
+LATENCY = 1_000_000              # log_time - stamp (ns)
+FS = 1000.0                      # accelerometer sample rate (Hz)
+N = 2000                         # samples (2 s)
+AX, FX = 2.0, 50.0               # x: amplitude (g), frequency (Hz): peak sampled exactly
+AY, FY = 1.5, 123.0              # y: whole periods, not on a Welch bin
+
+
+# --- fixtures: rosbag2-style schemas from the installed .msg files ----------------------------
+
+_FIELD = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
+_PRIMITIVES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16',
+               'uint16', 'int32', 'uint32', 'int64', 'uint64', 'string'}
+
+
+def _msg_text(name):
+    ament = pytest.importorskip('ament_index_python.packages')
+    pkg, typ = name.split('/')[0], name.split('/')[-1]
+    try:
+        share = ament.get_package_share_directory(pkg)
+    except Exception:
+        pytest.skip(f'{pkg} .msg files not installed (AMENT_PREFIX_PATH?)')
+    with open(os.path.join(share, 'msg', typ + '.msg')) as fh:
+        return fh.read()
+
+
+def msgdef(rtype):
+    """rosbag2_storage_mcap's concatenation: root, then unseen dependencies depth first."""
+    seen = set()
+
+    def rec(name):
+        text = _msg_text(name)
+        pkg = name.split('/')[0]
+        deps = set()
+        for m in _FIELD.finditer(text):
+            t = m.group(1)
+            if t not in _PRIMITIVES:
+                deps.add(t if '/' in t else f'{pkg}/{t}')
+        out = text
+        for dep in sorted(deps):
+            if dep not in seen:
+                seen.add(dep)
+                out += '\n' + '=' * 80 + '\nMSG: ' + dep + '\n' + rec(dep)
+        return out
+    return rec(rtype)
+
+
+def stamp(t_ns):
+    return {'sec': t_ns // 1_000_000_000, 'nanosec': t_ns % 1_000_000_000}
+
+
+class Log:
+    """Write messages ``(topic, type, dict, stamp_ns)``; log_time = T0 + stamp + LATENCY."""
+
+    def __init__(self, path):
+        from mcap.writer import CompressionType
+        self.w = mcap_ros2_writer.Writer(str(path), chunk_size=64 * 1024,
+                                         compression=CompressionType.NONE)
+        self.schemas = {}
+
+    def write(self, topic, rtype, msg, t_ns):
+        if rtype not in self.schemas:
+            self.schemas[rtype] = self.w.register_msgdef(rtype, msgdef(rtype))
+        self.w.write_message(topic, self.schemas[rtype], msg, log_time=T0 + t_ns + LATENCY,
+                             publish_time=T0 + t_ns)
+
+    def close(self, metadata=None):
+        for name, data in (metadata or {}).items():
+            self.w.add_metadata(name, data)
+        self.w.finish()
+
+
+def _imu(t_ns, ax, ay, az):
+    return {'header': {'stamp': stamp(t_ns), 'frame_id': 's1'},
+            'linear_acceleration': {'x': ax * G0, 'y': ay * G0, 'z': az * G0}}
+
+
+def without_summary(src, dst):
+    """Copy a log record by record into a file with no summary section (a streamed file)."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, IndexType, Writer
+    with open(src, 'rb') as fin, open(dst, 'wb') as fout:
+        reader = make_reader(fin)
+        w = Writer(fout, compression=CompressionType.NONE, index_types=IndexType.NONE,
+                   repeat_channels=False, repeat_schemas=False, use_statistics=False,
+                   use_summary_offsets=False)
+        w.start(profile=reader.get_header().profile, library='test')
+        schemas, channels = {}, {}
+        for schema, channel, message in reader.iter_messages():
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding,
+                                                       schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = w.register_channel(
+                    channel.topic, channel.message_encoding, schemas[schema.id],
+                    channel.metadata)
+            w.add_message(channels[channel.id], message.log_time, message.data,
+                          message.publish_time, message.sequence)
+        for record in reader.iter_metadata():
+            w.add_metadata(record.name, record.metadata)
+        w.finish()
+
+
+def write_synthetic(path):
+    """Sine accelerations, 8 impacts in two 1 s bins, two impactors' stuck states."""
+    log = Log(path)
+    events = []
+    for k in range(N):
+        t = k / FS
+        events.append((k * 1_000_000, '/accel/s1', 'sensor_msgs/msg/Imu',
+                       _imu(k * 1_000_000, AX * math.sin(2 * math.pi * FX * t),
+                            AY * math.sin(2 * math.pi * FY * t), 0.0)))
+    for t_s, imp in [(0.1, 'imp_a'), (0.4, 'imp_a'), (0.9, 'imp_b'), (1.0, 'imp_a'),
+                     (1.2, 'imp_b'), (1.3, 'imp_a'), (1.6, 'imp_a'), (1.95, 'imp_b')]:
+        t_ns = round(t_s * 1e9)
+        events.append((t_ns, '/impacts', 'geometry_msgs/msg/WrenchStamped',
+                       {'header': {'stamp': stamp(t_ns), 'frame_id': f'housing/{imp}'},
+                        'wrench': {'force': {'x': 1e-3}, 'torque': {'x': 0.5, 'y': 0.3}}}))
+    names = ['imp_a/y', 'imp_a/z', 'imp_b/x']
+    # imp_a stuck from 0.5 to 1.5 s; imp_b stuck from 0 to 2 s (freed by the last message)
+    for t_s, eff in [(0.0, [0, 0, 1]), (0.5, [1, 1, 1]), (1.5, [0, 0, 1]), (2.0, [0, 0, 0])]:
+        t_ns = round(t_s * 1e9)
+        events.append((t_ns, '/impactor_state', 'sensor_msgs/msg/JointState',
+                       {'header': {'stamp': stamp(t_ns)}, 'name': names,
+                        'position': [0.0] * 3, 'velocity': [0.0] * 3,
+                        'effort': [float(e) for e in eff]}))
+    events.sort(key=lambda e: e[0])
+    for t_ns, topic, rtype, msg in events:
+        log.write(topic, rtype, msg, t_ns)
+    log.close({'impact_damper_sim': {'scene': 'cantilever', 'version': '0.1.0',
+                                     'overrides': '[]'}})
+    return events
+
+
+@pytest.fixture(scope='module')
+def synthetic(tmp_path_factory):
+    path = tmp_path_factory.mktemp('report') / 'run.mcap'
+    events = write_synthetic(path)
+    return path, events
+
+
+# --- the numbers ------------------------------------------------------------------------------
+
+def test_counts_and_rates_exact(synthetic):
+    path, events = synthetic
+    report, _ = analyze(path)
+    log_times = [T0 + t + LATENCY for t, *_ in events]
+    duration = (max(log_times) - min(log_times)) * 1e-9
+    assert report['duration_s'] == pytest.approx(2.0, abs=1e-12)
+    assert report['message_count'] == len(events)
+    expected = {'/accel/s1': ('sensor_msgs/msg/Imu', N),
+                '/impacts': ('geometry_msgs/msg/WrenchStamped', 8),
+                '/impactor_state': ('sensor_msgs/msg/JointState', 4)}
+    got = {t['topic']: t for t in report['topics']}
+    assert set(got) == set(expected)
+    for topic, (rtype, count) in expected.items():
+        assert got[topic]['type'] == rtype
+        assert got[topic]['count'] == count
+        assert got[topic]['rate_hz'] == pytest.approx(count / duration, rel=1e-12)
+    # the sensor's own frequency: 1999 intervals of 1 ms
+    assert got['/accel/s1']['frequency_hz'] == pytest.approx(FS, rel=1e-9)
+    assert report['metadata']['impact_damper_sim'] == {'scene': 'cantilever',
+                                                       'version': '0.1.0', 'overrides': '[]'}
+    assert report['warnings'] == []
+
+
+def test_peak_rms_in_g_and_dominant_frequency(synthetic):
+    report, _ = analyze(synthetic[0])
+    (s,) = report['sensors']
+    assert (s['sensor'], s['samples']) == ('s1', N)
+    assert s['sample_rate_hz'] == pytest.approx(FS, rel=1e-9)
+    # x peaks on a sample (50 Hz at 1 kHz); both sines run whole periods: RMS = A/sqrt(2)
+    assert s['peak_g']['x'] == pytest.approx(AX, rel=1e-6)
+    assert s['rms_g']['x'] == pytest.approx(AX / math.sqrt(2), rel=1e-6)
+    assert s['rms_g']['y'] == pytest.approx(AY / math.sqrt(2), rel=1e-6)
+    assert s['peak_g']['z'] == 0.0 and s['rms_g']['z'] == 0.0
+    assert s['rms_g']['magnitude'] == pytest.approx(math.hypot(AX, AY) / math.sqrt(2), rel=1e-6)
+    t = np.arange(N) / FS
+    mag = np.hypot(AX * np.sin(2 * np.pi * FX * t), AY * np.sin(2 * np.pi * FY * t))
+    assert s['peak_g']['magnitude'] == pytest.approx(mag.max(), rel=1e-6)
+    spec = s['spectrum']
+    bin_hz = spec['resolution_hz']
+    assert bin_hz == pytest.approx(FS / spec['segment_samples'])
+    assert FY / bin_hz % 1 == pytest.approx(0.49, abs=0.02)   # y sits between two bins
+    assert abs(spec['dominant_hz']['x'] - FX) <= bin_hz
+    assert abs(spec['dominant_hz']['y'] - FY) <= bin_hz
+    assert abs(spec['dominant_hz']['total'] - FX) <= bin_hz   # x is the larger
+    assert s['waterfall'] is None   # no rotor speed in this log
+
+
+def test_impact_rate_per_second_bins(synthetic):
+    report, _ = analyze(synthetic[0])
+    (imp,) = report['impacts']
+    assert imp['count'] == 8
+    assert [b['count'] for b in imp['bins']] == [3, 5]
+    assert [b['rate_hz'] for b in imp['bins']] == pytest.approx([3.0, 5.0], rel=1e-12)
+    assert imp['mean_rate_hz'] == pytest.approx(4.0, rel=1e-12)
+    assert imp['peak_rate_hz'] == pytest.approx(5.0, rel=1e-12)
+    assert imp['per_impactor'] == {'imp_a': 5, 'imp_b': 3}
+
+
+def test_impact_rate_partial_last_bin():
+    entry, _ = impact_rate([0, 2_600_000_000], ['a', 'a'], 0, 2_500_000_000)
+    assert [b['width_s'] for b in entry['bins']] == pytest.approx([1.0, 1.0, 0.5])
+    assert [b['count'] for b in entry['bins']] == [1, 0, 1]
+    assert entry['bins'][-1]['rate_hz'] == pytest.approx(2.0)
+    assert entry['peak_rate_hz'] == pytest.approx(1.0)   # full bins only
+
+
+def test_welch_parseval_and_peak():
+    """A sine of whole periods per segment: the PSD integrates to A^2/2, peaks on its bin."""
+    fs, seg = 1000.0, 256
+    t = np.arange(1024) / fs
+    f0 = 10 * fs / seg                        # 10 periods per segment
+    freq, psd = welch(3.0 * np.sin(2 * np.pi * f0 * t)[:, None], fs, seg)
+    assert psd.shape == (1, seg // 2 + 1)
+    assert np.sum(psd[0]) * fs / seg == pytest.approx(4.5, rel=1e-9)
+    assert freq[np.argmax(psd[0])] == pytest.approx(f0)
+
+
+def test_stuck_fraction_time_weighted(synthetic):
+    report, _ = analyze(synthetic[0])
+    (state,) = report['impactor_state']
+    a, b = state['impactors']['imp_a'], state['impactors']['imp_b']
+    assert a['stuck_fraction'] == pytest.approx(0.5, rel=1e-12)
+    assert a['stuck_s'] == pytest.approx(1.0, rel=1e-12)
+    assert a['observed_s'] == pytest.approx(2.0, rel=1e-12)
+    assert b['stuck_fraction'] == pytest.approx(1.0, rel=1e-12)
+    assert (a['stick_events'], b['stick_events']) == (1, 1)
+
+
+def test_stuck_fraction_last_state_holds_to_end():
+    s = 1_000_000_000
+    out, _ = stuck_fractions([0, 3 * s], [['a/x'], ['a/x']], [[0.0], [1.0]], 4 * s)
+    assert out['a']['stuck_fraction'] == pytest.approx(0.25)
+
+
+def test_waterfall_follows_rotor_speed(tmp_path):
+    """A tone at the rotor frequency, speed ramped 60 -> 600 rad/s: the slices track it."""
+    path = tmp_path / 'ramp.mcap'
+    log = Log(path)
+    fs, n = 1000.0, 4000
+    t = np.arange(n) / fs
+    w = 60 + (600 - 60) * t / t[-1]                       # rad/s
+    phase = np.cumsum(w) / fs                              # rad
+    events = [(k * 1_000_000, '/accel/s1', 'sensor_msgs/msg/Imu',
+               _imu(k * 1_000_000, 0.0, 0.0, 0.3 * math.sin(phase[k]))) for k in range(n)]
+    events += [(k * 10_000_000, '/rotor/speed', 'geometry_msgs/msg/Vector3Stamped',
+                {'header': {'stamp': stamp(k * 10_000_000)},
+                 'vector': {'x': float(60 + 540 * (k * 0.01) / t[-1])}})
+               for k in range(int(t[-1] * 100) + 1)]
+    for t_ns, topic, rtype, msg in sorted(events, key=lambda e: e[0]):
+        log.write(topic, rtype, msg, t_ns)
+    log.close()
+    report, series = analyze(path)
+    (sp,) = report['rotor_speed']
+    assert sp['min_rad_s'] == pytest.approx(60) and sp['max_rad_s'] == pytest.approx(600, 1e-2)
+    wf = report['sensors'][0]['waterfall']
+    assert wf is not None and wf['slices'] >= 10
+    # within a slice the tone sweeps this much (Hz); the slice's speed is its mean
+    sweep = 540 / t[-1] * wf['segment_samples'] / fs / (2 * math.pi)
+    for f, speed in zip(wf['dominant_hz'], wf['speed_rad_s']):
+        assert abs(f - speed / (2 * math.pi)) <= wf['resolution_hz'] + sweep / 2
+    assert np.diff(wf['speed_rad_s']).min() > 0
+    out = tmp_path / 'wf.png'
+    assert study(['report', str(path), '--plot', str(out)]) == 0
+    assert out.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_streamed_file_without_summary(tmp_path):
+    events = write_synthetic(tmp_path / 'full.mcap')
+    path = tmp_path / 'streamed.mcap'
+    without_summary(tmp_path / 'full.mcap', path)
+    report, _ = analyze(path)
+    assert report['message_count'] == len(events)
+    assert {t['topic']: t['count'] for t in report['topics']}['/accel/s1'] == N
+    assert report['sensors'][0]['rms_g']['x'] == pytest.approx(AX / math.sqrt(2), rel=1e-6)
+    assert report['metadata']['impact_damper_sim']['scene'] == 'cantilever'
+
+
+# --- the command ------------------------------------------------------------------------------
+
+def test_json_schema(synthetic, capsys):
+    assert study(['report', str(synthetic[0]), '--json']) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert set(r) == {'file', 'profile', 'library', 'start_time_ns', 'end_time_ns',
+                      'duration_s', 'message_count', 'time_origin_s', 'stamped_span_s',
+                      'topics', 'sensors', 'rotor_speed', 'impacts', 'impactor_state',
+                      'metadata', 'warnings'}
+    assert r['profile'] == 'ros2'
+    assert set(r['topics'][0]) == {'topic', 'type', 'count', 'rate_hz', 'frequency_hz'}
+    s = r['sensors'][0]
+    assert set(s) == {'topic', 'sensor', 'samples', 'sample_rate_hz', 'gaps', 'duration_s',
+                      'peak_g', 'rms_g', 'spectrum', 'waterfall'}
+    assert set(s['peak_g']) == set(s['rms_g']) == {'x', 'y', 'z', 'magnitude'}
+    assert set(s['spectrum']) == {'method', 'segment_samples', 'resolution_hz', 'dominant_hz'}
+    assert set(s['spectrum']['dominant_hz']) == {'x', 'y', 'z', 'total'}
+    imp = r['impacts'][0]
+    assert set(imp) == {'topic', 'count', 'mean_rate_hz', 'peak_rate_hz', 'bin_s', 'bins',
+                        'per_impactor'}
+    assert set(imp['bins'][0]) == {'start_s', 'width_s', 'count', 'rate_hz'}
+    st = r['impactor_state'][0]
+    assert set(st['impactors']['imp_a']) == {'stuck_fraction', 'stuck_s', 'observed_s',
+                                             'stick_events'}
+
+
+def test_text_plot_and_csv(synthetic, tmp_path, capsys):
+    png, csv_path = tmp_path / 'r.png', tmp_path / 'r.csv'
+    assert study(['report', str(synthetic[0]), '--plot', str(png), '--csv', str(csv_path)]) == 0
+    out = capsys.readouterr().out
+    assert 'scene: cantilever' in out and 'version: 0.1.0' in out   # the metadata record
+    assert '/accel/s1' in out and 'stuck fraction' in out
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    lines = csv_path.read_text().splitlines()
+    assert lines[0] == 'section,name,quantity,value,unit'
+    assert 'topic,/impacts,count,8,' in lines
+    assert any(line.startswith('stuck_fraction,/impactor_state:imp_a,stuck_fraction,0.5')
+               for line in lines)
+
+
+def _bad_files(tmp_path, synthetic_path):
+    good = synthetic_path.read_bytes()
+    files = {'empty': b'', 'garbage': bytes(range(256)) * 40,
+             'truncated': good[:len(good) // 2], 'header only': good[:20]}
+    from mcap.writer import Writer
+    other = tmp_path / 'json.mcap'
+    with open(other, 'wb') as fh:   # a valid MCAP, but not ROS 2
+        w = Writer(fh)
+        w.start(profile='', library='test')
+        sid = w.register_schema('Thing', 'jsonschema', b'{}')
+        cid = w.register_channel('/thing', 'json', sid)
+        w.add_message(cid, log_time=1, publish_time=1, data=b'{}')
+        w.finish()
+    out = {}
+    for name, data in files.items():
+        p = tmp_path / (name.replace(' ', '_') + '.mcap')
+        p.write_bytes(data)
+        out[name] = p
+    out['not ROS 2'] = other
+    out['missing'] = tmp_path / 'nope.mcap'
+    return out
+
+
+@pytest.mark.parametrize('kind, pattern', [
+    ('empty', 'empty file'), ('garbage', 'not an MCAP file'), ('truncated', 'truncated'),
+    ('header only', 'truncated'), ('not ROS 2', 'not a ROS 2 log'), ('missing', 'cannot read')])
+def test_bad_files_clear_error(kind, pattern, synthetic, tmp_path, capsys):
+    path = _bad_files(tmp_path, synthetic[0])[kind]
+    assert study(['report', str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith('study: error: ') and pattern in err
+    assert len(err.strip().splitlines()) == 1 and 'Traceback' not in err
+
+
+def test_bad_file_subprocess_no_traceback(synthetic, tmp_path):
+    path = _bad_files(tmp_path, synthetic[0])['truncated']
+    proc = subprocess.run([sys.executable, '-m', 'impact_damper_sim.cli.study', 'report',
+                           str(path)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert 'truncated' in proc.stderr and 'Traceback' not in proc.stderr
+    assert proc.stdout == ''
