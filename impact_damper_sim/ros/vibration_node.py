@@ -25,9 +25,11 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
+from std_srvs.srv import SetBool
 
 from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
 from ..scene.schema import SceneError
@@ -75,6 +77,11 @@ PARAMETERS = {
     'diagnostics_period': (1.0, 'period of /diagnostics (s)', (0.1, 60.0), True),
     'max_lag': (0.25, 'largest schedule deficit kept before it is dropped and reported (s)',
                 (0.01, 10.0), True),
+    'record': ('', 'MCAP file to record every published topic and received command to, in '
+                   "rosbag2's layout; empty = not recording (start/stop at run time with the "
+                   '~/record service)', None, True),
+    'record_overwrite': (False, 'overwrite an existing record file (otherwise refused)', None,
+                         True),
 }
 
 
@@ -89,6 +96,33 @@ def _descriptor(name, description, bounds, read_only, default):
         else:
             desc.floating_point_range = _float_range(*bounds)
     return desc
+
+
+def _type_name(msg_type):
+    """``pkg/msg/Type`` of a generated message class."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
+class _Outlet:
+    """A publisher that serializes a message once and gives the same bytes to the recorder."""
+
+    def __init__(self, node, msg_type, topic, qos):
+        self.pub = node.create_publisher(msg_type, topic, qos)
+        self.type_name = _type_name(msg_type)
+        self.qos = qos
+        self.count = 0   # messages published
+        self._node = node
+
+    @property
+    def topic(self):
+        """str: Fully qualified topic name."""
+        return self.pub.topic_name
+
+    def publish(self, msg):
+        data = serialize_message(msg)
+        self.pub.publish(data)   # rclpy publishes serialized bytes as they are
+        self.count += 1
+        self._node._record(self.topic, self.type_name, self.qos, data)
 
 
 def _stamp(t):
@@ -142,6 +176,9 @@ class VibrationNode(Node):
             dampers_enabled=p['dampers_enabled'], method=p['method'] or None)
         self.live.sim.integrator.ledger_on = False   # the ledger costs CPU per step; not published
         self.live.step(0)   # load the compiled kernels now, not in the first paced tick
+        self._params = p
+        self.recorder = None
+        self.record_error = None
         self.scene = scene
         self._period = 1.0 / self.live.sample_rate
         self._make_interfaces(p)
@@ -153,6 +190,10 @@ class VibrationNode(Node):
         self._growth_rate = self.live.linear_growth_rate()
         self._failure_logged = False
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        if p['record']:
+            error = self.start_recording(p['record'], p['record_overwrite'])
+            if error:
+                raise SceneError(f"parameter 'record': {error}")
         self._publish_state()
         self.get_logger().info(
             f'scene {scene.name!r}: {scene.basis.n_modes} modes, '
@@ -167,26 +208,25 @@ class VibrationNode(Node):
         self._imu = []
         self._accel_pubs = []
         for acc in self.live.accelerometers:
-            self._accel_pubs.append(self.create_publisher(Imu, itf.accel_topic(acc.name),
-                                                          itf.SENSOR_QOS))
+            self._accel_pubs.append(_Outlet(self, Imu, itf.accel_topic(acc.name),
+                                            itf.SENSOR_QOS))
             msg = Imu()
             msg.header.frame_id = acc.frame_id
             msg.orientation_covariance[0] = -1.0   # orientation not measured (REP-145)
             self._imu.append(msg)
         self._set_noise_covariance()
-        self._impact_pub = self.create_publisher(WrenchStamped, itf.IMPACTS, itf.EVENT_QOS)
-        self._state_pub = self.create_publisher(JointState, itf.IMPACTOR_STATE,
-                                                itf.LATCHED_QOS)
-        self._speed_pub = self.create_publisher(Vector3Stamped, itf.ROTOR_SPEED,
-                                                itf.COMMAND_QOS)
-        self._clock_pub = (self.create_publisher(Clock, itf.CLOCK, itf.CLOCK_QOS)
+        self._impact_pub = _Outlet(self, WrenchStamped, itf.IMPACTS, itf.EVENT_QOS)
+        self._state_pub = _Outlet(self, JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
+        self._speed_pub = _Outlet(self, Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
+        self._clock_pub = (_Outlet(self, Clock, itf.CLOCK, itf.CLOCK_QOS)
                            if p['publish_clock'] else None)
-        self._diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS,
-                                               itf.DIAGNOSTICS_QOS)
-        self.create_subscription(Float64, itf.SPEED_COMMAND, self.on_speed_command,
-                                 itf.COMMAND_QOS)
-        self.create_subscription(Float64, itf.UNBALANCE_COMMAND, self.on_unbalance_command,
-                                 itf.COMMAND_QOS)
+        self._diag_pub = _Outlet(self, DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
+        self._command_subs = [
+            self.create_subscription(Float64, itf.SPEED_COMMAND, self.on_speed_command,
+                                     itf.COMMAND_QOS),
+            self.create_subscription(Float64, itf.UNBALANCE_COMMAND, self.on_unbalance_command,
+                                     itf.COMMAND_QOS)]
+        self.create_service(SetBool, '~/record', self.on_record_request)
         imp_frames = {}
         for i, imp in enumerate(self.scene.scene['impactors']):
             frame = self._frame_of_node(imp['node'])
@@ -216,15 +256,19 @@ class VibrationNode(Node):
     # -- commands -------------------------------------------------------------------------
     def on_speed_command(self, msg):
         """Apply a ``rotor/speed_command`` (rad/s), or reject it with a throttled warning."""
-        self._command(self.live.command_speed, msg)
+        self._command(self.live.command_speed, msg, 0)
 
     def on_unbalance_command(self, msg):
         """Apply a ``rotor/unbalance_command`` (X >= 0), or reject it with a warning."""
-        self._command(self.live.command_unbalance, msg)
+        self._command(self.live.command_unbalance, msg, 1)
 
-    def _command(self, apply, msg):
+    def _command(self, apply, msg, which):
         try:
             with self._lock:
+                if self.recorder is not None and isinstance(msg, Float64):
+                    # every command received is recorded, the rejected ones too
+                    self._record(self._command_subs[which].topic_name, 'std_msgs/msg/Float64',
+                                 itf.COMMAND_QOS, serialize_message(msg))
                 apply(getattr(msg, 'data', msg))
         except CommandError as exc:
             self.rejected += 1
@@ -273,6 +317,98 @@ class VibrationNode(Node):
             self.live.set_dampers_enabled(changes['dampers_enabled'])
             self._publish_state()
 
+    @property
+    def outlets(self):
+        """list of _Outlet: Every publisher of the node (``topic``, ``type_name``, ``count``)."""
+        return [*self._accel_pubs, self._impact_pub, self._state_pub, self._speed_pub,
+                self._diag_pub] + ([self._clock_pub] if self._clock_pub else [])
+
+    # -- recording ------------------------------------------------------------------------
+    def start_recording(self, path, overwrite=False):
+        """Start recording every published topic and received command to ``path``.
+
+        Parameters
+        ----------
+        path : str
+            MCAP file (rosbag2 layout).
+        overwrite : bool
+            Replace an existing file (otherwise refused).
+
+        Returns
+        -------
+        str or None
+            Why recording could not start, or None.
+        """
+        from ..recording import AsyncRecorder
+        with self._lock:
+            if self.recorder is not None:
+                return f'already recording to {self.recorder.path}'
+            try:
+                rec = AsyncRecorder(path, overwrite=overwrite, on_error=self._on_disk_error)
+            except (OSError, ValueError) as exc:
+                return str(exc)
+            rec.add_metadata('impact_damper_sim', self._run_metadata())
+            for out in self.outlets:
+                rec.add_topic(out.topic, out.type_name, out.qos)
+            for sub in self._command_subs:
+                rec.add_topic(sub.topic_name, 'std_msgs/msg/Float64', itf.COMMAND_QOS)
+            self.recorder = rec
+            self.record_error = None
+            self._publish_state()   # the latched state opens the log
+        self.get_logger().info(f'recording to {path}')
+        return None
+
+    def stop_recording(self):
+        """Finish the record file (summary and rosbag2 metadata); no-op when not recording."""
+        with self._lock:
+            rec, self.recorder = self.recorder, None
+        if rec is not None:
+            rec.close()
+            self.get_logger().info(f'recorded {rec.stats()["messages_written"]} messages to '
+                                   f'{rec.path}')
+        return rec
+
+    def on_record_request(self, request, response):
+        """``~/record`` (std_srvs/SetBool): true starts recording to the ``record`` parameter's
+        path (or a new timestamped file), false stops."""
+        if request.data:
+            path = self._params['record'] or time.strftime(
+                f'{self.scene.name}_%Y%m%d-%H%M%S.mcap')
+            error = self.start_recording(path, self._params['record_overwrite'])
+            response.success = error is None
+            response.message = error or path
+        else:
+            rec = self.stop_recording()
+            response.success = rec is not None
+            response.message = rec.path if rec is not None else 'not recording'
+        return response
+
+    def _record(self, topic, type_name, qos, data):
+        rec = self.recorder
+        if rec is not None:
+            # the log runs on sim time, as a recorder with use_sim_time on our /clock would
+            ns = int(round(self.live.t * 1e9))
+            rec.write(topic, type_name, qos, data, ns, ns)
+
+    def _on_disk_error(self, exc):
+        self.record_error = str(exc)   # reported in /diagnostics; the simulation goes on
+
+    def _run_metadata(self):
+        import yaml
+
+        import impact_damper_sim
+        params = {k: v for k, v in self._params.items()}
+        return {
+            'software_version': impact_damper_sim.__version__,
+            'scene': self.scene.name, 'scene_source': str(self.scene.source),
+            'overrides': yaml.safe_dump(list(self._params['overrides'] or ()),
+                                        default_flow_style=True).strip(),
+            'resolved_scene_si': yaml.safe_dump(_plain(self.scene.scene), sort_keys=False),
+            'node_parameters': yaml.safe_dump(params, sort_keys=True),
+            'node_name': self.get_fully_qualified_name(),
+            'time_base': 'sim time (log_time = publish_time = sim time of the publish call)',
+        }
+
     # -- stepping -------------------------------------------------------------------------
     def start(self):
         """Start the stepping thread (idempotent).
@@ -311,8 +447,9 @@ class VibrationNode(Node):
                 next_tick = self._wall()
 
     def destroy_node(self):
-        """Stop stepping, then destroy the node."""
+        """Stop stepping, finish any recording, then destroy the node."""
         self.stop()
+        self.stop_recording()
         return super().destroy_node()
 
     def tick(self):
@@ -457,6 +594,11 @@ class VibrationNode(Node):
                 level = max(level, DiagnosticStatus.WARN)
                 messages.append(f'linear model unstable: growth rate {self._growth_rate:.3g} '
                                 '1/s without impactors')
+            if self.recorder is not None and self.recorder.error is not None:
+                self.record_error = self.record_error or str(self.recorder.error)
+            if self.record_error:
+                level = max(level, DiagnosticStatus.WARN)
+                messages.append(f'recording stopped by a disk error: {self.record_error}')
             if st.growing >= 5:
                 level = max(level, DiagnosticStatus.WARN)
                 messages.append('response growing for 5 periods')
@@ -477,6 +619,17 @@ class VibrationNode(Node):
             'rotor_speed_rad_s': speed, 'unbalance_multiplier': x,
             'linear_growth_rate_1_s': self._growth_rate,
         }
+        rec = self.recorder
+        if rec is not None:
+            if rec.error is not None and not self.record_error:
+                self.record_error = str(rec.error)
+            rs = rec.stats()
+            values.update({'record_path': str(rec.path),
+                           'record_messages_written': rs['messages_written'],
+                           'record_messages_dropped': rs['messages_dropped'],
+                           'record_queue_high_water': rs['queue_high_water']})
+        values['record_error'] = self.record_error or ''
+
         status.values = [KeyValue(key=k, value=f'{v:.6g}' if isinstance(v, float) else str(v))
                          for k, v in values.items()]
         msg = DiagnosticArray(status=[status])
@@ -489,6 +642,19 @@ class VibrationNode(Node):
         growing = st.peak > 1.2 * st.last_peak > 0 and live.rotor_state()[1] == 0.0
         self.stats = _Stats(wall, cpu, live.t, steps0=live.steps,
                             growing=st.growing + 1 if growing else 0, last_peak=st.peak)
+
+
+def _plain(value):
+    """A scene value as plain YAML-safe data (tuples to lists, NumPy to Python)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 class _Stats:
