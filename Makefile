@@ -1,5 +1,5 @@
 # Two commands do all the set-up on a fresh machine with Python 3.11+ and make:
-#   make run    create .venv, install pinned deps (incl. ROS 2 Jazzy wheels), run the main job
+#   make run    create .venv, install pinned deps (incl. ROS 2 Jazzy wheels), run vibration_node
 #   make test   same set-up, then the test suite
 PYTHON ?= python3
 VENV   := .venv
@@ -10,10 +10,11 @@ export AMENT_PREFIX_PATH := $(abspath $(VENV))
 # Numba's on-disk cache, shared by every run from this checkout.
 export NUMBA_CACHE_DIR ?= $(abspath $(VENV))/numba-cache
 
-SCENE ?= cantilever
+SCENE ?= hpotp
+NODE_ARGS ?=
 PYTEST_ARGS ?=
 
-.PHONY: run test test-slow bench constraints clean validation
+.PHONY: run test test-slow bench constraints clean validation convergence
 
 $(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -22,8 +23,10 @@ $(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
 	$(PY) -m pip install --quiet --no-deps --config-settings editable_mode=compat -e .
 	touch $@
 
+# the main job: the live node (Ctrl-C stops it)
 run: $(STAMP)
-	$(VENV)/bin/study modes $(SCENE)
+	$(VENV)/bin/vibration_node --ros-args --params-file config/vibration_node.yaml \
+	    -p scene:=$(SCENE) $(NODE_ARGS)
 
 test: $(STAMP)
 	$(PY) -m pytest $(PYTEST_ARGS)
@@ -34,6 +37,10 @@ test-slow: $(STAMP)
 # the paper's results next to ours (docs/validation.md and docs/validation/*.png; minutes)
 validation: $(STAMP)
 	$(VENV)/bin/study validate --out docs/validation.md
+
+# speed/accuracy trade: docs/convergence.md, docs/convergence/*.{csv,json,png} (about 10 min)
+convergence: $(STAMP)
+	$(PY) -m impact_damper_sim.studies.convergence docs/convergence.md
 
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
 BENCHES := bench/sdof_methods.py bench/ivp_baseline.py

@@ -28,3 +28,36 @@ def test_simulation_api_example_runs():
     sim = namespace['sim']
     assert sim.t == 2.0 and namespace['acc'].shape == (10000, 1)
 
+
+
+def test_node_parameter_table_is_the_declared_one():
+    pytest = __import__('pytest')
+    pytest.importorskip('rclpy')
+    from impact_damper_sim.ros.vibration_node import parameters_markdown
+    assert region('node-params').strip() == parameters_markdown()
+
+
+def test_params_file_holds_every_parameter_default():
+    pytest = __import__('pytest')
+    pytest.importorskip('rclpy')
+    import yaml
+    from rclpy.parameter import Parameter
+
+    from impact_damper_sim.ros.vibration_node import PARAMETERS
+    params = yaml.safe_load((README.parent / 'config' / 'vibration_node.yaml').read_text())
+    params = params['/**']['ros__parameters']
+    for name, (default, *_rest) in PARAMETERS.items():
+        if isinstance(default, Parameter.Type):
+            assert name not in params   # an empty string array cannot be written in YAML
+        else:
+            assert params[name] == default, name
+
+
+def test_topic_table_names_every_topic():
+    pytest = __import__('pytest')
+    pytest.importorskip('rclpy')
+    from impact_damper_sim.ros import interface as itf
+    text = README.read_text()
+    for topic in (itf.IMPACTS, itf.IMPACTOR_STATE, itf.ROTOR_SPEED, itf.SPEED_COMMAND,
+                  itf.UNBALANCE_COMMAND, itf.CLOCK, itf.DIAGNOSTICS, 'accel/<accelerometer>'):
+        assert f'| `{topic}`' in text, topic

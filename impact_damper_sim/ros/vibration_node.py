@@ -85,6 +85,24 @@ PARAMETERS = {
 }
 
 
+def parameters_markdown():
+    """The README's parameter table (markdown str), generated from :data:`PARAMETERS`."""
+    rows = ['| parameter | type | default | range | dynamic | description |',
+            '|---|---|---|---|---|---|']
+    for name, (default, description, bounds, read_only) in PARAMETERS.items():
+        if isinstance(default, Parameter.Type):
+            kind, shown = 'string[]', '(none)'
+        elif isinstance(default, bool):
+            kind, shown = 'bool', str(default).lower()
+        else:
+            kind = {int: 'int', float: 'double', str: 'string'}[type(default)]
+            shown = f'`{default}`' if default != '' else "''"
+        span = f'{bounds[0]:g} .. {bounds[1]:g}' if bounds else ''
+        rows.append(f"| `{name}` | {kind} | {shown} | {span} | {'no' if read_only else 'yes'} "
+                    f'| {description} |')
+    return '\n'.join(rows)
+
+
 def _descriptor(name, description, bounds, read_only, default):
     desc = ParameterDescriptor(name=name, description=description, read_only=read_only)
     if bounds is not None:
