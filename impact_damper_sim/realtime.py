@@ -112,15 +112,13 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
         Any scene problem, naming the key.
     """
     from .scene.build import load
-    overrides = list(overrides)
-    first = load(scene, overrides=overrides)
-    rotor = first.scene['rotor']
+    model = load(scene, overrides=list(overrides))
+    rotor = model.scene['rotor']
     if rotor is None:
-        return first, None
+        return model, None
     sp = rotor['speed']
-    profile = first.speed_profile
-    kind = sp['kind']
-    if kind == 'commanded':
+    profile = model.speed_profile
+    if sp['kind'] == 'commanded':
         rate = sp['max_rate'] if speed_rate_limit is None else speed_rate_limit
         final = sp['speed']
     else:
@@ -132,10 +130,10 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
     if not (math.isfinite(rate) and rate > 0):
         raise SceneError(f"parameter 'speed_rate_limit': must be a finite rate > 0 rad/s^2, "
                          f'got {rate}')
-    initial = float(profile.speed(np.asarray(0.0)))
-    overrides.append(f'rotor.speed={{kind: commanded, speed: {initial!r}, '
-                     f'max_rate: {float(rate)!r}}}')
-    return load(scene, overrides=overrides), final
+    if rotor['gyroscopic'] is not None:
+        return model, None   # one constant speed (see LiveSimulation.command_speed)
+    model.command_rotor(float(profile.speed(np.asarray(0.0))), rate)
+    return model, final
 
 
 def accelerometers(scene_model, sample_rate):
@@ -286,6 +284,9 @@ class LiveSimulation:
         """
         if not self.has_rotor:
             raise CommandError(f'rotor/speed_command: scene {self.scene.name!r} has no rotor')
+        if not hasattr(self.profile, 'command'):
+            raise CommandError(f'rotor/speed_command: scene {self.scene.name!r} has a '
+                               'gyroscopic coupling built for its constant speed')
         target = _checked(target, 'rotor/speed_command', 0.0, self.max_speed, 'rad/s')
         self.profile.command(self.sim.t, target)
 

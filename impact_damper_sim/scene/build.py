@@ -626,6 +626,40 @@ class SceneModel:
             impactors=impactors, kind='modal',
             input_names=self.input_names)
 
+    def command_rotor(self, initial, max_rate):
+        """Make the rotor speed *commanded* in place, without rebuilding the structure.
+
+        The same as loading with the override ``rotor.speed={kind: commanded, speed:
+        initial, max_rate: max_rate}`` (which is appended to :attr:`overrides`), but the
+        finite elements and the modal basis are kept.
+
+        Parameters
+        ----------
+        initial : float
+            Speed at t = 0 (rad/s), >= 0.
+        max_rate : float
+            Rate limit of speed changes (rad/s^2), > 0.
+
+        Raises
+        ------
+        SceneError
+            No rotor, or a gyroscopic coupling (built for one constant speed).
+        """
+        rotor = self.scene['rotor']
+        if rotor is None:
+            raise SceneError("scene key 'rotor': the scene has no rotor to command", self.source)
+        if rotor['gyroscopic'] is not None:
+            raise SceneError("scene key 'rotor.gyroscopic': the coupling is built for one "
+                             'constant speed, so the speed cannot be commanded', self.source)
+        speed = dict(rotor['speed'])
+        speed.update(kind='commanded', speed=float(initial), max_rate=float(max_rate),
+                     final_speed=None, ramp_time=None, times=None, speeds=None)
+        rotor['speed'] = speed
+        self.overrides += (f'rotor.speed={{kind: commanded, speed: {float(initial)!r}, '
+                           f'max_rate: {float(max_rate)!r}}}',)
+        self.speed_profile, self.unbalance = self._make_rotor()
+        self.forcing = self._make_forcing()
+
     def _gyroscopic_coupling(self):
         """Modal gyroscopic coupling ``Omega Phi^T G Phi`` (1/s); zero without ``rotor.gyroscopic``.
 
