@@ -344,7 +344,7 @@ class LiveSimulation:
         return (float(self.profile.speed(t)), float(self.profile.acceleration(t)), float(x))
 
     def _stuck_flags(self):
-        return tuple(s['stuck'] for s in self.sim.impactor_states())
+        return tuple(bool(s) for s in self.sim.integrator._stuck)
 
     def impactor_states(self):
         """The impactors' states: list of dicts (name, stuck, position m, velocity m/s).

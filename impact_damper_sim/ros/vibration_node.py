@@ -245,16 +245,18 @@ class VibrationNode(Node):
             self.create_subscription(Float64, itf.UNBALANCE_COMMAND, self.on_unbalance_command,
                                      itf.COMMAND_QOS)]
         self.create_service(SetBool, '~/record', self.on_record_request)
-        imp_frames = {}
-        for i, imp in enumerate(self.scene.scene['impactors']):
-            frame = self._frame_of_node(imp['node'])
-            imp_frames[imp['name']] = f"{frame}/{imp['name']}"
-        self._impactor_frames = [imp_frames.get(imp.name, imp.name)
-                                 for imp in self.scene.impactors]
-        self._joint_names = []
-        for imp, spec in zip(self.scene.impactors, self.scene.scene['impactors']):
-            dofs = [spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
-            self._joint_names += [f'{imp.name}/{d}' for d in dofs]
+        # per modal-model impactor (a zero-mass scene entry has none), matched by name
+        spec_of = {spec['name']: spec for spec in self.scene.scene['impactors']}
+        specs = [spec_of[imp.name] for imp in self.scene.impactors]
+        self._impactor_frames = [f"{self._frame_of_node(spec['node'])}/{spec['name']}"
+                                 for spec in specs]
+        dofs_of = [[spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
+                   for spec in specs]
+        axis_of = {'ux': 0, 'uy': 1, 'uz': 2}
+        self._impactor_axes = [[axis_of[d] for d in dofs] for dofs in dofs_of]
+        self._joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
+                             for d in dofs]
+        self._impact_msg = WrenchStamped()   # reused: publishing serializes it at once
         self._tick_period = p['tick_period']
         self._diag_timer = self.create_timer(p['diagnostics_period'], self.publish_diagnostics)
         self._state_timer = self.create_timer(p['state_period'], self.publish_state)
@@ -527,21 +529,16 @@ class VibrationNode(Node):
             self._publish_state()
 
     def _publish_impact(self, e):
-        msg = WrenchStamped()
+        j = int(e['impactor'])
+        msg = self._impact_msg
         msg.header.stamp = _stamp(float(e['t']))
-        msg.header.frame_id = self._impactor_frames[int(e['impactor'])]
-        spec = self.scene.scene['impactors'][int(e['impactor'])]
-        n = e['normal']
-        J = float(e['impulse'])
-        axes = [spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
-        force = {'ux': 0.0, 'uy': 0.0, 'uz': 0.0}
-        for k, dof in enumerate(axes):
-            force[dof] = J * float(n[k])
-        msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = (
-            force['ux'], force['uy'], force['uz'])
-        msg.wrench.torque.x = abs(float(e['v_n']))
-        msg.wrench.torque.y = abs(float(e['v_n_after']))
-        msg.wrench.torque.z = float(e['loss'])
+        msg.header.frame_id = self._impactor_frames[j]
+        impulse = [0.0, 0.0, 0.0]
+        for k, axis in enumerate(self._impactor_axes[j]):   # plane DOFs -> x, y, z
+            impulse[axis] = float(e['impulse'] * e['normal'][k])
+        f, tq = msg.wrench.force, msg.wrench.torque
+        f.x, f.y, f.z = impulse
+        tq.x, tq.y, tq.z = abs(float(e['v_n'])), abs(float(e['v_n_after'])), float(e['loss'])
         self._impact_pub.publish(msg)
 
     def _publish_time(self):
