@@ -1,9 +1,8 @@
 """vibration_node at real time: achieved real-time factor, CPU use, command latency.
 
-Runs the node in this process (no launch) with a subscriber that counts what arrives, for
-each case: the HPOTP scene with 3 accelerometers (casing bottom, pump-end and turbine-end
-bearings, 800 Hz low-pass) at 2 kHz, dampers on and off, and at ``real_time_factor`` 0
-(the highest factor reachable). CPU use is this process's CPU time over wall time while the
+Runs the node in this process (no launch), for each case: the HPOTP scene with 3 accelerometers (casing bottom, pump-end and turbine-end
+bearings, 800 Hz low-pass) at 2 kHz, dampers on and off, with and without recording to MCAP, and at
+``real_time_factor`` 0 (the highest factor reachable). CPU use is this process's CPU time over wall time while the
 node runs (all threads: stepping, executor, DDS), as a percentage of one core.
 
 Command latency: a speed command is published while the rotor holds its speed; the latency
@@ -20,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import tempfile
 import threading
 import time
 
@@ -47,7 +47,7 @@ def _sec(stamp):
     return stamp.sec + 1e-9 * stamp.nanosec
 
 
-def run_case(scene, overrides, seconds, rtf, dampers=True, domain=61):
+def run_case(scene, overrides, seconds, rtf, dampers=True, domain=61, record=None):
     """Run one case; return a dict of measured figures."""
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=domain)
@@ -55,7 +55,8 @@ def run_case(scene, overrides, seconds, rtf, dampers=True, domain=61):
         node = VibrationNode(context=ctx, parameter_overrides=[
             Parameter('scene', value=scene), Parameter('overrides', value=list(overrides)),
             Parameter('real_time_factor', value=float(rtf)),
-            Parameter('dampers_enabled', value=bool(dampers))])
+            Parameter('dampers_enabled', value=bool(dampers)),
+            *([Parameter('record', value=record)] if record else [])])
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         warm = time.monotonic() + 1.0
@@ -126,15 +127,19 @@ def main(argv=None):
     overrides = [THREE_ACCELEROMETERS] if args.scene == 'hpotp' else []
     full_speed = ['rotor.speed={kind: constant, speed: 2400 rad/s}']
     print(f'load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores)')
-    cases = [('ramp + full speed, dampers on', overrides, 1.0, True),
-             ('full speed, dampers on', overrides + full_speed, 1.0, True),
-             ('full speed, dampers off', overrides + full_speed, 1.0, False),
+    cases = [('ramp + full speed, dampers on', overrides, 1.0, True, False),
+             ('full speed, dampers on', overrides + full_speed, 1.0, True, False),
+             ('full speed, dampers off', overrides + full_speed, 1.0, False, False),
+             ('full speed, dampers off, recording', overrides + full_speed, 1.0, False, True),
+             ('full speed, dampers on, recording', overrides + full_speed, 1.0, True, True),
              ('full speed, dampers on, as fast as possible', overrides + full_speed, 0.0,
-              True)]
+              True, False)]
     print(f'{"case":46s} {"acc":>3s} {"RTF":>7s} {"CPU %":>6s} {"impacts/s":>9s} '
           f'{"late":>4s} {"deficits":>8s}')
-    for i, (name, ovr, rtf, dampers) in enumerate(cases):
-        d = run_case(args.scene, ovr, args.seconds, rtf, dampers, domain=61 + i)
+    for i, (name, ovr, rtf, dampers, record) in enumerate(cases):
+        with tempfile.TemporaryDirectory() as tmp:
+            d = run_case(args.scene, ovr, args.seconds, rtf, dampers, domain=61 + i,
+                         record=os.path.join(tmp, 'bench.mcap') if record else None)
         print(f'{name:46s} {d["accelerometers"]:3d} {d["real_time_factor_achieved"]:7.3f} '
               f'{d["cpu_percent"]:6.1f} {d["impacts_per_s"]:9.0f} {d["late_ticks"]:4d} '
               f'{d["schedule_deficits_dropped"]:8d}')
