@@ -170,6 +170,24 @@ def test_fuzzed_commands_change_state_only_through_valid_ones(ros_context):
         assert node.live.failure is None
         run_for(node, 0.05)
         assert np.isfinite(node.live.t)
+        # a burst over the real topic: 300 bad messages, then one good one, as fast as rclpy
+        # can publish them; the reliable keep-last-10 queue may drop some of the burst
+        sender = Node('fuzzer', context=ros_context)
+        pub = sender.create_publisher(Float64, itf.SPEED_COMMAND, itf.COMMAND_QOS)
+        ex = SingleThreadedExecutor(context=ros_context)
+        ex.add_node(node)
+        ex.add_node(sender)
+        _spin(ex, 0.2)
+        for k in range(300):
+            pub.publish(Float64(data=bad[k % len(bad)]))
+        pub.publish(Float64(data=1234.5))
+        end = time.monotonic() + 5.0
+        while node.live.profile.target != 1234.5 and time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.01)
+        assert node.live.profile.target == 1234.5
+        run_for(node, 0.05)
+        assert node.live.failure is None
+        sender.destroy_node()
     finally:
         node.destroy_node()
 
