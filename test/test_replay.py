@@ -11,7 +11,6 @@ are taken in the subscription callbacks.
 import json
 import math
 import os
-import re
 import statistics
 import subprocess
 import sys
@@ -43,33 +42,8 @@ MS = 1_000_000
 
 # --- fixture logs -----------------------------------------------------------------------------
 
-_FIELD = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
-_PRIMITIVES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16',
-               'uint16', 'int32', 'uint32', 'int64', 'uint64', 'string'}
-
-
-def _share(pkg):
-    from ament_index_python.packages import get_package_share_directory
-    return get_package_share_directory(pkg)
-
-
-def msgdef(rtype):
-    """rosbag2_storage_mcap's concatenation: root, then unseen dependencies depth first."""
-    seen = set()
-
-    def rec(name):
-        pkg, typ = name.split('/')[0], name.split('/')[-1]
-        with open(os.path.join(_share(pkg), 'msg', typ + '.msg')) as fh:
-            text = fh.read()
-        deps = {t if '/' in t else f'{pkg}/{t}' for t in _FIELD.findall(text)
-                if t not in _PRIMITIVES}
-        out = text
-        for dep in sorted(deps):
-            if dep not in seen:
-                seen.add(dep)
-                out += '\n' + '=' * 80 + '\nMSG: ' + dep + '\n' + rec(dep)
-        return out
-    return rec(rtype)
+from ament_index_python.packages import get_package_share_directory  # noqa: E402
+from rosbag2_rule import msgdef  # noqa: E402  (test/ helper)
 
 
 def rtype_of(msg):
@@ -115,8 +89,8 @@ def write_log(path, entries, qos=None, profile='ros2', schema_names=None):
                 if topic in qos:
                     q = qos[topic]
                     meta['offered_qos_profiles'] = q if isinstance(q, str) else offered_yaml(q)
-                with open(os.path.join(_share(rtype.split('/')[0]), 'msg',
-                                       rtype.split('/')[-1] + '.json')) as jf:
+                share = get_package_share_directory(rtype.split('/')[0])
+                with open(os.path.join(share, 'msg', rtype.split('/')[-1] + '.json')) as jf:
                     meta['topic_type_hash'] = json.load(jf)['type_hashes'][0]['hash_string']
                 channels[topic] = w.register_channel(topic, 'cdr', schemas[rtype], meta)
             payloads.append(serialize_message(msg))

@@ -6,8 +6,6 @@ report reads them the way it reads a rosbag2 log.
 """
 import json
 import math
-import os
-import re
 import subprocess
 import sys
 
@@ -30,41 +28,7 @@ AY, FY = 1.5, 123.0              # y: whole periods, not on a Welch bin
 
 # --- fixtures: rosbag2-style schemas from the installed .msg files ----------------------------
 
-_FIELD = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
-_PRIMITIVES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16',
-               'uint16', 'int32', 'uint32', 'int64', 'uint64', 'string'}
-
-
-def _msg_text(name):
-    ament = pytest.importorskip('ament_index_python.packages')
-    pkg, typ = name.split('/')[0], name.split('/')[-1]
-    try:
-        share = ament.get_package_share_directory(pkg)
-    except Exception:
-        pytest.skip(f'{pkg} .msg files not installed (AMENT_PREFIX_PATH?)')
-    with open(os.path.join(share, 'msg', typ + '.msg')) as fh:
-        return fh.read()
-
-
-def msgdef(rtype):
-    """rosbag2_storage_mcap's concatenation: root, then unseen dependencies depth first."""
-    seen = set()
-
-    def rec(name):
-        text = _msg_text(name)
-        pkg = name.split('/')[0]
-        deps = set()
-        for m in _FIELD.finditer(text):
-            t = m.group(1)
-            if t not in _PRIMITIVES:
-                deps.add(t if '/' in t else f'{pkg}/{t}')
-        out = text
-        for dep in sorted(deps):
-            if dep not in seen:
-                seen.add(dep)
-                out += '\n' + '=' * 80 + '\nMSG: ' + dep + '\n' + rec(dep)
-        return out
-    return rec(rtype)
+from rosbag2_rule import msgdef  # noqa: E402  (test/ helper)
 
 
 def stamp(t_ns):
