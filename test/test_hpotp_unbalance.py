@@ -11,8 +11,10 @@ scene's impactors (W = 25 lb, D = 1.7 mil) the paper's reductions during the ram
 2.5 (Table 4.3.1): we require >= 1.4. At full speed the paper's impactors *raise* the level
 (0.77 -> 0.9 g, 7.2 -> 9.1 g, Table 4.3.2): we require that they do not reduce it by more
 than 5 % (reduction <= 1.05). The runs with impactors take ~10 s (X = 1) to ~3 min
-(X = 10) each: marked slow. The X = 10 reduction at the criticals is not reached by this
-model (measured 1.07): an xfail, reported, not tuned.
+(X = 10) each: marked slow. The reduction at the criticals for X = 3, 7 and 10 is not reached
+by this model (measured 1.19, 1.09, 1.07): strict xfails, reported, not tuned. Why: the
+damper removes a roughly fixed amplitude (~0.4 mil) whatever X is, see docs/hpotp-model.md,
+"Why the reduction falls with X".
 """
 import functools
 
@@ -65,16 +67,25 @@ def test_x10_is_ten_times_x1_without_impactors():
     assert x10[0] == pytest.approx(10 * base[0], rel=1e-9)
 
 
-X10_MISS = ('measured X = 10 reduction at the criticals 56.5 -> 52.7 g = 1.07 (paper 2.1, '
-            'Table 4.3.1); reported, tolerance not loosened')
+def _miss(x, without, with_, measured, paper, amplitude):
+    return pytest.mark.xfail(strict=True, reason=(
+        f'measured X = {x} reduction at the criticals {without} -> {with_} g = {measured} '
+        f'(paper {paper}, Table 4.3.1): the fixed 0.85 mil clearance removes ~0.4 mil of a '
+        f'{amplitude} mil response (docs/hpotp-model.md); reported, tolerance not loosened'))
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('scene_name', [
-    'hpotp', pytest.param('hpotp_x10', marks=pytest.mark.xfail(strict=True, reason=X10_MISS))])
-def test_impactors_reduce_the_criticals(scene_name):
+@pytest.mark.parametrize('scene_name, overrides', [
+    pytest.param('hpotp', (), id='X1'),
+    pytest.param('hpotp', ('rotor.multiplier=3',), id='X3',
+                 marks=_miss(3, 16.9, 14.3, 1.19, 1.8, 2.9)),
+    pytest.param('hpotp', ('rotor.multiplier=7',), id='X7',
+                 marks=_miss(7, 39.5, 36.3, 1.09, 2.5, 6.7)),
+    pytest.param('hpotp_x10', (), id='X10', marks=_miss(10, 56.5, 52.7, 1.07, 2.1, 9.6))])
+def test_impactors_reduce_the_criticals(scene_name, overrides):
     """Ramp (t < 5 s): reduction >= 1.4 (Table 4.3.1). X = 1 measured 5.65 -> 4.03 g, 1.40."""
-    assert worst_g(scene_name, 'impactors=[]')[0] / worst_g(scene_name)[0] >= 1.4
+    without = worst_g(scene_name, 'impactors=[]', *overrides)[0]
+    assert without / worst_g(scene_name, *overrides)[0] >= 1.4
 
 
 @pytest.mark.slow
