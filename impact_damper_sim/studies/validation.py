@@ -394,10 +394,13 @@ def _hpotp_sections(rows, plots, by):
                   if x in PAPER_4_3_1) + f' for X = {", ".join(str(x) for x, _ in ordered)}: '
               f'it {trend}. Our response without impactors is linear in X'
               + (f' (X = 10: {woa10 / G0:.1f} g; the paper\'s text gives 66.5 g)' if woa10
-                 else '') + '. Open causes (not tuned): the restitution e = 0.6 (ours), the reading of D as '
-              'the diametral gap (c = D/2), the impact law (`effective_mass` default vs the '
-              'paper\'s `lumped_mass`), the ramp shape f* and the casing model itself '
-              '(NASA\'s FE model is not public).', '']
+                 else '') + '. Why the reduction falls with X is measured in '
+              '`docs/hpotp-model.md` ("Why the reduction falls with X"): with the fixed '
+              'clearance the impactors remove about 0.4 mil of motion whatever X is, and at '
+              'X = 10 they dissipate 7.6 % of what the tare damping does; only a much smaller '
+              'modal mass at the damper node (about 48 kg vs our 287 kg) would give 1.4, which '
+              'we did not impose. Ramp shape, tare damping, e, the reading of D, the impact law '
+              'and the initial spread were examined there and are not the cause.', '']
     else:
         L += ['', 'HPOTP runs: not run in quick mode (X = 10 with impactors costs about 3 '
               'min). The last measured values are in `docs/hpotp-model.md`.', '']
@@ -513,7 +516,9 @@ def _hpotp_stability_section(onsets):
               '(77/78 Hz)' if v['whirl_frequency_hz'] < 90 else '') + '. The '
               'paper does not say at which node its pseudo cross-coupling acts, and its '
               'casing model, HGM matrix and damping are not ours (2 % tare damping on every '
-              'mode is our assumption), so the onset is not comparable yet.', '']
+              'mode is our assumption), so the onset is not comparable: at nodes 1, 4, 15 and '
+              '17 ours is 10,663, 14,314, 61,083 and 77,893 lb/in, and it scales with the tare '
+              'damping (`docs/hpotp-model.md`, "Stability (Table 4.4.2)").', '']
     L += ['The stability map with impactors (Table 4.4.2) is **not reproduced yet**: it needs '
           'a Kcc calibration of our casing (node and level, e.g. so that its onset matches '
           '222,000 lb/in) before the 222,500 / 232,500 / 240,000 lb/in rows mean anything.', '']
