@@ -239,14 +239,18 @@ class ExactPropagator(IntegratorBase):
             cfg = self._config()
             model = self._config_model()
             ev_count[0] = 0
+            # disabled dampers (all free, no walls) are left out of the scan altogether: their
+            # free flight is not needed, they are put back at their housings when re-enabled
+            ni = len(self._imp_dim) if self.impacts_enabled else 0
             status = kernels.advance(
                 t_state, t_base, self.dt, k, n_steps, u_grid, self._omegas, self._amps,
                 self._yh, cfg.lam, cfg.W, cfg.V[:model.n], cfg.V[model.n:], cfg.part_plus,
-                cfg.part_minus, cfg.sensor_q, cfg.sensor_v, cfg.house_q, cfg.kick,
-                cfg.mobility, cfg.release_map, self._imp_dim, self._imp_mass, self._imp_cor,
-                self._imp_limit,
-                self._imp_z, self._imp_v, self._stuck, self._imp_normal, self._imp_last_t,
-                self._imp_rel, self._imp_grace, self._count_step, rule, self.stick_time,
+                cfg.part_minus, cfg.sensor_q, cfg.sensor_v, cfg.house_q[:ni], cfg.kick[:ni],
+                cfg.mobility[:ni], cfg.release_map[:ni], self._imp_dim[:ni],
+                self._imp_mass[:ni], self._imp_cor[:ni], self._imp_limit[:ni],
+                self._imp_z[:ni], self._imp_v[:ni], self._stuck[:ni], self._imp_normal[:ni],
+                self._imp_last_t[:ni], self._imp_rel[:ni], self._imp_grace[:ni],
+                self._count_step[:ni], rule, self.stick_time,
                 self.max_events_per_step, self.ledger_on, model.C, model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
                 ev_after, ev_count, self._info)

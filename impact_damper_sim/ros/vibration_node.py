@@ -126,15 +126,11 @@ class _Outlet:
 
     def __init__(self, node, msg_type, topic, qos):
         self.pub = node.create_publisher(msg_type, topic, qos)
+        self.topic = self.pub.topic_name   # fully qualified; cached (a C call each time)
         self.type_name = _type_name(msg_type)
         self.qos = qos
         self.count = 0   # messages published
         self._node = node
-
-    @property
-    def topic(self):
-        """str: Fully qualified topic name."""
-        return self.pub.topic_name
 
     def publish(self, msg):
         data = serialize_message(msg)
@@ -146,6 +142,12 @@ class _Outlet:
 def _stamp(t):
     ns = int(round(t * 1e9))
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _set_stamp(header, t):
+    """Set ``header.stamp`` to ``t`` (s) in place (cheaper than a new Time per message)."""
+    ns = int(round(t * 1e9))
+    header.stamp.sec, header.stamp.nanosec = divmod(ns, 1_000_000_000)
 
 
 class VibrationNode(Node):
@@ -503,14 +505,16 @@ class VibrationNode(Node):
                 break
 
     def _publish_batch(self, batch):
+        # plain Python numbers once per batch: the per-message loop is the node's hot path
+        stamps = [divmod(ns, 1_000_000_000) for ns in np.rint(batch.t * 1e9).astype(np.int64)
+                  .tolist()]
         for a, (pub, msg) in enumerate(zip(self._accel_pubs, self._imu)):
-            lin = batch.linear_acceleration[:, a, :]
-            ang = batch.angular_velocity[:, a, :]
-            la, av = msg.linear_acceleration, msg.angular_velocity
-            for k, t in enumerate(batch.t):
-                msg.header.stamp = _stamp(t)
-                la.x, la.y, la.z = float(lin[k, 0]), float(lin[k, 1]), float(lin[k, 2])
-                av.x, av.y, av.z = float(ang[k, 0]), float(ang[k, 1]), float(ang[k, 2])
+            stamp, la, av = msg.header.stamp, msg.linear_acceleration, msg.angular_velocity
+            for (sec, nsec), lin, ang in zip(stamps, batch.linear_acceleration[:, a, :].tolist(),
+                                             batch.angular_velocity[:, a, :].tolist()):
+                stamp.sec, stamp.nanosec = sec, nsec
+                la.x, la.y, la.z = lin
+                av.x, av.y, av.z = ang
                 pub.publish(msg)
         self.stats.samples += batch.t.size
         self.stats_total['samples'] += batch.t.size
@@ -531,7 +535,7 @@ class VibrationNode(Node):
     def _publish_impact(self, e):
         j = int(e['impactor'])
         msg = self._impact_msg
-        msg.header.stamp = _stamp(float(e['t']))
+        _set_stamp(msg.header, float(e['t']))
         msg.header.frame_id = self._impactor_frames[j]
         impulse = [0.0, 0.0, 0.0]
         for k, axis in enumerate(self._impactor_axes[j]):   # plane DOFs -> x, y, z
