@@ -135,14 +135,14 @@ def main(argv=None):
              ('full speed, dampers on, as fast as possible', overrides + full_speed, 0.0,
               True, False)]
     print(f'{"case":46s} {"acc":>3s} {"RTF":>7s} {"CPU %":>6s} {"impacts/s":>9s} '
-          f'{"late":>4s} {"deficits":>8s}')
+          f'{"late":>4s} {"deficits":>8s}  status')
     for i, (name, ovr, rtf, dampers, record) in enumerate(cases):
         with tempfile.TemporaryDirectory() as tmp:
             d = run_case(args.scene, ovr, args.seconds, rtf, dampers, domain=61 + i,
                          record=os.path.join(tmp, 'bench.mcap') if record else None)
         print(f'{name:46s} {d["accelerometers"]:3d} {d["real_time_factor_achieved"]:7.3f} '
               f'{d["cpu_percent"]:6.1f} {d["impacts_per_s"]:9.0f} {d["late_ticks"]:4d} '
-              f'{d["schedule_deficits_dropped"]:8d}')
+              f'{d["schedule_deficits_dropped"]:8d}  {d["message"][:60]}')
     lat = command_latency(args.scene, overrides + full_speed, domain=70)
     if lat:
         sims = sorted(x[0] for x in lat)

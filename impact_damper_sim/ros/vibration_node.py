@@ -121,6 +121,34 @@ def _type_name(msg_type):
     return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
 
 
+class _HandoffLock:
+    """A re-entrant lock that the stepping thread hands over when someone waits for it.
+
+    Python locks are not fair: a thread that releases a lock and takes it again at once
+    keeps winning, and stepping flat out (``real_time_factor`` 0) would starve commands and
+    diagnostics. Waiters are counted; :meth:`hand_over`, called by the stepper between
+    chunks, pauses 0.5 ms when anyone waits.
+    """
+
+    def __init__(self):
+        self._lock = threading.RLock()
+        self.waiting = 0
+
+    def __enter__(self):
+        self.waiting += 1
+        self._lock.acquire()
+        self.waiting -= 1
+        return self
+
+    def __exit__(self, *exc_info):
+        self._lock.release()
+
+    def hand_over(self):
+        """Let a waiting thread take the lock (call with the lock released)."""
+        if self.waiting > 0:
+            time.sleep(0.0005)
+
+
 class _Outlet:
     """A publisher that serializes a message once and gives the same bytes to the recorder."""
 
@@ -178,7 +206,7 @@ class VibrationNode(Node):
         self._wall = clock
         # commands, parameter changes and diagnostics (executor thread) and stepping
         # (stepping thread) touch the simulation under this lock, one chunk at a time
-        self._lock = threading.RLock()
+        self._lock = _HandoffLock()
         self._thread = None
         self._stop = threading.Event()
         for name, (default, description, bounds, read_only) in PARAMETERS.items():
@@ -500,6 +528,7 @@ class VibrationNode(Node):
                     return
                 self._publish_batch(batch)
                 self._publish_time()
+            self._lock.hand_over()
             if self._wall() - start > self._max_work:
                 self.stats.overruns += 1
                 break
