@@ -276,7 +276,9 @@ def test_in_process_subscriber_gets_every_topic(ros_context):
         assert np.all(np.diff([_sec(m.header.stamp) for m in impacts]) > 0)
         assert sub.got[itf.IMPACTOR_STATE][0].name == ['damper/uy']
         clock = [_sec(m.clock) for m in sub.got[itf.CLOCK]]
-        assert len(clock) > 100 and np.all(np.diff(clock) > 0)
+        # one /clock per chunk of at most 10 ms; keep last 1, so a busy reader sees only some
+        assert sim._clock_pub.count >= sim.live.t / 0.01 - 2
+        assert len(clock) > 10 and np.all(np.diff(clock) > 0)
         # QoS as documented
         for topic, qos in [(itf.accel_topic(sensor.name), itf.SENSOR_QOS),
                            (itf.IMPACTOR_STATE, itf.LATCHED_QOS),
