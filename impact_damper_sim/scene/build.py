@@ -322,6 +322,11 @@ def _build_fe(structure, source):
     return fe, system
 
 
+#: Samples per rotor revolution at least when the unbalance force is sampled (first-order
+#: hold of a rotation at N samples per revolution: amplitude sinc^2(pi/N), 3.3 % low at 10)
+MIN_SAMPLES_PER_REVOLUTION = 10
+
+
 def excitation_frequencies(scene, first_hz=None):
     """The frequencies of interest of a scene, for ``modal.cutoff: auto``.
 
@@ -773,6 +778,7 @@ class SceneModel:
         cfg = self.scene['simulation']
         method = cfg['method'] if method is None else method
         dt = cfg['dt'] if dt is None else dt
+        self._check_rotor_sampling(dt)
         opts = {k: cfg[k] for k in ('law', 'stick_rule', 'stick_fraction')}
         stuck_model = options.pop('stuck_model', cfg['stuck_model'])
         outputs = options.pop('outputs', None)
@@ -805,6 +811,29 @@ class SceneModel:
                                   / float(np.max(self.basis.omega)))
         return Simulation(model, self.forcing, method=method, dt=dt,
                           physical_model=physical, **opts)
+
+    def _check_rotor_sampling(self, dt):
+        """Refuse a sample period ``dt`` (s) too long for a sampled unbalance force.
+
+        Off constant speed the unbalance is sampled every ``dt`` and held linearly in
+        between; the hold of a rotation sampled ``N`` times per revolution keeps only
+        ``sinc^2(pi/N)`` of its amplitude, so ``N >= 10`` (3.3 % low) is required. A
+        ``commanded`` speed counts with its initial speed (later commands are not known).
+
+        Raises
+        ------
+        SceneError
+            Fewer than 10 samples per revolution at the highest rotor speed.
+        """
+        if self.scene['rotor'] is None or not self.forcing.has_sampled:
+            return
+        hz = [f for label, f in excitation_frequencies(self.scene) if 'rotor speed' in label]
+        if hz and dt * max(hz) * MIN_SAMPLES_PER_REVOLUTION > 1.0:
+            raise SceneError(
+                f"scene key 'simulation.dt': {dt:.4g} s samples the unbalance force fewer "
+                f'than {MIN_SAMPLES_PER_REVOLUTION} times per revolution at the highest rotor '
+                f'speed ({max(hz):.5g} rev/s); it must be at most '
+                f'{1.0 / (MIN_SAMPLES_PER_REVOLUTION * max(hz)):.4g} s', self.source)
 
     def dof_counts(self):
         """Return DOF counts: total (6 per node), active, clamped, condensed, after condensation.
