@@ -43,7 +43,8 @@ convergence: $(STAMP)
 	$(PY) -m impact_damper_sim.studies.convergence docs/convergence.md
 
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
-BENCHES := bench/sdof_methods.py bench/ivp_baseline.py
+BENCHES := bench/sdof_methods.py bench/ivp_baseline.py bench/modal_vs_direct.py \
+           bench/realtime_offline.py bench/long_run.py
 
 bench: $(STAMP)
 	for b in $(BENCHES); do $(PY) $$b || exit 1; done

@@ -1,4 +1,4 @@
-"""The ``study frf|sweep|stability|validate`` subcommands: argument handling and output.
+"""The ``study frf|sweep|stability|convergence|validate`` subcommands: arguments and output.
 
 The studies themselves are in :mod:`impact_damper_sim.studies`; Matplotlib is imported only
 when ``--plot`` is given.
@@ -32,7 +32,8 @@ def run_study(args):
         0 if every point (or at least one) succeeded, 1 if all failed, 2 for bad input.
     """
     try:
-        result = {'frf': _frf, 'sweep': _sweep, 'stability': _stability}[args.command](args)
+        result = {'frf': _frf, 'sweep': _sweep, 'stability': _stability,
+                  'convergence': _convergence}[args.command](args)
     except (_Usage, ValueError) as exc:   # UnitError is a ValueError
         _error(str(exc))
         return EXIT_USAGE
@@ -48,8 +49,8 @@ def run_study(args):
     if args.json:
         _print_json(result)
     else:
-        {'frf': _print_frf, 'sweep': _print_sweep, 'stability': _print_stability}[
-            args.command](result)
+        {'frf': _print_frf, 'sweep': _print_sweep, 'stability': _print_stability,
+         'convergence': _print_convergence}[args.command](result)
     for f in result['failures']:
         labels = ', '.join(f'{k}={v}' for k, v in f['labels'].items())
         print(f'study: warning: point failed ({labels}): {f["error"]}', file=sys.stderr)
@@ -84,8 +85,9 @@ def run_validate(args):
 
 
 def _module(command):
-    from ..studies import frf, stability, sweep
-    return {'frf': frf, 'sweep': sweep, 'stability': stability}[command]
+    from ..studies import convergence, frf, stability, sweep
+    return {'frf': frf, 'sweep': sweep, 'stability': stability,
+            'convergence': convergence}[command]
 
 
 def _overrides(args):
@@ -278,26 +280,93 @@ def _stability(args):
                      sensors=split_values(args.sensors) or None,
                      perturbation=_length(args.perturbation, '--perturbation'),
                      growth_tol=args.growth_tol, max_amplitude=max_amp,
-                     find_onset=args.onset, onset_bracket=bracket, **_runner(args))
+                     find_onset=args.onset, onset_bracket=bracket, verify=args.verify,
+                     **_runner(args))
 
 
 def _print_stability(r):
     print(f"stability of {r['scene']} ({r['source']}); {r['criterion']} "
           f"(window {_g(r['window_s'])} s, duration {_g(r['duration_s'])} s)")
     if r['rows']:
+        verify = r.get('verification')
+
+        def scene_value(value, key):
+            # rows that keep the scene's impactors show them, not None
+            return value if value is not None else (r.get(key) or 'scene')
+
         rows = [[row['kcc'], _g(row['kcc_N_m']),
-                 row['weight'] if row['impactors'] else '-',
-                 row['clearance'] if row['impactors'] else '-', row['verdict'],
-                 _g(row['rms_radial_m'], 4), _g(row['growth_ratio'], 4),
+                 scene_value(row['weight'], 'scene_weight') if row['impactors'] else '-',
+                 scene_value(row['clearance'], 'scene_clearance') if row['impactors'] else '-',
+                 row['verdict'], _g(row['rms_radial_m'], 4), _g(row['growth_ratio'], 4),
                  _g(row['growth_rate_1_s'], 3), _g(row['impacts_per_second'], 4)]
+                + ([row['verdict_half_dt'], row['verdict_other_method'],
+                    'yes' if row['verified'] else 'NO'] if verify else [])
                 for row in r['rows']]
         print(_table(['Kcc', 'Kcc (N/m)', 'weight', 'gap', 'verdict', 'rms radial (m)',
-                      'R_last/R_prev', 'growth (1/s)', 'impacts/s'], rows))
+                      'R_last/R_prev', 'growth (1/s)', 'impacts/s']
+                     + (['dt/2', verify['other_method']['method'], 'same verdict']
+                        if verify else []), rows))
+        if verify:
+            h, o = verify['half_dt'], verify['other_method']
+            print(f"verification: {h['method']} at dt {_g(h['dt_s'])} s and {o['method']} at "
+                  f"dt {_g(o['dt_s'])} s from the same perturbation; "
+                  f"{sum(row['verified'] for row in r['rows'])}/{len(r['rows'])} verdicts "
+                  'unchanged')
     if r['onset']:
         o = r['onset']
         print(f"linear onset without impactors: {o['kcc_key']} = {_g(o['onset_kcc_N_m'], 7)} "
               f"N/m (whirl {_g(o['whirl_frequency_hz'], 6)} Hz, {o['evaluations']} "
               'eigenvalue evaluations)')
+    print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
+
+
+# --- convergence --------------------------------------------------------------------------
+
+def _convergence(args):
+    from ..studies.convergence import convergence
+    from ..studies.sweep import split_values
+    from ..units import parse_quantity
+
+    def times(text, option):
+        return [parse_quantity(v, 'time', key=option) for v in split_values(text)]
+
+    methods = split_values(args.methods)
+    try:
+        modes = [int(m) for m in split_values(args.modes)]
+    except ValueError:
+        raise _Usage(f'--modes {args.modes!r}: expected integers N1,N2,...') from None
+    ref_dt = times(args.ref_dt, '--ref-dt')[0] if args.ref_dt else None
+    isolation = times(args.isolation, '--isolation')[0]
+    if args.n_impacts < 1:
+        raise _Usage(f'--n-impacts must be >= 1, got {args.n_impacts}')
+    return convergence(args.scene, methods, times(args.dts, '--dts') or None, modes or None,
+                       _overrides(args), ref_dt=ref_dt, ref_modes=args.ref_modes,
+                       n_impacts=args.n_impacts, isolation=isolation, **_runner(args))
+
+
+def _print_convergence(r):
+    ref = r['reference']
+    print(f"speed/accuracy of {r['scene']} ({r['source']}): {_g(r['duration_s'])} s from rest; "
+          f"reference exact, dt {_g(ref['dt_s'])} s, {ref['modes']} modes "
+          f"({ref['isolated_impacts']} isolated impacts compared); errors relative unless "
+          'stated, RMS acceleration per '
+          f"{_g(r['coarse_dt_s'])} s period over the last {_g(r['window_s'])} s")
+    rows = []
+    for row in r['rows']:
+        if row['status'] != 'ok':
+            rows.append([row['method'], _g(row['dt_s']), row['modes'], row['status']]
+                        + ['-'] * 6)
+            continue
+        rows.append([row['method'], _g(row['dt_s']), row['modes'], 'ok',
+                     _g(row['cpu_per_simulated_s'], 3), _g(row['real_time_factor'], 3),
+                     _g(row['amplitude_error'], 2), _g(row['rms_acceleration_error'], 2),
+                     f"{_g(row['impact_time_error_s'], 2)} ({row['impacts_matched']})",
+                     _g(row['energy_residual'], 2)])
+    print(_table(['method', 'dt (s)', 'modes', 'status', 'CPU s/s', 'RTF', 'amplitude',
+                  'rms acc', 'impact t (s) (matched)', 'energy res'], rows))
+    for row in r['rows']:
+        if row['status'] != 'ok':
+            print(f"{row['method']} dt {_g(row['dt_s'])} s, {row['modes']} modes: {row['error']}")
     print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
 
 

@@ -12,6 +12,8 @@
     study stability SCENE --kcc-key KEY [--kcc V1,V2,...] [--weight-key KEY --weights ...]
                           [--clearance-key KEY --clearances ...] [--onset] [study options]
     study validate [--out docs/validation.md] [--quick] [--workers N]
+    study convergence SCENE [--methods M1,M2] [--dts DT1,DT2] [--modes N1,N2] [--ref-dt S]
+                            [--ref-modes N] [study options]
     study report FILE.mcap [--json] [--plot PATH.png] [--csv PATH]
     study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]
 
@@ -187,6 +189,31 @@ def _study_parsers(sub, scene_args):
                       help='also find the linear onset Kcc without impactors')
     stab.add_argument('--onset-bracket', metavar='LO,HI',
                       help='onset bracket (N/m or with units; default: 0 and doubling)')
+    stab.add_argument('--verify', action='store_true',
+                      help='re-run every verdict with dt halved and with the other method '
+                           '(exact <-> newmark) and report whether it changes')
+
+    conv = sub.add_parser(
+        'convergence', help='speed/accuracy trade: method x dt x modes against a reference',
+        description='Cross the methods, time steps and retained mode counts; measure each '
+                    "combination's errors against a tight exact reference (steady amplitude, "
+                    'RMS acceleration, isolated impact times, energy residual) and its CPU '
+                    'time per simulated second. Table (--csv, --json) and Pareto plot (--plot).')
+    common(conv)
+    conv.add_argument('--methods', default='exact,newmark,newmark_step_end,direct',
+                      metavar='M1,M2', help='methods to cross (default: all four)')
+    conv.add_argument('--dts', default='', metavar='DT1,DT2',
+                      help="time steps, each dividing the largest, e.g. '100 us,50 us' "
+                           '(default: the scene dt x 2, 1, 1/2, 1/4)')
+    conv.add_argument('--modes', default='', metavar='N1,N2',
+                      help="retained mode counts (default: the scene's and twice it)")
+    conv.add_argument('--ref-dt', metavar='S', help='step of the reference (default: smallest/2)')
+    conv.add_argument('--ref-modes', type=int, metavar='N',
+                      help='modes of the reference (default: the largest of --modes)')
+    conv.add_argument('--n-impacts', type=int, default=20,
+                      help='isolated reference impacts whose times are compared (default 20)')
+    conv.add_argument('--isolation', default='2 ms', metavar='S',
+                      help='isolation (and matching) time of impacts (default 2 ms)')
 
     val = sub.add_parser(
         'validate', help="validation document: the paper's results next to ours",
@@ -228,7 +255,7 @@ def main(argv=None):
             return _keys(args)
         if args.command == 'modes':
             return _modes(args)
-        if args.command in ('frf', 'sweep', 'stability'):
+        if args.command in ('frf', 'sweep', 'stability', 'convergence'):
             from .studies import run_study
             return run_study(args)
         if args.command == 'validate':
