@@ -128,7 +128,11 @@ def test_rbs_kcc_defaults_are_w3_d6p9():
 
 
 def _check_stabilized(duration, window):
-    rows = run_cell(11250, duration, window, baseline=True)
+    # pinned to the 0.1 ms step this test was written for: the verdict of this chaotic,
+    # bounded limit cycle on short windows depends on the step (growth ratio 0.93 at 0.1 ms,
+    # 1.21 at 50 us, 0.98 at 25 us over 0.2 s; rms 0.8 to 1 mil at all three), see
+    # `study stability --verify` and test/test_stability_verify.py
+    rows = run_cell(11250, duration, window, ['simulation.dt=100 us'], baseline=True)
     (imp0, bare), (imp1, damped) = rows
     assert not imp0 and imp1
     print(f'\nKcc 11250 lb/in, {duration}: without impactors growth ratio '

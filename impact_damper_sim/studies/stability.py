@@ -201,8 +201,8 @@ def onset(scene, kcc_key, overrides=(), *, bracket=None, start_hi=None, rtol=1e-
 def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=(),
               clearance_keys=(), clearances=(), baseline=True, sensors=None,
               perturbation=1e-6, growth_tol=0.05, max_amplitude=None, find_onset=False,
-              onset_bracket=None, seed=0, executor='process', workers=None, dask_address=None,
-              progress=None):
+              onset_bracket=None, verify=False, seed=0, executor='process', workers=None,
+              dask_address=None, progress=None):
     """Stability map (and optionally the linear onset).
 
     Parameters
@@ -221,6 +221,10 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
         Also compute :func:`onset`.
     onset_bracket : (float, float), optional
         See :func:`onset`.
+    verify : bool
+        Tell physical from numerical instability: re-run every point with ``simulation.dt``
+        halved and with the other method (see :func:`verification_settings`), from the same
+        perturbation, and report whether the verdict changes.
     seed, executor, workers, dask_address, progress
         See :func:`.runner.run_points`.
 
@@ -229,8 +233,12 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
     dict
         ``study``, ``scene``, ``criterion``, ``rows`` (per point: ``kcc``, ``weight``,
         ``clearance`` as given, ``kcc_N_m``, ``impactors``, ``verdict``,
-        ``rms_radial_m``, ``growth_ratio``, ``growth_rate_1_s``, ``impacts_per_second``),
-        ``onset`` (or None), ``points``, ``failures``, ``wall_time_s``.
+        ``rms_radial_m``, ``growth_ratio``, ``growth_rate_1_s``, ``impacts_per_second``;
+        with ``verify``: ``verdict_half_dt``, ``verdict_other_method`` (and their
+        ``growth_ratio_*``, ``rms_radial_m_*``) and ``verified``, True when all three verdicts
+        agree), ``onset`` (or None), ``verification`` (the checks'
+        settings, or None), ``scene_weight`` and ``scene_clearance`` (the scene's own
+        impactors, shown where a row keeps them), ``points``, ``failures``, ``wall_time_s``.
     """
     from ..scene.build import load
     if not weights and weight_keys:
@@ -253,11 +261,22 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
                          clearances=clearances,
                          baseline=baseline and bool(base.scene['impactors']), params=params,
                          seed=seed)
+    checks = verification_settings(base) if verify else None
+    if checks:
+        extra = []
+        for p in points:
+            for name in ('half_dt', 'other_method'):
+                ov = tuple(p.overrides) + tuple(checks[name]['overrides'])
+                # same seed: the same initial perturbation as the point checked
+                extra.append(Point(p.task, p.scene, ov, p.seed, p.params,
+                                   dict(p.labels, check=name)))
+        points = points + extra
     results = run_points(points, executor, workers=workers, dask_address=dask_address,
                          progress=progress) if points else []
     wall = time.perf_counter() - start
+    n_main = len(results) // 3 if checks else len(results)
     rows = []
-    for r in results:
+    for i, r in enumerate(results[:n_main]):
         lab, v = r.point.labels, r.value
         rows.append({'kcc': lab['kcc'], 'weight': lab['weight'], 'clearance': lab['clearance'],
                      'impactors': lab['impactors'],
@@ -268,6 +287,19 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
                      'growth_rate_1_s': v['growth_rate_1_s'] if r.ok else None,
                      'impacts_per_second': v['impacts_per_second'] if r.ok else None,
                      'error': r.error})
+        if checks:
+            names = []
+            for c, name in enumerate(('half_dt', 'other_method')):
+                rc = results[n_main + 2 * i + c]
+                rows[-1][f'verdict_{name}'] = (
+                    ('stable' if rc.value['stable'] else 'unstable') if rc.ok else 'error')
+                rows[-1][f'growth_ratio_{name}'] = rc.value['growth_ratio'] if rc.ok else None
+                rows[-1][f'rms_radial_m_{name}'] = rc.value['rms_radial_m'] if rc.ok else None
+                if not rc.ok:
+                    rows[-1][f'error_{name}'] = rc.error
+                names.append(rows[-1][f'verdict_{name}'])
+            rows[-1]['verified'] = (rows[-1]['verdict'] != 'error'
+                                    and all(n == rows[-1]['verdict'] for n in names))
     criterion = (f'unstable when RMS radial amplitude over the last window / previous window '
                  f'> {1 + growth_tol:g}' + (f' or > {max_amplitude:g} m' if max_amplitude
                                             else '') + ', or not finite')
@@ -275,8 +307,58 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
             'overrides': list(overrides), 'kcc_key': kcc_key, 'criterion': criterion,
             'window_s': base.scene['simulation']['window'],
             'duration_s': base.scene['simulation']['duration'], 'rows': rows, 'onset': found,
+            'verification': checks, **_scene_impactors(base),
             'points': [point_record(r) for r in results],
             'failures': [failure(r) for r in results if not r.ok], 'wall_time_s': wall}
+
+
+def verification_settings(base):
+    """The two re-runs of ``--verify`` for a built scene.
+
+    ``half_dt``: the scene's method at ``simulation.dt / 2``. ``other_method``: ``newmark``
+    for a scene run with ``exact``, else ``exact``; Newmark takes the scene's dt halved until
+    it is at most a tenth of the highest retained mode's period (its event-tracking limit).
+
+    Parameters
+    ----------
+    base : SceneModel
+        The built scene (with the study's overrides).
+
+    Returns
+    -------
+    dict
+        ``half_dt`` and ``other_method``, each ``method``, ``dt_s`` (s) and ``overrides``.
+    """
+    from ..integrate.newmark import MIN_STEPS_PER_PERIOD
+    cfg = base.scene['simulation']
+    method, dt = cfg['method'], cfg['dt']
+    other = 'newmark' if method == 'exact' else 'exact'
+    dt_other = dt
+    if other == 'newmark':
+        limit = 1.0 / (MIN_STEPS_PER_PERIOD * float(base.basis.frequencies_hz.max()))
+        while dt_other > limit:
+            dt_other /= 2
+    return {'half_dt': {'method': method, 'dt_s': dt / 2,
+                        'overrides': [f'simulation.dt={dt / 2!r}']},
+            'other_method': {'method': other, 'dt_s': dt_other,
+                             'overrides': [f'simulation.method={other}',
+                                           f'simulation.dt={dt_other!r}']}}
+
+
+def _scene_impactors(base):
+    """The scene's own impactor weight and clearance, for rows that keep them (text)."""
+    imps = base.scene['impactors']
+    if not imps:
+        return {'scene_weight': None, 'scene_clearance': None}
+    masses = {float(imp.mass) for imp in base.model.impactors}   # mass_ratio resolved
+    gaps = {imp['clearance'] for imp in imps}
+    if len(masses) == 1:
+        weight = f'{len(imps)} x {next(iter(masses)):.4g} kg' if len(imps) > 1 \
+            else f'{next(iter(masses)):.4g} kg'
+    else:
+        weight = 'scene'
+    gap = f'{next(iter(gaps)):.4g} m' if len(gaps) == 1 else 'scene'
+    return {'scene_weight': weight, 'scene_clearance': gap}
 
 
 def _si(text):
@@ -307,7 +389,9 @@ def plot(result, path):
         if row['kcc_N_m'] is not None and row['rms_radial_m'] is not None:
             groups.setdefault((row['impactors'], row['weight'], row['clearance']), []).append(row)
     for (imp, w, c), rows in groups.items():
-        label = 'no impactors' if not imp else f'W={w}, D={c}'
+        label = 'no impactors' if not imp else (
+            f"W={w if w is not None else result.get('scene_weight')}, "
+            f"D={c if c is not None else result.get('scene_clearance')}")
         line, = ax.plot([r['kcc_N_m'] for r in rows], [r['rms_radial_m'] for r in rows], '-',
                         label=label)
         for r in rows:
