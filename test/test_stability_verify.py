@@ -106,11 +106,6 @@ def test_rbs_impacting_cells_stay_bounded_whatever_the_numerics(table_441):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    'measured: 8 of the 18 impacting cells change verdict between the scene dt, dt/2 and '
-    'Newmark (growth ratios 0.52 to 2.6 around the 1.05 threshold): the criterion "R_last/'
-    'R_prev > 1 + growth_tol" over one 0.25 s window cannot classify a chaotic, bounded '
-    'rattling limit cycle robustly; the bare rotor verdicts never change'))
 def test_rbs_table_441_verdicts_do_not_change(table_441):
     bare, cells = table_441
     changed = [(r['kcc'], r['w'], r['d'], r['verdict'], r['verdict_half_dt'],

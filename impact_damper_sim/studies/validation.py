@@ -58,7 +58,13 @@ KCC_KEY = 'structure.cross_couplings.0.kcc'
 HPOTP_PHASES = (('criticals', 0.0, 5.0), ('full_speed', 5.0, 6.0))
 HPOTP_BASE = ['simulation.dt=0.25 ms']   # as docs/hpotp-model.md
 HPOTP_KCC = ['structure.cross_couplings=[{node: 4, kcc: 0 lb/in}]']
-RBS_CRITERION = {'sensors': None, 'perturbation': 1e-6, 'growth_tol': 0.05,
+# growth_tol 4 (unstable when the RMS radial amplitude grows more than 5 x from one 0.25 s window
+# to the next, i.e. faster than ln(5)/0.25 s = 6.4 1/s): measured over every cell of Table
+# 4.4.1 at the scene's dt, dt/2 and with Newmark (study stability --verify), the impacting
+# cells are bounded rattling limit cycles whose window-to-window ratio is 0.52 to 2.6, while
+# the bare rotor grows by 219 x or more (21.6 1/s at 8,500 lb/in, the slowest). A 1.05
+# threshold classified the chaotic limit cycles by chance (8 of 18 verdicts changed).
+RBS_CRITERION = {'sensors': None, 'perturbation': 1e-6, 'growth_tol': 4.0,
                  'max_amplitude': None}
 
 SECTIONS = ('Figs. 4.1.2 and 4.1.3: SDOF and cantilever frequency response',
@@ -437,8 +443,13 @@ def _rbs_section(rows, plots, onsets, s):
          'cylinders (W/6 each) and the housing mass of the lumped-mass law, D the diametral '
          'gap (radial clearance D/2). Start: 1e-6 m random displacement at the sensors plus '
          f'the scene\'s unbalance; {s["rbs_overrides"][0].split("=")[1]} runs; unstable when '
-         'the RMS radial amplitude of the last window exceeds 1.05 x that of the previous '
-         f'window ({s["rbs_overrides"][1].split("=")[1]} windows).', '']
+         'the RMS radial amplitude of the last window exceeds 5 x that of the previous '
+         f'window ({s["rbs_overrides"][1].split("=")[1]} windows): growth faster than '
+         '6.4 1/s. The bare rotor grows at 21.6 1/s or faster at these Kcc (219 x per window '
+         'or more); the impacting cells are bounded rattling limit cycles whose window ratio '
+         'stays within 0.52 to 2.6 at dt, dt/2 and with Newmark (`study stability --verify`, '
+         '`test/test_stability_verify.py`). A 1.05 threshold sorted those chaotic cycles by '
+         'chance.', '']
     if 'rbs_onset' in onsets:
         r = onsets['rbs_onset']
         if r.ok:
