@@ -343,7 +343,7 @@ class VibrationNode(Node):
                 if not isinstance(value, bool):
                     return SetParametersResult(successful=False, reason=(
                         f'dampers_enabled must be a bool, got {value!r}'))
-                if self.live.failure is None and value and not self.scene.impactors:
+                if value and not self.scene.impactors:
                     return SetParametersResult(successful=False, reason=(
                         f'scene {self.scene.name!r} has no impactors'))
             elif name == 'noise_seed':
