@@ -195,11 +195,14 @@ class LiveSimulation:
         Whether the impact dampers act.
     method : str, optional
         Integration method; default the scene's.
+    ledger : bool
+        Keep the integrator's energy ledger (off by default: it costs CPU every step and a
+        live stream does not report it).
     """
 
     def __init__(self, scene_model, *, sample_rate=2000.0, initial_target=None,
                  max_speed=None, max_unbalance=100.0, noise_std=0.0, seed=0,
-                 dampers_enabled=True, method=None):
+                 dampers_enabled=True, method=None, ledger=False):
         from .filters import StreamingLowpass
         sample_rate = float(sample_rate)
         if not (math.isfinite(sample_rate) and sample_rate > 0):
@@ -222,7 +225,7 @@ class LiveSimulation:
                              "model; use exact, newmark or newmark_step_end")
         names, rows = self._output_rows()
         self.sim = scene_model.make_simulation(method=method, dt=self.dt,
-                                               outputs=(names, rows))
+                                               outputs=(names, rows), ledger=ledger)
         n_acc = len(self.accelerometers)
         self._filters = [StreamingLowpass(a.lowpass_hz, 1.0 / self.dt, 3)
                          for a in self.accelerometers]
@@ -245,7 +248,6 @@ class LiveSimulation:
         self._stuck = self._stuck_flags()
         self.failure = None
         self.steps = 0
-        self.events_total = 0
 
     # -- set-up ---------------------------------------------------------------------------
     def _output_rows(self):
@@ -352,17 +354,14 @@ class LiveSimulation:
         Position and velocity are relative to the housing. Disabled dampers report zeros.
         """
         out = []
-        states = self.sim.impactor_states()
-        q, qd = self.sim.integrator.state()
+        _, qd = self.sim.integrator.state()
         rows = self.sim.integrator._housing_rows()
-        for s, R in zip(states, rows):
-            vh = R @ qd
-            rel_v = s['velocity'] - vh
+        for s, R in zip(self.sim.impactor_states(), rows):
+            position, velocity = s['position'], s['velocity'] - R @ qd
             if not self.dampers_enabled:
-                s = dict(s, position=np.zeros_like(s['position']))
-                rel_v = np.zeros_like(rel_v)
-            out.append({'name': s['name'], 'stuck': s['stuck'], 'position': s['position'],
-                        'velocity': rel_v})
+                position, velocity = np.zeros_like(position), np.zeros_like(velocity)
+            out.append({'name': s['name'], 'stuck': s['stuck'], 'position': position,
+                        'velocity': velocity})
         return out
 
     # -- stepping -------------------------------------------------------------------------
@@ -394,13 +393,13 @@ class LiveSimulation:
         n_acc = len(self.accelerometers)
         v = np.vstack([self._v_prev[None, :], vel])
         self._v_prev = v[-1].copy()
-        mean_acc = np.diff(v, axis=0) / self.dt           # (n_steps, 6 n_acc)
         pick = slice(self.decimation - 1, None, self.decimation)
         lin = np.empty((int(n_samples), n_acc, 3))
         ang = np.empty((int(n_samples), n_acc, 3))
         for a, filt in enumerate(self._filters):
-            cols = slice(6 * a, 6 * a + 3)
-            lin[:, a, :] = filt.apply(mean_acc[:, cols])[pick]
+            # mean acceleration over each step, translations only (rotations give rates)
+            mean_acc = np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt
+            lin[:, a, :] = filt.apply(mean_acc)[pick]
             ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
         if self.noise_std > 0:
             lin += self._rng.normal(0.0, self.noise_std, lin.shape)
@@ -409,7 +408,6 @@ class LiveSimulation:
         changed = stuck != self._stuck
         self._stuck = stuck
         self.steps += n_steps
-        self.events_total += events.size
         return Batch(samples.t[pick], lin, ang, events, changed)
 
     def linear_growth_rate(self):

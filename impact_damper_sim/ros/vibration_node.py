@@ -222,7 +222,6 @@ class VibrationNode(Node):
             max_speed=p['max_speed'] or None, max_unbalance=p['max_unbalance'],
             noise_std=p['noise_std'], seed=p['noise_seed'],
             dampers_enabled=p['dampers_enabled'], method=p['method'] or None)
-        self.live.sim.integrator.ledger_on = False   # the ledger costs CPU per step; not published
         self.live.step(0)   # load the compiled kernels now, not in the first paced tick
         self._params = p
         self.recorder = None
@@ -555,7 +554,6 @@ class VibrationNode(Node):
             self._publish_impact(e)
         self.stats.impacts += impacts.size
         self.stats_total['impacts'] += impacts.size
-        self.stats.steps = self.live.steps
         stuck = sum(self.live._stuck)
         self.stats.stuck_time += stuck * batch.t.size * self._period
         if batch.states_changed:
@@ -710,7 +708,6 @@ class _Stats:
 
     def __init__(self, wall, cpu, sim, steps0=0, growing=0, last_peak=0.0):
         self.wall, self.cpu, self.sim, self.steps0 = wall, cpu, sim, steps0
-        self.steps = steps0
         self.samples = self.impacts = self.commands = self.overruns = 0
         self.stuck_time = self.peak = self.lag = 0.0
         self.growing, self.last_peak = growing, last_peak
