@@ -7,7 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from impact_damper_sim.integrate.kernels import exact as K
+from impact_damper_sim.integrate.kernels import flow as K
+from impact_damper_sim.integrate.kernels import ledger as L
+from impact_damper_sim.integrate.kernels import poly as PL
 
 
 @pytest.fixture
@@ -105,8 +107,8 @@ def test_cubic_safe_step_is_safe_and_twin(rng):
         g1, g2 = rng.normal(size=2) * [3.0, 30.0]
         g3 = rng.uniform(0.0, 300.0)
         T = rng.uniform(0.01, 1.0)
-        s = K.cubic_safe_step(g0, g1, g2, g3, T)
-        assert s == K.cubic_safe_step_py(g0, g1, g2, g3, T)
+        s = PL.cubic_safe_step(g0, g1, g2, g3, T)
+        assert s == PL.cubic_safe_step_py(g0, g1, g2, g3, T)
         t = np.linspace(0.0, s, 2001)[:-1]
         p = g0 + g1 * t + 0.5 * g2 * t ** 2 - g3 * t ** 3 / 6
         assert np.all(p > 0)
@@ -178,20 +180,20 @@ def test_ledger_step_equals_ledger_panel(rng):
                            np.kron(np.eye(n), [[1.0, 1.0]]) * lam, np.zeros((n, n)))):
         Kskew = Kskew - Kskew.T
         ref = np.zeros(5)
-        K.ledger_panel(yh, lam, W, w0, ws, pp, pm, omegas, amps, u0, us, t, h, Vq, Vv, C,
+        L.ledger_panel(yh, lam, W, w0, ws, pp, pm, omegas, amps, u0, us, t, h, Vq, Vv, C,
                        Kskew, B, np.empty(n2, complex), np.empty(n2, complex),
                        np.empty((6, nf)), np.empty((6, n2), complex), ref)
-        m = K.ledger_node_count(lam, h)
+        m = L.ledger_node_count(lam, h)
         s, w = np.empty(m), np.empty(m)
         E, P1, P2 = (np.empty((m, n2), complex) for _ in range(3))
         EH = np.empty((m, nh), complex)
-        K.ledger_nodes(lam, omegas, h, s, w, E, P1, P2, EH)
+        L.ledger_nodes(lam, omegas, h, s, w, E, P1, P2, EH)
         cols = [np.empty((n, n2), np.int64), np.empty(n, np.int64)]
         vcols = [np.empty((n, n2), np.int64), np.empty(n, np.int64)]
-        K.row_pattern(Vq, *cols)
-        K.row_pattern(Vv, *vcols)
+        L.row_pattern(Vq, *cols)
+        L.row_pattern(Vv, *vcols)
         out = np.zeros(5)
-        K.ledger_step(yh, w0, ws, pp, pm, omegas, amps, u0, us, t, s, w, E, P1, P2, EH, Vq, Vv,
+        L.ledger_step(yh, w0, ws, pp, pm, omegas, amps, u0, us, t, s, w, E, P1, P2, EH, Vq, Vv,
                       *cols, *vcols, C, Kskew, bool(np.any(Kskew)), B, np.empty(n2, complex),
                       out)
         np.testing.assert_allclose(out[2:], ref[2:], rtol=1e-12, atol=1e-12 * np.abs(ref).max())

@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from .kernels import exact as kernels
+from .kernels import flow as flow_kernels
+from .kernels import ledger as ledger_kernels
 from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples, STICK_RULES
 from .flow import build_flow
@@ -50,6 +52,105 @@ class MassUpdate:
 _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUMULATION,
                'none': kernels.STICK_NONE}
 
+#: Largest number of configurations kept as one table inside the kernel; a scene with more
+#: (many impactors on distinct housings) switches through Python instead.
+MAX_TABLE_SLOTS = 4096
+#: Degree of the Taylor models of the event search (see :mod:`.kernels.exact`).
+TAYLOR_ORDER = 6
+
+
+def _interchangeable_groups(model):
+    """Housing sites and interchangeable groups of the model's impactors.
+
+    Returns ``rep`` (per impactor, the first impactor with the same housing rows: they share
+    the housing kinematics), ``group`` (per impactor, its group of equal rows and mass: their
+    stuck masses are interchangeable in the mass matrix) and the group sizes.
+    """
+    imps = model.impactors
+    rep = np.arange(len(imps), dtype=np.int64)
+    group = np.zeros(len(imps), dtype=np.int64)
+    keys = []
+    for j, imp in enumerate(imps):
+        for i in range(j):
+            if imps[i].dim == imp.dim and np.array_equal(imps[i].rows, imp.rows):
+                rep[j] = rep[i]
+                break
+        key = (int(rep[j]), float(imp.mass))
+        if key not in keys:
+            keys.append(key)
+        group[j] = keys.index(key)
+    sizes = np.bincount(group, minlength=len(keys)) if len(imps) else np.zeros(0, np.int64)
+    return rep, group, sizes
+
+
+class _Table:
+    """Flow arrays of several configurations, stacked for the kernel (slot = first index)."""
+
+    FIELDS = ('lam', 'V', 'Vinv', 'W', 'part_plus', 'part_minus', 'sensor_q', 'sensor_v',
+              'house_q', 'kick', 'house_mobility', 'mobility', 'release_map')
+
+    def __init__(self, n_slots, flow, dt, ledger_on, n_q):
+        self.dt = dt
+        self.ledger_on = ledger_on
+        self.built = np.zeros(n_slots, dtype=np.int64)
+        self.arrays = {name: np.zeros((n_slots,) + getattr(flow, name).shape,
+                                      dtype=getattr(flow, name).dtype) for name in self.FIELDS}
+        self.house_abs = np.zeros((n_slots,) + flow.house_q.shape)
+        n2 = flow.lam.size
+        self.lam_max = np.zeros(n_slots)
+        self.e_h, self.p1_h, self.p2_h = (np.zeros((n_slots, n2), complex) for _ in range(3))
+        self.n_nodes = np.zeros(n_slots, dtype=np.int64)
+        self._alloc_nodes(n_slots, 4, n2, flow.part_plus.shape[0])
+        self.q_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
+        self.q_counts = np.zeros((n_slots, n_q), dtype=np.int64)
+        self.v_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
+        self.v_counts = np.zeros((n_slots, n_q), dtype=np.int64)
+
+    def _alloc_nodes(self, n_slots, n_nodes, n2, nh, old=None):
+        self.s_nodes = np.zeros((n_slots, n_nodes))
+        self.w_nodes = np.zeros((n_slots, n_nodes))
+        self.E, self.P1, self.P2 = (np.zeros((n_slots, n_nodes, n2), complex) for _ in range(3))
+        self.EH = np.zeros((n_slots, n_nodes, nh), complex)
+        if old is not None:
+            m = old[0].shape[1]
+            for new, prev in zip((self.s_nodes, self.w_nodes, self.E, self.P1, self.P2, self.EH),
+                                 old):
+                new[:, :m] = prev
+
+    def fill(self, slot, flow, omegas):
+        """Store configuration ``flow`` (a :class:`~.flow.FlowConfig`) in ``slot``."""
+        for name in self.FIELDS:
+            self.arrays[name][slot] = getattr(flow, name)
+        self.house_abs[slot] = np.abs(flow.house_q)
+        lam = flow.lam
+        self.lam_max[slot] = float(np.max(np.abs(lam))) if lam.size else 0.0
+        flow_kernels.step_factors(lam, self.dt, self.e_h[slot], self.p1_h[slot],
+                                    self.p2_h[slot])
+        if self.ledger_on:
+            nn = int(ledger_kernels.ledger_node_count(lam, self.dt))
+            if nn > self.s_nodes.shape[1]:
+                old = (self.s_nodes, self.w_nodes, self.E, self.P1, self.P2, self.EH)
+                self._alloc_nodes(self.built.size, nn, lam.size, omegas.size, old)
+            self.n_nodes[slot] = nn
+            ledger_kernels.ledger_nodes(lam, omegas, self.dt, self.s_nodes[slot, :nn],
+                                        self.w_nodes[slot, :nn], self.E[slot, :nn],
+                                        self.P1[slot, :nn], self.P2[slot, :nn],
+                                        self.EH[slot, :nn])
+            n = flow.V.shape[0] // 2
+            ledger_kernels.row_pattern(flow.V[:n], self.q_cols[slot], self.q_counts[slot])
+            ledger_kernels.row_pattern(flow.V[n:], self.v_cols[slot], self.v_counts[slot])
+        self.built[slot] = 1
+
+    def kernel_args(self, ni):
+        """The ``tb_*`` arguments of :func:`.kernels.exact.advance` (impactors ``[:ni]``)."""
+        a = self.arrays
+        return (self.built, a['lam'], self.lam_max, a['V'], a['Vinv'], a['W'], a['part_plus'],
+                a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
+                self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni], a['mobility'][:, :ni],
+                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.n_nodes,
+                self.s_nodes, self.w_nodes, self.E, self.P1, self.P2, self.EH, self.q_cols,
+                self.q_counts, self.v_cols, self.v_counts)
+
 
 class ExactPropagator(IntegratorBase):
     """Exact flow of a :class:`~.model.LinearModel` with impactors.
@@ -85,11 +186,14 @@ class ExactPropagator(IntegratorBase):
         How stuck impactors change the model: :class:`MassUpdate` (default, exact) or the
         paper's second modal basis, :class:`~.basis_switch.BasisSwitch`. ``q0``/``qd0`` are
         coordinates of the all-free configuration.
+    taylor_order : int
+        Degree of the Taylor models of the event search (dimensionless, 2 to 12); a speed
+        setting only, the events found do not depend on it.
     """
 
     def __init__(self, model, forcing, dt, *, law='effective_mass', stick_rule='paper',
                  stick_fraction=0.002, max_events_per_step=64, ledger=True, q0=None, qd0=None,
-                 t0=0.0, event_capacity=4096, configurations=None):
+                 t0=0.0, event_capacity=4096, configurations=None, taylor_order=TAYLOR_ORDER):
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a positive time in s, got {dt}')
         if stick_rule not in STICK_RULES:
@@ -98,6 +202,8 @@ class ExactPropagator(IntegratorBase):
             raise ValueError(f'stick_fraction must be in (0, 1), got {stick_fraction}')
         if forcing.n_inputs != model.n_inputs:
             raise ValueError(f'forcing has {forcing.n_inputs} inputs, model has {model.n_inputs}')
+        if int(taylor_order) != taylor_order or not 2 <= taylor_order <= 12:
+            raise ValueError(f'taylor_order must be an integer in [2, 12], got {taylor_order}')
         self.model = model
         self.configurations = MassUpdate(model) if configurations is None else configurations
         self.forcing = forcing
@@ -106,14 +212,25 @@ class ExactPropagator(IntegratorBase):
         self.stick_rule = stick_rule
         self.max_events_per_step = int(max_events_per_step)
         self.ledger_on = bool(ledger)
+        self.taylor_order = int(taylor_order)
         self._omegas, self._amps = forcing.harmonic_table()
         n = model.n
         ni = len(model.impactors)
         self.t = float(t0)
         q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
         qd = np.zeros(n) if qd0 is None else np.asarray(qd0, dtype=float).copy()
-        self._configs = {}
+        self._imp_rep, self._imp_group, sizes = _interchangeable_groups(model)
+        self._radix = np.cumprod(np.concatenate([[1], sizes[:-1] + 1])).astype(np.int64) \
+            if sizes.size else np.zeros(0, np.int64)
+        n_keys = int(np.prod(sizes + 1.0)) if sizes.size else 1
+        # one table for every stuck count per group when the coordinates never change
+        self._table_mode = isinstance(self.configurations, MassUpdate) and \
+            n_keys <= MAX_TABLE_SLOTS
+        self._n_slots = n_keys if self._table_mode else 1
+        self._flows = {}      # configuration key -> (FlowConfig, LinearModel)
+        self._tables = {}     # table key -> _Table
         self._stuck = np.zeros(ni, dtype=np.int64)
+        self._slot_state = np.zeros(1, dtype=np.int64)
         cfg = self._config()
         # highest retained mode sets the paper's sticking time
         omega_max = float(np.max(np.abs(cfg.lam))) if cfg.lam.size else 1.0
@@ -135,31 +252,77 @@ class ExactPropagator(IntegratorBase):
         self._count_step = np.zeros(ni, dtype=np.int64)
         self._ledger = np.zeros(5)
         self._info = np.zeros(4, dtype=np.int64)
+        self.counters = np.zeros(kernels.N_COUNTERS, dtype=np.int64)
         self._cap = int(event_capacity)
         self._events = []
-        self.n_config_changes = 0
+        self._python_switches = 0
         self.grazing_undecided = 0
         self.max_impacts_per_step = 0
         self._initial_energy = sum(self._energy_now())
 
     # -- configuration ----------------------------------------------------------------------
     def _key(self):
+        """Configuration key: the stuck count of each group (table mode) or the stuck flags."""
+        if self._table_mode:
+            return tuple(int(c) for c in np.bincount(self._imp_group, weights=self._stuck,
+                                                     minlength=self._radix.size))
         return tuple(int(s) for s in self._stuck)
 
-    def _config(self):
-        key = self._key()
-        entry = self._configs.get(key)
+    def _slot(self, key):
+        return int(np.dot(key, self._radix)) if self._table_mode else 0
+
+    def _stuck_for(self, key):
+        """Stuck flags standing for ``key`` (the first impactors of each group)."""
+        if not self._table_mode:
+            return key
+        stuck = np.zeros(len(self._stuck), dtype=int)
+        for g, count in enumerate(key):
+            stuck[np.flatnonzero(self._imp_group == g)[:count]] = 1
+        return tuple(int(s) for s in stuck)
+
+    def _config(self, key=None):
+        key = self._key() if key is None else key
+        entry = self._flows.get(key)
         if entry is None:
-            model, masses, *carried = self.configurations.model(key)
+            model, masses, *carried = self.configurations.model(self._stuck_for(key))
+            release = ([imp.mass for imp in model.impactors] if self._table_mode else None)
             flow = build_flow(model, masses, self._omegas, self._amps, self.law,
-                              carried[0] if carried else None)
+                              carried[0] if carried else None, release_masses=release)
             entry = (flow, model)
-            self._configs[key] = entry
+            self._flows[key] = entry
         return entry[0]
 
     def _config_model(self):
         self._config()
-        return self._configs[self._key()][1]
+        return self._flows[self._key()][1]
+
+    def _table(self, key=None):
+        """The kernel's table holding configuration ``key``, built on first use."""
+        key = self._key() if key is None else key
+        table_key = 'all' if self._table_mode else key
+        table = self._tables.get(table_key)
+        flow = self._config(key)
+        if table is None:
+            table = _Table(self._n_slots, flow, self.dt, self.ledger_on, self.model.n
+                           if self._table_mode else self._flows[key][1].n)
+            self._tables[table_key] = table
+        slot = self._slot(key)
+        if not table.built[slot]:
+            table.fill(slot, flow, self._omegas)
+        return table
+
+    @property
+    def n_config_changes(self):
+        """int: Changes of configuration so far (stick and release; dimensionless)."""
+        return int(self.counters[kernels.CNT_SWITCHES]) + self._python_switches
+
+    def work_counters(self):
+        """Work done so far, by kind: a dict of counts (see ``kernels.exact.CNT_*``)."""
+        names = ('steps', 'searches', 'candidates', 'taylor_expansions', 'flow_evaluations',
+                 'ledger_evaluations', 'fallback_scans', 'kernel_switches', 'segments')
+        counts = dict(zip(names, (int(c) for c in self.counters)))
+        counts['python_switches'] = self._python_switches
+        return counts
 
     def _particular(self, cfg, t):
         yp = np.zeros(cfg.lam.size, dtype=complex)
@@ -178,7 +341,7 @@ class ExactPropagator(IntegratorBase):
         return [imp.rows for imp in self._config_model().impactors]
 
     def _structure_energy(self, q, qd):
-        return self.configurations.structure_energy(self._key(), q, qd)
+        return self.configurations.structure_energy(self._stuck_for(self._key()), q, qd)
 
     def _release_now(self, j):
         old_key, old_cfg = self._key(), self._config()
@@ -238,22 +401,23 @@ class ExactPropagator(IntegratorBase):
             key = self._key()
             cfg = self._config()
             model = self._config_model()
+            table = self._table(key)
+            self._slot_state[0] = self._slot(key)
             ev_count[0] = 0
             # disabled dampers (all free, no walls) are left out of the scan altogether: their
             # free flight is not needed, they are put back at their housings when re-enabled
             ni = len(self._imp_dim) if self.impacts_enabled else 0
             status = kernels.advance(
                 t_state, t_base, self.dt, k, n_steps, u_grid, self._omegas, self._amps,
-                self._yh, cfg.lam, cfg.W, cfg.V[:model.n], cfg.V[model.n:], cfg.part_plus,
-                cfg.part_minus, cfg.sensor_q, cfg.sensor_v, cfg.house_q[:ni], cfg.kick[:ni],
-                cfg.mobility[:ni], cfg.release_map[:ni], self._imp_dim[:ni],
+                self._yh, self._slot_state, self._table_mode, *table.kernel_args(ni),
+                self._imp_rep[:ni], self._imp_group[:ni], self._radix, self._imp_dim[:ni],
                 self._imp_mass[:ni], self._imp_cor[:ni], self._imp_limit[:ni],
                 self._imp_z[:ni], self._imp_v[:ni], self._stuck[:ni], self._imp_normal[:ni],
                 self._imp_last_t[:ni], self._imp_rel[:ni], self._imp_grace[:ni],
-                self._count_step[:ni], rule, self.stick_time,
-                self.max_events_per_step, self.ledger_on, model.C, model.K_skew, model.B,
+                self._count_step[:ni], rule, self.stick_time, self.max_events_per_step,
+                self.taylor_order, self.ledger_on, model.C, model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
-                ev_after, ev_count, self._info)
+                ev_after, ev_count, self._info, self.counters)
             m = int(ev_count[0])
             if m:
                 chunk = np.zeros(m, dtype=EVENT_DTYPE)
@@ -273,7 +437,9 @@ class ExactPropagator(IntegratorBase):
             if status == kernels.DONE:
                 break
             if status == kernels.CONFIG_CHANGE:
-                self._switch(float(t_state[0]), cfg, key)
+                # the kernel left yh in the configuration of slot_state, before the change
+                old_key = self._key_of_slot(key, int(self._slot_state[0]))
+                self._switch(float(t_state[0]), self._config(old_key), old_key)
                 continue
             if status == kernels.BUFFER_FULL:
                 continue
@@ -285,13 +451,29 @@ class ExactPropagator(IntegratorBase):
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
 
+    def _key_of_slot(self, key, slot):
+        """The key of ``slot`` (table mode); the given key otherwise."""
+        if not self._table_mode:
+            # the stuck flags now include the change: undo it for the old key
+            j = int(self._info[1])
+            old = list(self._key())
+            old[j] = 1 - old[j]
+            return tuple(old)
+        counts = []
+        for g in range(self._radix.size):
+            size = int(np.count_nonzero(self._imp_group == g))
+            counts.append((slot // int(self._radix[g])) % (size + 1))
+        return tuple(counts)
+
     def _switch(self, t_event, old_cfg, old_key):
         """Carry the state across a change of the stuck set (same coordinates by default)."""
         y = self._yh + self._particular(old_cfg, t_event)
         q, qd = old_cfg.from_state(y)
-        T = self.configurations.transform(old_key, self._key())
+        T = self.configurations.transform(self._stuck_for(old_key),
+                                          self._stuck_for(self._key()))
         if T is not None:
             q, qd = T @ q, T @ qd
         new_cfg = self._config()
         self._yh = new_cfg.to_state(q, qd) - self._particular(new_cfg, t_event)
-        self.n_config_changes += 1
+        self._slot_state[0] = self._slot(self._key())
+        self._python_switches += 1

@@ -14,6 +14,12 @@ mode by mode: ``lambda = -zeta omega +- i omega sqrt(1 - zeta^2)``, eigenvectors
 When a cross-coupled stiffness, physical dampers or a stuck impactor's mass couple the modes,
 ``V`` comes from the eigen-decomposition of ``A``, i.e. the matrix exponential
 ``exp(A tau) = V exp(Lambda tau) V^{-1}`` evaluated for any ``tau`` at no extra cost.
+
+Half the state is redundant: ``A`` is real, so its complex eigenvalues come in conjugate
+pairs with conjugate eigenvectors, and for a real ``x`` the two coordinates of a pair are
+conjugates. Only the member with ``Im lambda > 0`` is kept, its eigenvector doubled
+(``x = Re(V y)`` still holds); real eigenvalues are kept as they are. Every kernel then works
+on about ``n`` coordinates instead of ``2 n``.
 """
 from __future__ import annotations
 
@@ -31,16 +37,17 @@ MAX_EIGENVECTOR_CONDITION = 1e10
 class FlowConfig:
     """Arrays of one configuration (one set of stuck masses) for the exact kernel.
 
-    All complex arrays act on the modal state ``y`` (length ``n2 = 2 n``).
+    All complex arrays act on the modal state ``y``: one coordinate per complex-conjugate
+    pair of eigenvalues and one per real eigenvalue (``n2``, ``n <= n2 <= 2 n``).
 
     Attributes
     ----------
     lam : ndarray of complex, shape (n2,)
         Eigenvalues (1/s).
-    V : ndarray of complex, shape (n2, n2)
-        Eigenvectors; ``[q; q'] = Re(V y)``.
-    Vinv : ndarray of complex, shape (n2, n2)
-        Inverse of ``V``.
+    V : ndarray of complex, shape (2 n, n2)
+        Eigenvectors (of a complex pair, twice the one kept); ``[q; q'] = Re(V y)``.
+    Vinv : ndarray of complex, shape (n2, 2 n)
+        The rows of the kept coordinates in the inverse of the full eigenvector matrix.
     W : ndarray of complex, shape (n2, n_f)
         Input map (1/(N s) in modal units).
     sensor_q, sensor_v : ndarray of complex, shape (n_s, n2)
@@ -52,6 +59,9 @@ class FlowConfig:
         Change of ``y`` per unit housing impulse on each row (1/(N s) scaled).
     mobility : ndarray, shape (n_i, 2, 2)
         Mobility each impactor's law uses (1/kg).
+    house_mobility : ndarray, shape (n_i, 2, 2)
+        The model's mobility ``R M^-1 R^T`` at each housing (1/kg): the housing velocity
+        jumps by it times an impulse, whatever the law.
     release_map : ndarray, shape (n_i, 2, 2)
         For a stuck impactor, ``(I - m G_s)^{-1}`` with ``G_s`` its housing mobility in this
         configuration: it maps the housing acceleration to the one the housing would have
@@ -74,6 +84,7 @@ class FlowConfig:
     house_q: np.ndarray
     kick: np.ndarray
     mobility: np.ndarray
+    house_mobility: np.ndarray
     release_map: np.ndarray
     part_plus: np.ndarray
     part_minus: np.ndarray
@@ -128,6 +139,38 @@ def _diagonal_eigensystem(K, C):
     return lam, V, Vinv
 
 
+def _conjugate_half(lam, V, Vinv):
+    """Keep one coordinate of each conjugate pair (see the module notes).
+
+    Returns ``(lam, V, Vinv)`` of the kept coordinates, with the kept eigenvector of a pair
+    doubled; the full system if the pairs cannot be matched (then nothing is dropped).
+    """
+    n2 = lam.size
+    scale = np.maximum(np.abs(lam), 1e-300)
+    real = np.abs(lam.imag) <= 1e-12 * scale
+    keep, weight, used = [], [], np.zeros(n2, dtype=bool)
+    for k in np.argsort(-lam.imag, kind='stable'):
+        if used[k]:
+            continue
+        used[k] = True
+        if real[k]:
+            keep.append(k)
+            weight.append(1.0)
+            continue
+        gaps = np.abs(lam - np.conj(lam[k]))
+        gaps[used] = np.inf
+        partner = int(np.argmin(gaps))
+        matched = gaps[partner] <= 1e-12 * scale[k] and np.allclose(
+            V[:, partner], np.conj(V[:, k]), rtol=0, atol=1e-12 * np.abs(V[:, k]).max())
+        if not matched:
+            return lam, V, Vinv
+        used[partner] = True
+        keep.append(k)
+        weight.append(2.0)
+    keep = np.array(keep)
+    return lam[keep], V[:, keep] * np.array(weight), Vinv[keep]
+
+
 def _general_eigensystem(M, C, K):
     n = K.shape[0]
     Minv_K = np.linalg.solve(M, K)
@@ -140,7 +183,7 @@ def _general_eigensystem(M, C, K):
 
 
 def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
-               carried_masses=None):
+               carried_masses=None, release_masses=None):
     """Build the exact-flow arrays for one configuration.
 
     Parameters
@@ -158,6 +201,10 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
     carried_masses : sequence of float, optional
         Mass of each stuck impactor that the model's coordinates already hold (kg), e.g. a
         basis computed with it; used, like ``stuck_masses``, for the release map only.
+    release_masses : sequence of float, optional
+        Mass (kg) to build every impactor's release map with, stuck or not in this
+        configuration (a table of configurations shared by several stuck sets needs them
+        all); default: the riding masses above.
 
     Returns
     -------
@@ -177,15 +224,17 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
         raise ValueError(f'the state matrix is (nearly) defective: cond(V) = {condition:.3g}; '
                          'exact flows need a diagonalizable model (check zeta = 1 or '
                          'repeated coupled modes)')
+    lam, V, Vinv = _conjugate_half(lam, V, Vinv)
     Vq, Vv = V[:n], V[n:]
     MinvB = np.linalg.solve(M, model.B)
     W = Vinv[:, n:] @ MinvB.astype(complex)
     sensor_q = model.sensors @ Vq
     sensor_v = model.sensors @ Vv
     n_i = len(model.impactors)
-    house_q = np.zeros((n_i, 2, 2 * n), dtype=complex)
+    house_q = np.zeros((n_i, 2, lam.size), dtype=complex)
     kick = np.zeros_like(house_q)
     mobility = np.zeros((n_i, 2, 2))
+    house_mobility = np.zeros((n_i, 2, 2))
     release_map = np.tile(np.eye(2), (n_i, 1, 1))
     for j, imp in enumerate(model.impactors):
         d = imp.dim
@@ -193,13 +242,16 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
         house_q[j, :d] = R @ Vq
         MinvRt = np.linalg.solve(M, R.T)
         kick[j, :d] = (Vinv[:, n:] @ MinvRt).T
+        house_mobility[j, :d, :d] = R @ MinvRt
         mobility[j, :d, :d] = law_mobility(R @ MinvRt, imp.housing_mass, law)
         riding = stuck_masses[j] or (carried_masses[j] if carried_masses is not None else 0.0)
+        if release_masses is not None:
+            riding = release_masses[j]
         if riding:
             release_map[j, :d, :d] = np.linalg.inv(np.eye(d) - riding * (R @ MinvRt))
     omegas = np.asarray(omegas, dtype=float)
     amplitudes = np.asarray(amplitudes, dtype=complex).reshape(omegas.size, model.n_inputs)
-    part_plus = np.zeros((omegas.size, 2 * n), dtype=complex)
+    part_plus = np.zeros((omegas.size, lam.size), dtype=complex)
     part_minus = np.zeros_like(part_plus)
     for h, (om, U) in enumerate(zip(omegas, amplitudes)):
         denom_p = 1j * om - lam
@@ -210,5 +262,5 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
                              '(exact resonance): add damping or detune')
         part_plus[h] = (W @ U) / (2 * denom_p)
         part_minus[h] = (W @ U.conj()) / (2 * denom_m)
-    return FlowConfig(lam, V, Vinv, W, sensor_q, sensor_v, house_q, kick, mobility, release_map,
-                      part_plus, part_minus, M, condition)
+    return FlowConfig(lam, V, Vinv, W, sensor_q, sensor_v, house_q, kick, mobility,
+                      house_mobility, release_map, part_plus, part_minus, M, condition)

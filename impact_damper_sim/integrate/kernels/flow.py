@@ -1,0 +1,331 @@
+"""Numba kernels that evaluate the exact modal flow and bound it.
+
+Conventions (every kernel in this package): float64 and complex128 arrays only, no Python
+objects; times in seconds; ``y`` is the complex first-order modal state of
+:mod:`impact_damper_sim.integrate.flow` (``[q; q'] = Re(V y)``), ``yh`` its homogeneous-plus-
+first-order-hold part and the harmonic particular part is added on top; arrays passed in are
+updated in place. Every kernel is written as plain Python/NumPy (``*_py``, its NumPy twin) and
+compiled with ``numba.njit(cache=True)``; tests run both.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+def cabs_py(z):
+    """``|z|`` of a complex number without glibc's ``hypot`` (several times slower here)."""
+    return np.sqrt(z.real * z.real + z.imag * z.imag)
+
+
+cabs = njit(cache=True, inline='always')(cabs_py)
+
+
+def phis_py(z):
+    """Return ``((e^z - 1)/z, (e^z - 1 - z)/z^2)`` for complex ``z``, accurate near 0."""
+    if cabs(z) < 0.2:
+        # Taylor series; |z|^k/k! < 1e-17 by k = 12 for |z| < 0.2
+        a = 1.0 + 0j
+        b = 0.5 + 0j
+        term = 1.0 + 0j
+        for k in range(1, 14):
+            term *= z * (1.0 / k)
+            a += term * (1.0 / (k + 1))
+            b += term * (1.0 / ((k + 1) * (k + 2)))
+            if cabs(term) < 1e-18:
+                break
+        return a, b
+    ez = np.exp(z)
+    # 1/z by real arithmetic: complex division is several times slower
+    inv = np.conj(z) * (1.0 / (z.real * z.real + z.imag * z.imag))
+    return (ez - 1.0) * inv, (ez - 1.0 - z) * inv * inv
+
+
+phis = njit(cache=True, inline='always')(phis_py)
+
+
+def propagate_py(yh, lam, tau, w0, ws, out):
+    """Homogeneous-plus-first-order-hold flow over ``tau`` (s): ``out = yh(tau)``.
+
+    ``yh' = lam yh + w0 + ws t`` exactly, for ``t`` in ``[0, tau]``.
+    """
+    if tau == 0.0:
+        for k in range(lam.size):
+            out[k] = yh[k]
+        return
+    for k in range(lam.size):
+        z = lam[k] * tau
+        if cabs(z) < 0.2:
+            f1, f2 = phis(z)
+            out[k] = np.exp(z) * yh[k] + tau * f1 * w0[k] + tau * tau * f2 * ws[k]
+        else:
+            ez = np.exp(z)
+            inv = np.conj(lam[k]) * (1.0 / (lam[k].real * lam[k].real + lam[k].imag * lam[k].imag))
+            em1 = (ez - 1.0) * inv  # tau phi1
+            out[k] = ez * yh[k] + em1 * w0[k] + (em1 - tau) * inv * ws[k]
+
+
+propagate = njit(cache=True, inline='always')(propagate_py)
+
+
+def step_factors_py(lam, h, e_h, p1_h, p2_h):
+    """Factors of the flow over a full step ``h`` (s): ``exp(lam h)``, ``h phi1``, ``h^2 phi2``."""
+    for k in range(lam.size):
+        z = lam[k] * h
+        f1, f2 = phis(z)
+        e_h[k] = np.exp(z)
+        p1_h[k] = h * f1
+        p2_h[k] = h * h * f2
+
+
+step_factors = njit(cache=True)(step_factors_py)
+
+
+def add_particular_py(yh, omegas, part_plus, part_minus, t, out):
+    """``out = yh + y_p(t)``: add the harmonic particular solution at absolute time ``t``."""
+    for k in range(yh.size):
+        out[k] = yh[k]
+    for h in range(omegas.size):
+        ep = np.exp(1j * omegas[h] * t)
+        em = np.conj(ep)
+        for k in range(yh.size):
+            out[k] += part_plus[h, k] * ep + part_minus[h, k] * em
+
+
+add_particular = njit(cache=True, inline='always')(add_particular_py)
+
+
+def input_derivs_py(u0, us, omegas, amps, t, tau, order, out):
+    """Inputs and time derivatives at ``t``: ``out[j] = d^j u / dt^j`` for ``j <= order``.
+
+    ``u = u0 + us tau + Re(sum_h amps[h] exp(i omegas[h] t))``.
+    """
+    nf = u0.size
+    for j in range(order + 1):
+        for f in range(nf):
+            out[j, f] = 0.0
+    for f in range(nf):
+        out[0, f] = u0[f] + us[f] * tau
+        if order >= 1:
+            out[1, f] = us[f]
+    for h in range(omegas.size):
+        e = np.exp(1j * omegas[h] * t)
+        fac = 1.0 + 0j
+        for j in range(order + 1):
+            for f in range(nf):
+                out[j, f] += (fac * amps[h, f] * e).real
+            fac *= 1j * omegas[h]
+
+
+input_derivs = njit(cache=True, inline='always')(input_derivs_py)
+
+
+def state_derivs_py(y, lam, W, uder, order, out):
+    """``out[m] = d^m y / dt^m`` for ``m <= order`` from ``y' = lam y + W u``."""
+    for k in range(y.size):
+        out[0, k] = y[k]
+    more_derivs(lam, W, uder, 0, order, out)
+
+
+def more_derivs_py(lam, W, uder, m_from, order, out):
+    """Extend ``out[m] = d^m y / dt^m`` from ``m_from`` (filled) up to ``order``."""
+    n2 = lam.size
+    nf = W.shape[1]
+    for m in range(m_from + 1, order + 1):
+        forced = False
+        for f in range(nf):
+            if uder[m - 1, f] != 0.0:
+                forced = True
+        for k in range(n2):
+            acc = lam[k] * out[m - 1, k]
+            if forced:
+                for f in range(nf):
+                    acc += W[k, f] * uder[m - 1, f]
+            out[m, k] = acc
+
+
+more_derivs = njit(cache=True, inline='always')(more_derivs_py)
+
+
+state_derivs = njit(cache=True, inline='always')(state_derivs_py)
+
+
+def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs, us_abs,
+                         omegas, amps, order, ub, wu, out):
+    """Bounds on ``|d^m y_k/dt^m|`` over ``[tau, Th]`` (s) for ``m <= order``.
+
+    ``yh`` is the homogeneous-plus-hold part at ``tau``; the held input term is
+    ``W u = w0 + ws t``; ``u_abs``/``us_abs`` bound the held inputs and their slope; ``ub`` and
+    ``wu`` are scratch arrays. With ``T = Th - tau`` the bound on ``|yh_k|`` is
+    ``exp(max(Re lam_k, 0) T) (|yh_k| + T max|W u|_k)``, and
+    ``|y^(m)| <= |lam|^m |y| + sum_j |lam|^(m-1-j) |W u^(j)|``.
+    """
+    n2 = lam.size
+    nf = W.shape[1]
+    nh = omegas.size
+    T = Th - tau
+    for j in range(order + 1):
+        for f in range(nf):
+            ub[j, f] = 0.0
+    for f in range(nf):
+        ub[0, f] = u_abs[f]
+        if order >= 1:
+            ub[1, f] = us_abs[f]
+    for h in range(nh):
+        for f in range(nf):
+            a = cabs(amps[h, f])
+            p = 1.0
+            for j in range(order + 1):
+                ub[j, f] += a * p
+                p *= omegas[h]
+    for k in range(n2):
+        grow = np.exp(max(lam[k].real, 0.0) * T)
+        b = grow * (cabs(yh[k]) + T * max(cabs(w0[k] + ws[k] * tau), cabs(w0[k] + ws[k] * Th)))
+        for h in range(nh):
+            b += cabs(part_plus[h, k]) + cabs(part_minus[h, k])
+        lk = cabs(lam[k])
+        for j in range(order + 1):
+            wu[j] = 0.0
+        for f in range(nf):
+            w_abs = cabs(W[k, f])
+            for j in range(order + 1):
+                wu[j] += w_abs * ub[j, f]
+        # Horner-like recurrence: B_m = |lam| B_{m-1} + |W u^(m-1)|, B_0 = b
+        acc = b
+        out[0, k] = acc
+        for m in range(1, order + 1):
+            acc = lk * acc + wu[m - 1]
+            out[m, k] = acc
+
+
+derivative_bounds = njit(cache=True)(derivative_bounds_py)
+
+
+def point_eval_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
+                  t_cur, tau, order, yh_tau, y_tau, uder, yd):
+    """State ``y`` and derivatives ``yd[m]`` (m <= order) at ``t_cur + tau``.
+
+    ``w0``/``ws`` are ``W u0``/``W us`` of the held inputs at ``t_cur``; ``yh_tau`` receives the
+    homogeneous-plus-hold part, ``y_tau`` the full state.
+    """
+    propagate(yh, lam, tau, w0, ws, yh_tau)
+    add_particular(yh_tau, omegas, part_plus, part_minus, t_cur + tau, y_tau)
+    input_derivs(u0, us, omegas, amps, t_cur + tau, tau, order, uder)
+    state_derivs(y_tau, lam, W, uder, order, yd)
+
+
+point_eval = njit(cache=True)(point_eval_py)
+
+
+def row_derivs_py(rows, n_rows, yd, order, out):
+    """``out[m, r] = Re(rows[r] . yd[m])``: housing kinematics (m, m/s, m/s^2, ...)."""
+    n2 = yd.shape[1]
+    for m in range(order + 1):
+        for r in range(n_rows):
+            acc = 0j
+            for k in range(n2):
+                acc += rows[r, k] * yd[m, k]
+            out[m, r] = acc.real
+
+
+row_derivs = njit(cache=True, inline='always')(row_derivs_py)
+
+
+def row_bound_py(rows, n_rows, ybound, m):
+    """Bound of ``|d^m x_r/dt^m|`` per row from per-coordinate bounds; returns the 2-norm."""
+    total = 0.0
+    for r in range(n_rows):
+        acc = 0.0
+        for k in range(ybound.shape[1]):
+            acc += cabs(rows[r, k]) * ybound[m, k]
+        total += acc * acc
+    return np.sqrt(total)
+
+
+row_bound = njit(cache=True)(row_bound_py)
+
+
+def site_bounds_py(abs_rows, n_rows, ybound, order, exc, Eb):
+    """Bounds of a housing site from per-coordinate bounds, with its rows' moduli ``abs_rows``.
+
+    ``Eb[m]`` (m <= order) bounds ``|d^m x/dt^m|`` (2-norm over the rows) from
+    ``ybound[m]``; returns the largest excursion of the housing from the ``exc`` bounds of
+    :func:`excursion_bounds` (m).
+    """
+    for m in range(order + 1):
+        total = 0.0
+        for r in range(n_rows):
+            acc = 0.0
+            for k in range(abs_rows.shape[1]):
+                acc += abs_rows[r, k] * ybound[m, k]
+            total += acc * acc
+        Eb[m] = np.sqrt(total)
+    reach = 0.0
+    for r in range(n_rows):
+        acc = 0.0
+        for k in range(abs_rows.shape[1]):
+            acc += abs_rows[r, k] * exc[k]
+        reach += acc * acc
+    return np.sqrt(reach)
+
+
+site_bounds = njit(cache=True)(site_bounds_py)
+
+
+def housing_velocity_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t,
+                        rows, n_rows, yh_tau, y_tau, uder, yd, X):
+    """Housing displacement and velocity rows at ``t`` from the current state into ``X``."""
+    point_eval(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t, 0.0, 1,
+               yh_tau, y_tau, uder, yd)
+    row_derivs(rows, n_rows, yd, 1, X)
+
+
+housing_velocity = njit(cache=True)(housing_velocity_py)
+
+
+def excursion_bounds_py(yh, lam, w0, ws, part_plus, part_minus, omegas, T, out):
+    """Bound on ``|y_k(t) - y_k(0)|`` over ``[0, T]`` (s), into ``out``.
+
+    Homogeneous part: ``|exp(lam t) - 1| <= min(|lam| t, 2) exp(max(Re lam, 0) t)``; held
+    inputs add at most ``T max|W u|``; each harmonic's particular part moves by at most
+    ``min(Omega T, 2)`` times its size. Much tighter than ``|y| + |y(0)|`` for short steps,
+    since the transient and particular parts of ``y`` may cancel.
+    """
+    for k in range(lam.size):
+        grow = np.exp(max(lam[k].real, 0.0) * T)
+        held = T * max(cabs(w0[k]), cabs(w0[k] + ws[k] * T))
+        b = grow * (cabs(yh[k]) * min(cabs(lam[k]) * T, 2.0) + held)
+        for h in range(omegas.size):
+            b += (cabs(part_plus[h, k]) + cabs(part_minus[h, k])) * min(omegas[h] * T, 2.0)
+        out[k] = b
+
+
+excursion_bounds = njit(cache=True)(excursion_bounds_py)
+
+
+def excursion_clear_py(rows, n_rows, exc, X, z, v, limit, T):
+    """True if a free impactor cannot reach its clearance within ``T`` (s).
+
+    Each housing row moves by at most ``sum_k |rows_k| exc_k`` from ``X[0]`` (``exc`` from
+    :func:`excursion_bounds`); the impactor moves on a straight line.
+    """
+    reach = 0.0
+    for r in range(n_rows):
+        acc = 0.0
+        for k in range(exc.size):
+            acc += cabs(rows[r, k]) * exc[k]
+        reach += acc * acc
+    reach = np.sqrt(reach)
+    if n_rows == 1:
+        r0 = z[0] - X[0, 0]
+        r_end = r0 + v[0] * T
+        return max(r0, r_end) + reach < limit and min(r0, r_end) - reach > -limit
+    # squared distances: no square roots (glibc's hypot is slow) on this hot path
+    a0 = z[0] - X[0, 0]
+    a1 = z[1] - X[0, 1]
+    b0 = a0 + v[0] * T
+    b1 = a1 + v[1] * T
+    room = limit - reach
+    return room > 0.0 and max(a0 * a0 + a1 * a1, b0 * b0 + b1 * b1) < room * room
+
+
+excursion_clear = njit(cache=True)(excursion_clear_py)
