@@ -1,0 +1,409 @@
+"""The exact engine's event search: kernels against their twins, certificates, grazing runs.
+
+Four groups of tests (the kernels are :mod:`impact_damper_sim.integrate.kernels`):
+
+1. *Twins*: every kernel of :mod:`.poly` and :mod:`.exact`, and the :mod:`.flow` kernels not
+   covered by ``test_kernels.py``, compiled and as plain Python (``name_py``) on the same seeded
+   random inputs. Both run the same IEEE operations in the same order, but Numba's complex
+   ``exp`` and ``sqrt`` are not NumPy's (they may differ by an ulp or two), so results agree
+   to a few ulps times the condition of the computation: :func:`agree` takes the scale (sum
+   of the magnitudes of the terms summed) and allows ``ULPS`` ulps of it.
+2. *Properties* that can fail: enclosures (Bernstein ranges, derivative and excursion bounds,
+   the Taylor remainder of an event function) checked against dense samples of the true
+   function; certified roots against dense sampling; Newton against known roots.
+3. *Grazing runs* of :class:`ExactPropagator` against closed forms: a dip below the wall
+   smaller than the Taylor remainder, a tangential graze of a cylindrical impactor, a release
+   function touching zero; and the near misses next to each (no event allowed).
+4. *Table mode vs fallback*: the in-kernel configuration table against the Python switch.
+"""
+import numpy as np
+import pytest
+
+from exact_cases import harmonic, planar_model, sdof_model
+from impact_damper_sim.integrate import exact as exact_mod
+from impact_damper_sim.integrate.events import EVENT_KINDS
+from impact_damper_sim.integrate.exact import ExactPropagator, MassUpdate
+from impact_damper_sim.integrate.forcing import Forcing, Harmonic
+from impact_damper_sim.integrate.kernels import exact as KE
+from impact_damper_sim.integrate.kernels import flow as KF
+from impact_damper_sim.integrate.kernels import poly as KP
+from impact_damper_sim.integrate.kernels.scan import (FN_PLANAR, FN_RELEASE, FN_WALL_NEG,
+                                                       FN_WALL_POS, fn_values)
+
+EPS = np.finfo(float).eps
+#: Twin agreement, in ulps of the computation's scale (see the module docstring): a few ulps
+#: per libm call times the handful of calls chained in one kernel.
+ULPS = 64
+IMPACT = EVENT_KINDS.index('impact')
+STICK = EVENT_KINDS.index('stick')
+RELEASE = EVENT_KINDS.index('release')
+
+
+def agree(a, b, scale, ulps=ULPS):
+    """``|a - b| <= ulps eps scale`` elementwise (scale: the terms' magnitude)."""
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape
+    err = np.abs(a - b)
+    bound = ulps * EPS * np.broadcast_to(np.asarray(scale, dtype=float), err.shape)
+    assert np.all(err <= bound), (np.max(err - bound), a, b)
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20261125)
+
+
+def cplx(rng, *shape):
+    return rng.normal(size=shape) + 1j * rng.normal(size=shape)
+
+
+class System:
+    """A random modal flow ``y' = lam y + W u`` with a consistent harmonic particular part.
+
+    ``u = u0 + us tau + Re(amps exp(i omegas t))``; ``yh`` the homogeneous-plus-hold part at
+    ``t0``, so that the full state is ``yh + pp e^{i w t} + pm e^{-i w t}``. ``rows`` are two
+    housing rows (``x_r = Re(rows_r . y)``, m).
+    """
+
+    def __init__(self, rng, n2=4, nf=2, nh=1, decay=3.0, wmax=400.0, t0=0.013):
+        self.lam = -rng.uniform(0.0, decay, n2) + 1j * rng.uniform(-wmax, wmax, n2)
+        self.lam_max = float(np.max(np.abs(self.lam)))
+        self.W = cplx(rng, n2, nf)
+        self.yh = cplx(rng, n2)
+        self.u0 = rng.normal(size=nf)
+        self.us = rng.normal(size=nf) * 10.0
+        self.omegas = rng.uniform(50.0, 250.0, nh)
+        self.amps = cplx(rng, nh, nf)
+        om = self.omegas[:, None]
+        self.pp = (self.amps @ self.W.T) / (2 * (1j * om - self.lam[None, :]))
+        self.pm = (self.amps.conj() @ self.W.T) / (2 * (-1j * om - self.lam[None, :]))
+        self.w0 = self.W @ self.u0
+        self.ws = self.W @ self.us
+        self.t0 = t0
+        self.rows = cplx(rng, 2, n2) * 1e-3
+        self.n2, self.nf, self.nh = n2, nf, nh
+
+    def scratch(self, order):
+        return (np.empty(self.n2, complex), np.empty(self.n2, complex),
+                np.empty((order + 1, self.nf)), np.empty((order + 1, self.n2), complex))
+
+    def eval(self, tau, order, fn=KF.point_eval):
+        """``(yh(tau), y(tau), uder, yd)`` at ``t0 + tau`` by :func:`point_eval`."""
+        yh_t, y_t, uder, yd = self.scratch(order)
+        fn(self.yh, self.lam, self.W, self.w0, self.ws, self.pp, self.pm, self.omegas,
+           self.amps, self.u0, self.us, self.t0, tau, order, yh_t, y_t, uder, yd)
+        return yh_t, y_t, uder, yd
+
+    def ref_derivs(self, tau, order):
+        """``d^m y/dt^m`` at ``t0 + tau`` from the decomposition, not from ``y' = lam y + W u``:
+        the hold part's derivatives by its own ODE, the particular part's as ``(i w)^m``."""
+        yh_t = self.eval(tau, 0)[0]
+        out = np.zeros((order + 1, self.n2), complex)
+        d = yh_t.copy()
+        for m in range(order + 1):
+            out[m] = d
+            d = self.lam * d + (self.w0 + self.ws * tau if m == 0 else 0) + \
+                (self.ws if m == 1 else 0)
+        t = self.t0 + tau
+        for h, om in enumerate(self.omegas):
+            for m in range(order + 1):
+                out[m] += self.pp[h] * (1j * om) ** m * np.exp(1j * om * t) + \
+                    self.pm[h] * (-1j * om) ** m * np.exp(-1j * om * t)
+        return out
+
+    def scale(self, order):
+        """Per-order magnitude of the state's derivatives (for twin tolerances)."""
+        mag = np.abs(self.yh) + np.abs(self.pp).sum(0) + np.abs(self.pm).sum(0) + \
+            np.abs(self.w0) + np.abs(self.ws)
+        big = max(self.lam_max, float(self.omegas.max()), 1.0)
+        return np.array([mag * big ** m * (m + 1) for m in range(order + 1)]) + \
+            np.abs(self.W).sum(1) * (np.abs(self.u0).sum() + np.abs(self.us).sum() +
+                                     np.abs(self.amps).sum()) * big ** np.arange(order + 1)[:, None]
+
+
+# ============================================================== 1. twins: flow
+def test_cabs_twin(rng):
+    # |z| by real arithmetic; the same two products and one sqrt: 1 ulp, 2 ulps from hypot.
+    # (Without hypot's scaling it over/underflows beyond 1e+-150: far outside any state here.)
+    for z in cplx(rng, 50) * 10.0 ** rng.uniform(-140, 140, 50):
+        assert abs(KF.cabs(z) - KF.cabs_py(z)) <= EPS * KF.cabs_py(z)
+        assert abs(KF.cabs(z) - abs(z)) <= 2 * EPS * abs(z)
+
+
+def test_point_eval_and_housing_velocity_twins(rng):
+    # point_eval chains propagate, add_particular, input_derivs, state_derivs: a few ulps of
+    # the derivative magnitudes per order (ULPS). housing_velocity is point_eval at tau = 0
+    # followed by row_derivs.
+    for _ in range(5):
+        sy = System(rng, nh=2)
+        order = 6
+        for tau in (0.0, 1e-5, 3e-3):
+            jit = sy.eval(tau, order)
+            py = sy.eval(tau, order, KF.point_eval_py)
+            sc = sy.scale(order)
+            for a, b in zip(jit[:2], py[:2]):
+                agree(a, b, sc[0])
+            agree(jit[3], py[3], sc)
+            agree(jit[2], py[2], np.abs(jit[2]).max(axis=1, keepdims=True) + 1.0)
+        X = np.zeros((2, 2))
+        X_py = np.zeros((2, 2))
+        outs = [sy.scratch(1) for _ in range(2)]
+        for fn, out, dest in ((KF.housing_velocity, outs[0], X),
+                              (KF.housing_velocity_py, outs[1], X_py)):
+            fn(sy.yh, sy.lam, sy.W, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, sy.amps, sy.u0,
+               sy.us, sy.t0, sy.rows, 2, *out, dest)
+        rows_scale = np.abs(sy.rows).sum(1)
+        agree(X, X_py, sy.scale(1).max(1)[:, None] * rows_scale[None, :])
+
+
+def test_row_derivs_row_bound_site_bounds_more_derivs_twins(rng):
+    sy = System(rng)
+    order = 8
+    yd = sy.eval(0.002, order)[3]
+    scale = sy.scale(order).max(1)
+    out, out_py = np.empty((order + 1, 2)), np.empty((order + 1, 2))
+    KF.row_derivs(sy.rows, 2, yd, order, out)
+    KF.row_derivs_py(sy.rows, 2, yd, order, out_py)
+    agree(out, out_py, (scale * np.abs(sy.rows).sum())[:, None])
+    ybound = np.abs(rng.normal(size=(order + 1, sy.n2)))
+    exc = np.abs(rng.normal(size=sy.n2))
+    for m in range(order + 1):
+        b = KF.row_bound(sy.rows, 2, ybound, m)
+        agree(b, KF.row_bound_py(sy.rows, 2, ybound, m), b)
+    Eb, Eb_py = np.empty(order + 1), np.empty(order + 1)
+    reach = KF.site_bounds(np.abs(sy.rows), 2, ybound, order, exc, Eb)
+    reach_py = KF.site_bounds_py(np.abs(sy.rows), 2, ybound, order, exc, Eb_py)
+    agree(Eb, Eb_py, Eb)
+    agree(reach, reach_py, reach)
+    # site_bounds' Eb[m] is row_bound at every order
+    agree(Eb, [KF.row_bound(sy.rows, 2, ybound, m) for m in range(order + 1)], Eb, 8)
+    # more_derivs from m_from = 2 reproduces the derivatives state_derivs made to order 8
+    uder = sy.eval(0.002, order)[2]
+    part = yd.copy()
+    part[3:] = 0
+    part_py = part.copy()
+    KF.more_derivs(sy.lam, sy.W, uder, 2, order, part)
+    KF.more_derivs_py(sy.lam, sy.W, uder, 2, order, part_py)
+    agree(part, part_py, sy.scale(order))
+    agree(part, yd, sy.scale(order))
+
+
+def test_excursion_bounds_and_clear_twins(rng):
+    for _ in range(10):
+        sy = System(rng)
+        T = rng.uniform(1e-5, 1e-2)
+        out, out_py = np.empty(sy.n2), np.empty(sy.n2)
+        KF.excursion_bounds(sy.yh, sy.lam, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, T, out)
+        KF.excursion_bounds_py(sy.yh, sy.lam, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, T, out_py)
+        agree(out, out_py, out)
+        X = rng.normal(size=(3, 2)) * 1e-3
+        for n_rows in (1, 2):
+            z = X[0] + rng.normal(size=2) * 1e-4
+            v = rng.normal(size=2) * 1e-2
+            limit = rng.uniform(1e-4, 2e-3)
+            assert KF.excursion_clear(sy.rows, n_rows, out * 1e-3, X, z, v, limit, T) == \
+                KF.excursion_clear_py(sy.rows, n_rows, out * 1e-3, X, z, v, limit, T)
+
+
+def test_input_derivs_add_particular_step_factors_twins(rng):
+    sy = System(rng, nh=3)
+    order = 7
+    out, out_py = np.empty((order + 1, sy.nf)), np.empty((order + 1, sy.nf))
+    KF.input_derivs(sy.u0, sy.us, sy.omegas, sy.amps, 0.21, 0.004, order, out)
+    KF.input_derivs_py(sy.u0, sy.us, sy.omegas, sy.amps, 0.21, 0.004, order, out_py)
+    sc = (np.abs(sy.amps).sum(0)[None, :] * sy.omegas.max() ** np.arange(order + 1)[:, None]
+          + np.abs(sy.u0) + np.abs(sy.us))
+    agree(out, out_py, sc)
+    y, y_py = np.empty(sy.n2, complex), np.empty(sy.n2, complex)
+    KF.add_particular(sy.yh, sy.omegas, sy.pp, sy.pm, 0.21, y)
+    KF.add_particular_py(sy.yh, sy.omegas, sy.pp, sy.pm, 0.21, y_py)
+    agree(y, y_py, np.abs(sy.yh) + np.abs(sy.pp).sum(0) + np.abs(sy.pm).sum(0))
+    fac = [np.empty(sy.n2, complex) for _ in range(6)]
+    KF.step_factors(sy.lam, 1e-3, *fac[:3])
+    KF.step_factors_py(sy.lam, 1e-3, *fac[3:])
+    for a, b in zip(fac[:3], fac[3:]):
+        agree(a, b, np.abs(b) + 1e-3)
+
+
+# ============================================================== 1. twins: poly
+def random_poly(rng, n):
+    return rng.normal(size=n + 1) * 10.0 ** rng.uniform(-2, 2)
+
+
+def test_horner_and_bernstein_twins(rng):
+    # horner/horner_d: the same recurrences, exact agreement expected; Bernstein: n^2 sums of
+    # terms of the Taylor-shifted coefficients, a few ulps of their magnitude.
+    for _ in range(200):
+        n = int(rng.integers(0, KP.MAX_DEGREE + 1))
+        a = random_poly(rng, n)
+        s = rng.uniform(-2, 2)
+        assert KP.horner(a, n, s) == KP.horner_py(a, n, s)
+        assert KP.horner_d(a, n, s) == KP.horner_d_py(a, n, s)
+        lo, hi = np.sort(rng.uniform(-1.0, 1.5, 2))
+        b = KP.bernstein_range(a, n, lo, hi, np.empty(n + 1))
+        b_py = KP.bernstein_range_py(a, n, lo, hi, np.empty(n + 1))
+        mag = np.sum(np.abs(a) * (1 + max(abs(lo), abs(hi))) ** np.arange(n + 1)) * 2.0 ** n
+        agree(b, b_py, mag)
+
+
+def test_newton_bracket_and_certified_root_twins(rng):
+    work = np.empty(3 * KP.MAX_DEGREE + 5)
+    seen = set()
+    for _ in range(300):
+        n = int(rng.integers(2, 9))
+        roots = rng.uniform(-0.5, 2.0, n)
+        a = np.polynomial.polynomial.polyfromroots(roots)
+        a *= np.sign(a[0]) if a[0] != 0 else 1.0
+        S = rng.uniform(0.2, 1.5)
+        K = 10.0 ** rng.uniform(-9, -1)
+        Kd = K * (n + 1) * rng.uniform(1.0, 3.0)
+        s_start = rng.uniform(0, 0.3) * S
+        out, out_py = np.zeros(3), np.zeros(3)
+        st = KP.certified_first_root(a, n, K, Kd, S, s_start, work, out)
+        st_py = KP.certified_first_root_py(a, n, K, Kd, S, s_start, work.copy(), out_py)
+        assert st == st_py
+        seen.add(st)
+        agree(out, out_py, S, 16)
+        if horner_pos(a, n, 0.0) and KP.horner(a, n, S) <= 0:
+            r = KP.newton_bracket(a, n, 0.0, S, 1e-15 * S)
+            assert abs(r - KP.newton_bracket_py(a, n, 0.0, S, 1e-15 * S)) <= 16 * EPS * S
+    assert seen == {KP.ROOT_NONE, KP.ROOT_FOUND, KP.ROOT_UNDECIDED}
+
+
+def horner_pos(a, n, s):
+    return KP.horner(a, n, s) > 0
+
+
+# ============================================================== 2. properties: poly
+def test_bernstein_range_encloses_and_converges(rng):
+    # Enclosure: every value of p sampled at 4001 points of [lo, hi] lies within the Bernstein
+    # range, up to round-off (64 ulps of sum |a_m| max(|lo|,|hi|)^m).
+    for _ in range(300):
+        n = int(rng.integers(1, 13))
+        a = random_poly(rng, n)
+        lo, hi = np.sort(rng.uniform(-1.0, 1.5, 2))
+        b_min, b_max = KP.bernstein_range(a, n, lo, hi, np.empty(n + 1))
+        s = np.linspace(lo, hi, 4001)
+        p = np.polynomial.polynomial.polyval(s, a)
+        tol = 64 * EPS * np.sum(np.abs(a) * max(abs(lo), abs(hi), 1.0) ** np.arange(n + 1)) \
+            * 2.0 ** n
+        assert p.min() >= b_min - tol and p.max() <= b_max + tol
+    # Exact for monotone Bernstein sequences: s^n on [0, 1] is (0, ..., 0, 1) and 3 - 2 s is
+    # (3, 1); 1e-15.
+    for n in range(1, 10):
+        a = np.zeros(n + 1)
+        a[n] = 1.0
+        assert KP.bernstein_range(a, n, 0.0, 1.0, np.empty(n + 1)) == pytest.approx((0, 1),
+                                                                                    abs=1e-15)
+    assert KP.bernstein_range(np.array([3.0, -2.0]), 1, 0.0, 1.0, np.empty(2)) == (1.0, 3.0)
+    # Tightness: the overestimate of the range is O(w^2) (the Bernstein coefficients converge
+    # quadratically); halving the interval around an interior extremum cuts it by 4 (3.5 to
+    # 4.5 allowed), and the first one is within a factor 2 of the range width for
+    # (s - 1/2)^2 on [0, 1] (coefficients 1/4, -1/4, 1/4 against the range [0, 1/4]).
+    a = np.array([0.25, -1.0, 1.0])
+    b = KP.bernstein_range(a, 2, 0.0, 1.0, np.empty(3))
+    assert b == pytest.approx((-0.25, 0.25), abs=1e-15)
+    c = 0.3
+    # (s - c)^2 q(s) + 2, q > 0 near c: a minimum at c, degree 7
+    a = np.polynomial.polynomial.polymul(np.polynomial.polynomial.polyfromroots([c, c]),
+                                         [1.0, 0.5, -0.2, 0.3, 0.1, 0.05]) + \
+        np.array([2.0] + [0.0] * 7)
+    excess = []
+    for w in (0.2, 0.1, 0.05, 0.025):
+        lo, hi = c - w / 2, c + w / 2
+        b_min, b_max = KP.bernstein_range(a, 7, lo, hi, np.empty(8))
+        p = np.polynomial.polynomial.polyval(np.linspace(lo, hi, 20001), a)
+        excess.append((p.min() - b_min) + (b_max - p.max()))
+    ratios = np.array(excess[:-1]) / np.array(excess[1:])
+    assert np.all((ratios > 3.5) & (ratios < 4.5)), ratios
+
+
+def test_newton_bracket_converges_to_known_roots(rng):
+    # p(s) = (r - s) q(s) with q > 0 on the bracket: the root r to 1e-15 S + 4 ulps.
+    for _ in range(200):
+        n = int(rng.integers(1, 10))
+        S = rng.uniform(0.1, 3.0)
+        r = rng.uniform(0.01, 0.99) * S
+        q_roots = rng.uniform(-3.0, -0.1, n - 1) if n > 1 else np.zeros(0)
+        q = np.polynomial.polynomial.polyfromroots(q_roots) if n > 1 else np.array([1.0])
+        a = np.polynomial.polynomial.polymul([r, -1.0], q) * rng.uniform(0.1, 10.0)
+        s = KP.newton_bracket(a, n, 0.0, S, 1e-15 * S)
+        assert abs(s - r) <= 1e-15 * S + 4 * EPS * r, (s, r)
+
+
+def _g(a, n, K, omega):
+    """An event function within the remainders of its polynomial: p + K s^(n+1) cos(w s)."""
+    def g(s):
+        return np.polynomial.polynomial.polyval(s, a[:n + 1]) + K * s ** (n + 1) * \
+            np.cos(omega * s)
+    return g
+
+
+def test_certified_first_root_is_rigorous(rng):
+    # g = p + K s^(n+1) cos(w s) satisfies the stated remainders with Kd = K (n + 1 + w S).
+    # Sampled at 20001 points: ROOT_NONE -> g > 0 everywhere; ROOT_FOUND -> g > 0 on
+    # [0, s_a], g(s_b) < 0, g decreasing on [s_a, s_b], and the first sign change of the
+    # samples lies in [s_a, s_b] (so no earlier root). The Taylor root out[2] is within the
+    # bracket. A single simple root, well separated from the others, with a small remainder
+    # must be found (every one of them), so a kernel that always answers "undecided" fails.
+    counts = {KP.ROOT_NONE: 0, KP.ROOT_FOUND: 0, KP.ROOT_UNDECIDED: 0}
+    found_easy = easy = 0
+    work = np.empty(3 * KP.MAX_DEGREE + 5)
+    for trial in range(400):
+        n = int(rng.integers(2, 9))
+        S = 1.0
+        if trial % 2:
+            roots = rng.uniform(1.05, 3.0, n)  # no root in (0, S]: certify none
+        else:  # a root in (0, S] is likely
+            roots = np.concatenate([[rng.uniform(0.05, 0.95)], rng.uniform(-2.0, 3.0, n - 1)])
+        a = np.real(np.polynomial.polynomial.polyfromroots(roots))
+        a /= a[0]
+        K = 10.0 ** rng.uniform(-10, -1) * np.abs(a).max()
+        omega = rng.uniform(0.0, 20.0)
+        Kd = K * (n + 1 + omega * S)
+        out = np.zeros(3)
+        st = KP.certified_first_root(a, n, K, Kd, S, 0.0, work, out)
+        counts[st] += 1
+        s = np.linspace(0.0, S, 20001)
+        g = _g(a, n, K, omega)(s)
+        # our own evaluation of g is only good to a few ulps of its terms
+        tol = 16 * EPS * np.polynomial.polynomial.polyval(s, np.abs(a))
+        if st == KP.ROOT_NONE:
+            assert np.all(g > -tol)
+        elif st == KP.ROOT_FOUND:
+            s_a, s_b, r = out
+            assert 0 <= s_a < s_b <= S and s_a <= r <= s_b
+            gg = _g(a, n, K, omega)
+            tol_b = 16 * EPS * np.polynomial.polynomial.polyval(s_b, np.abs(a))
+            assert np.all(g[s <= s_a] > -tol[s <= s_a]) and gg(s_a) > -tol_b
+            assert gg(s_b) < tol_b
+            first = s[np.argmax(g <= 0)]
+            assert s_a - S / 20000 <= first <= s_b + S / 20000
+            inside = np.linspace(s_a, s_b, 201)
+            da = np.polynomial.polynomial.polyder(a[:n + 1])
+            dg = np.polynomial.polynomial.polyval(inside, da) + K * (
+                (n + 1) * inside ** n * np.cos(omega * inside)
+                - omega * inside ** (n + 1) * np.sin(omega * inside))
+            assert np.all(dg < 16 * EPS * np.polynomial.polynomial.polyval(1.0, np.abs(da)))
+        pr = np.real(roots[(np.abs(np.imag(roots)) < 1e-12)])
+        first_r = pr[(pr > 0) & (pr <= S)]
+        # easy: one simple root in (0, S] (a dip-and-return, p(S) > 0, is left to the scan)
+        if first_r.size == 1 and first_r[0] < 0.95 * S and K < 1e-6 * np.abs(a).max():
+            gaps = np.abs(np.subtract.outer(pr, pr))[np.triu_indices(pr.size, 1)]
+            if gaps.size == 0 or gaps.min() > 0.05:
+                easy += 1
+                found_easy += st == KP.ROOT_FOUND
+    assert counts[KP.ROOT_NONE] > 20 and counts[KP.ROOT_FOUND] > 20, counts
+    assert easy > 20 and found_easy == easy, (found_easy, easy, counts)
+
+
+def test_certified_first_root_respects_s_start_and_a_negative_start():
+    # g = 1 - s (a root at 1): with s_start past a spurious dip it still brackets 1; a function
+    # already non-positive at 0 (a[0] <= 0) cannot be certified: ROOT_UNDECIDED.
+    work = np.empty(3 * KP.MAX_DEGREE + 5)
+    out = np.zeros(3)
+    a = np.array([1.0, -1.0, 0.0])
+    assert KP.certified_first_root(a, 2, 1e-6, 3e-6, 2.0, 0.5, work, out) == KP.ROOT_FOUND
+    assert out[0] <= 1.0 <= out[1] and out[1] - out[0] < 1e-4
+    assert KP.certified_first_root(np.array([-1e-3, -1.0, 0.0]), 2, 1e-6, 3e-6, 2.0, 0.0, work,
+                                   out) == KP.ROOT_UNDECIDED
