@@ -565,3 +565,243 @@ def test_fn_taylor_coefficients_and_remainder(rng, fid):
     # the bound is not vacuous: somewhere in the second half of a segment the true error
     # reaches 1 % of it (measured: 22 % to 77 %)
     assert worst > 1e-2, worst
+
+
+def near_step(sy, s, d, fn=KE.near_eval):
+    yh_s = sy.eval(s, 0)[0]
+    _, y_t, uder, yd = sy.scratch(2)
+    fn(yh_s, sy.lam, sy.W, sy.w0, sy.ws, s, d, sy.omegas, sy.pp, sy.pm, sy.amps, sy.u0,
+       sy.us, sy.t0, 2, y_t, uder, yd)
+    return yh_s, y_t, yd
+
+
+def test_near_eval_matches_point_eval_to_its_truncation_error(rng):
+    # A third-order Taylor step of the hold part: at |lam d| = TAYLOR_STEP_REACH the
+    # truncation error (|lam d|^4/24 of the state) is far below round-off, so the state and
+    # its derivatives equal point_eval's at s + d to ULPS of their magnitude; twin likewise.
+    # At |lam d| = 0.04 and 0.02 the error is the truncation error: within 2x of
+    # |d^4 yh''''|/24 and shrinking by 16 (12 to 20) when d halves (the order is 3).
+    for _ in range(5):
+        sy = System(rng, nh=2)
+        s = 1e-3
+        sc = sy.scale(2)
+        d = KE.TAYLOR_STEP_REACH / sy.lam_max
+        yh_n, y_n, yd_n = near_step(sy, s, d)
+        yh_p, y_p, _, yd_p = sy.eval(s + d, 2)
+        agree(yh_n, yh_p, sc[0])
+        agree(y_n, y_p, sc[0])
+        agree(yd_n, yd_p, sc)
+        yh_t, y_t, yd_t = near_step(sy, s, d, KE.near_eval_py)
+        agree(yh_n, yh_t, sc[0], 8)
+        agree(yd_n, yd_t, sc, 8)
+        errs = []
+        for reach in (0.04, 0.02):
+            d = reach / sy.lam_max
+            yh_n = near_step(sy, s, d)[0]
+            yh_p = sy.eval(s + d, 0)[0]
+            # fourth derivative of the hold part at s: lam^3 (lam yh + w0 + ws s) + lam^2 ws
+            yh_s = sy.eval(s, 0)[0]
+            d4 = sy.lam ** 3 * (sy.lam * yh_s + sy.w0 + sy.ws * s) + sy.lam ** 2 * sy.ws
+            trunc = np.abs(d4) * d ** 4 / 24
+            err = np.abs(yh_n - yh_p)
+            assert np.all(err <= 2 * trunc + 64 * EPS * sc[0])
+            errs.append(err.max())
+        assert 12 < errs[0] / errs[1] < 20, errs
+
+
+def wall_crossing(sy, rng, S):
+    """A POS wall the housing reaches inside ``[0, S]``: ``(z, v, limit, a, b)`` with a
+    sampled bracket ``[a, b]`` of its first root."""
+    s = np.linspace(0.0, S, 2001)
+    x = np.array([(sy.rows[0] @ sy.eval(t, 0)[1]).real for t in s])
+    # impactor at rest at the start position: g = limit - (z - x(s)), first root where x
+    # drops by `limit` below its start (choose the drop inside the sampled range)
+    z = x[0]
+    drop = x[0] - x.min()
+    if drop <= 0:
+        return None
+    limit = rng.uniform(0.2, 0.9) * drop
+    g = limit - (z - x)
+    i = int(np.argmax(g <= 0))
+    return np.array([z, 0.0]), np.zeros(2), limit, s[i - 1], s[i]
+
+
+def test_refine_root_finds_the_flow_root_and_twin(rng):
+    # Newton on the exact flow inside a sampled bracket: the returned time is a zero of the
+    # true event function to 8 ulps of t (the kernel's own tolerance is 4 ulps of t, plus the
+    # propagation's rounding) measured through |g| / |g'|, the state left in yh_tau equals
+    # point_eval's at that time (ULPS), and the twin returns the same time to 8 ulps of t.
+    done = 0
+    for _ in range(20):
+        sy = System(rng)
+        S = KE.SEGMENT_REACH / sy.lam_max
+        case = wall_crossing(sy, rng, S)
+        if case is None:
+            continue
+        z, v, limit, a, b = case
+        res = []
+        for fn in (KE.refine_root, KE.refine_root_py):
+            yh_t, y_t, uder, yd = sy.scratch(4)
+            X = np.zeros((5, 2))
+            counters = np.zeros(KE.N_COUNTERS, dtype=np.int64)
+            t = fn(FN_WALL_POS, a, b, 0.5 * (a + b), 0.0, sy.t0, sy.yh, sy.lam, sy.lam_max,
+                   sy.W, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, sy.amps, sy.u0, sy.us,
+                   sy.rows[:1], 1, z, v, limit, np.zeros(2), yh_t, y_t, uder, yd, X,
+                   counters)
+            res.append((t, yh_t.copy(), counters[KE.CNT_EVALS]))
+        (t, yh_t, evals), (t_py, _, _) = res
+        tol_t = 8 * EPS * (sy.t0 + t)
+        assert abs(t - t_py) <= tol_t
+        assert a <= t <= b and evals >= 1
+        g = true_event(sy, FN_WALL_POS, t, z, v, limit, np.zeros(2))
+        X = np.zeros((3, 2))
+        KF.row_derivs(sy.rows, 1, sy.eval(t, 2)[3], 2, X)
+        slope = abs(X[1, 0])
+        assert abs(g) <= slope * tol_t + 64 * EPS * (limit + abs(z[0]))
+        agree(yh_t, sy.eval(t, 0)[0], sy.scale(0)[0])
+        done += 1
+    assert done >= 5
+
+
+def test_small_exact_kernels_twins(rng):
+    # grace_shift, third_bound, out_of_reach, release_normals, record: the same arithmetic;
+    # third_bound equals the scan's fn_third_bound given the same row bounds (8 ulps).
+    for _ in range(50):
+        X = rng.normal(size=(7, 2))
+        z, v, normal = rng.normal(size=(3, 2))
+        limit = rng.uniform(0.1, 2.0)
+        T = rng.uniform(1e-4, 1e-2)
+        Eb = np.abs(rng.normal(size=8)) * 10.0 ** np.arange(8)
+        for fid in (FN_WALL_POS, FN_WALL_NEG, FN_PLANAR, FN_RELEASE):
+            assert KE.grace_shift(fid, X, limit) == KE.grace_shift_py(fid, X, limit)
+            b = KE.third_bound(fid, X, z, v, limit, normal, Eb, T)
+            agree(b, KE.third_bound_py(fid, X, z, v, limit, normal, Eb, T), b, 8)
+            # fn_third_bound computes the row bounds from ybound: one row of unit weight
+            rows = np.array([[1.0 + 0j], [0.0 + 0j]])
+            ref = __import__('impact_damper_sim.integrate.kernels.scan',
+                             fromlist=['x']).fn_third_bound(
+                fid, X, z, v, 0.0, limit, normal, Eb[:, None], rows, 2, T)
+            agree(b, ref, b, 8)
+        reach = abs(rng.normal()) * 0.3
+        for n_rows in (1, 2):
+            assert KE.out_of_reach(n_rows, reach, X, z, v, limit, T) == \
+                KE.out_of_reach_py(n_rows, reach, X, z, v, limit, T)
+    stuck = np.array([1, 0, 1])
+    imp_normal = rng.normal(size=(3, 2))
+    relmap = rng.normal(size=(3, 2, 2))
+    out, out_py = np.zeros((3, 2)), np.zeros((3, 2))
+    KE.release_normals(stuck, imp_normal, relmap, out)
+    KE.release_normals_py(stuck, imp_normal, relmap, out_py)
+    agree(out, out_py, np.abs(relmap).sum(1) * np.abs(imp_normal).max(), 4)
+    np.testing.assert_allclose(out, np.einsum('jrc,jr->jc', relmap, imp_normal), rtol=1e-14)
+    bufs = [[np.zeros(4), np.zeros(4, np.int64), np.zeros(4, np.int64), np.zeros((4, 2)),
+             np.zeros(4), np.zeros(4), np.zeros(4), np.zeros((4, 2)), np.zeros(1, np.int64)]
+            for _ in range(2)]
+    vals = (0.5, 2, KE.EV_STICK, 0.6, 0.8, 1e-3, 2e-4, 3e-7, -1e-4, 2e-5)
+    KE.record(*bufs[0], *vals)
+    KE.record_py(*bufs[1], *vals)
+    for x, y in zip(*bufs):
+        np.testing.assert_array_equal(x, y)
+    assert bufs[0][8][0] == 1 and bufs[0][0][0] == 0.5 and bufs[0][7][0, 1] == 2e-5
+
+
+def half_state_inverse(V):
+    """``Vinv`` with ``Vinv Re(V y) = y`` for complex ``y`` (square real map)."""
+    n2 = V.shape[1]
+    A = np.hstack([V.real, -V.imag])
+    Ainv = np.linalg.inv(A)
+    return Ainv[:n2] + 1j * Ainv[n2:]
+
+
+def test_switch_slot_twin_and_round_trip(rng):
+    # y_new = V_new^-1 Re(V_old y): to the same configuration it is the identity (to ULPS times
+    # the condition number of the real 2n x 2n map), and the twin agrees to ULPS.
+    n2, nh = 3, 2
+    V = cplx(rng, 2 * n2, n2)
+    Vinv = half_state_inverse(V)
+    cond = np.linalg.cond(np.hstack([V.real, -V.imag]))
+    pp, pm = cplx(rng, nh, n2), cplx(rng, nh, n2)
+    omegas = rng.uniform(10, 300, nh)
+    yh = cplx(rng, n2)
+    out = yh.copy()
+    KE.switch_slot(out, V, pp, pm, Vinv, pp, pm, omegas, 0.37, np.empty(n2, complex),
+                   np.empty(2 * n2))
+    scale = np.abs(yh).max() + np.abs(pp).sum() + np.abs(pm).sum()
+    agree(out, yh, cond * scale)
+    V2 = cplx(rng, 2 * n2, n2)
+    pp2, pm2 = cplx(rng, nh, n2), cplx(rng, nh, n2)
+    a, b = yh.copy(), yh.copy()
+    KE.switch_slot(a, V, pp, pm, half_state_inverse(V2), pp2, pm2, omegas, 0.37,
+                   np.empty(n2, complex), np.empty(2 * n2))
+    KE.switch_slot_py(b, V, pp, pm, half_state_inverse(V2), pp2, pm2, omegas, 0.37,
+                      np.empty(n2, complex), np.empty(2 * n2))
+    agree(a, b, np.linalg.cond(np.hstack([V2.real, -V2.imag])) * scale)
+    # and the physical state is carried: Re(V2 (y_new + particular_new)) = Re(V (y + part))
+    ph = np.exp(1j * omegas * 0.37)
+    x_old = (V @ (yh + ph @ pp + ph.conj() @ pm)).real
+    x_new = (V2 @ (a + ph @ pp2 + ph.conj() @ pm2)).real
+    agree(x_new, x_old, np.linalg.cond(np.hstack([V2.real, -V2.imag])) * scale *
+          np.abs(V2).max())
+
+
+@pytest.mark.parametrize('n_rows', [1, 2])
+def test_impact_twin(rng, n_rows):
+    # impact() mutates a dozen arrays: the twin must leave every one of them equal (ULPS of
+    # the velocities and impulses involved), for closing and separating contacts, each
+    # sticking rule and the chatter cap.
+    n2 = 4
+    seen_stick = seen_bounce = 0
+    for trial in range(60):
+        X = rng.normal(size=(7, 2)) * [[1e-3], [1e-1], [1e2], [1], [1], [1], [1]]
+        fid = FN_PLANAR if n_rows == 2 else int(rng.integers(0, 2))
+        limit = 1e-3
+        direction = rng.normal(size=2)
+        direction /= np.linalg.norm(direction)
+        if n_rows == 1:
+            direction = np.array([1.0 if fid == FN_WALL_POS else -1.0, 0.0])
+        st = dict(
+            imp_mass=np.array([0.05]), imp_cor=np.array([rng.uniform(0, 1)]),
+            imp_limit=np.array([limit]),
+            imp_z=(X[0] + limit * direction)[None, :].copy(),
+            imp_v=(X[1] + rng.normal(size=2) * 0.1)[None, :].copy(),
+            imp_stuck=np.zeros(1, np.int64),
+            imp_normal=(direction if trial % 2 else np.zeros(2))[None, :].copy(),
+            imp_last_t=np.array([rng.uniform(0.0, 0.1)]),
+            imp_rel=np.zeros((1, 2)), imp_grace=np.zeros(1, np.int64),
+            count_step=np.array([int(rng.integers(0, 80))]))
+        if n_rows == 1:
+            st['imp_z'][0, 1] = st['imp_v'][0, 1] = 0.0
+        kick = cplx(rng, 2, n2)
+        mob = np.abs(rng.normal(size=(2, 2))) * 0.5
+        mob = mob @ mob.T
+        lawmob = mob * rng.uniform(0.5, 1.0)
+        rule = int(rng.integers(0, 3))
+        outs = []
+        for fn in (KE.impact, KE.impact_py):
+            s = {k: v.copy() for k, v in st.items()}
+            Xc = X.copy()
+            yh = np.zeros(n2, complex) + 1.0
+            ledger = np.zeros(5)
+            ev = [np.zeros(4), np.zeros(4, np.int64), np.zeros(4, np.int64), np.zeros((4, 2)),
+                  np.zeros(4), np.zeros(4), np.zeros(4), np.zeros((4, 2)),
+                  np.zeros(1, np.int64)]
+            info = np.zeros(4, np.int64)
+            r = fn(0, fid, n_rows, 0.1, Xc, yh, kick, mob, lawmob, s['imp_mass'],
+                   s['imp_cor'], s['imp_limit'], s['imp_z'], s['imp_v'], s['imp_stuck'],
+                   s['imp_normal'], s['imp_last_t'], s['imp_rel'], s['imp_grace'],
+                   s['count_step'], rule, 0.01, 64, ledger, *ev, info)
+            outs.append((r, s, Xc, yh, ledger, ev, info))
+        (r, s, Xc, yh, ledger, ev, info), (r2, s2, Xc2, yh2, ledger2, ev2, info2) = outs
+        assert r == r2
+        seen_stick += r == 1
+        seen_bounce += ev[2][0] == KE.EV_IMPACT
+        vscale = np.abs(X[1]).max() + np.abs(st['imp_v']).max()
+        for k in s:
+            agree(s[k], s2[k], np.abs(s[k]) + vscale)
+        agree(Xc, Xc2, np.abs(Xc) + vscale)
+        agree(yh, yh2, np.abs(kick).sum() * vscale * 0.1 + 1.0)
+        agree(ledger, ledger2, np.abs(ledger) + 0.05 * vscale ** 2)
+        for x, y in zip(ev, ev2):
+            agree(x, y, np.abs(x) + vscale + 0.05 * vscale ** 2)
+        np.testing.assert_array_equal(info, info2)
+    assert seen_stick >= 3 and seen_bounce >= 3
