@@ -805,3 +805,157 @@ def test_impact_twin(rng, n_rows):
             agree(x, y, np.abs(x) + vscale + 0.05 * vscale ** 2)
         np.testing.assert_array_equal(info, info2)
     assert seen_stick >= 3 and seen_bounce >= 3
+
+
+# ============================================================== search: twin and first root
+def sample_functions(sy, house, dims, stuck, z, v, limit, normal, S, n=1201):
+    """Every impactor's event functions sampled on ``[0, S]``: ``{(j, fid): (s, g)}``."""
+    s = np.linspace(0.0, S, n)
+    out = {}
+    for j in range(len(dims)):
+        fids = [FN_RELEASE] if stuck[j] else ([FN_WALL_POS, FN_WALL_NEG] if dims[j] == 1
+                                             else [FN_PLANAR])
+        for fid in fids:
+            g = np.empty(n)
+            for i, t in enumerate(s):
+                yd = sy.eval(t, 4)[3]
+                X = np.zeros((5, 2))
+                KF.row_derivs(house[j], dims[j], yd, 4, X)
+                g[i] = fn_values(fid, X, z[j], v[j], t, limit[j], normal[j])[0]
+            out[(j, fid)] = (s, g)
+    return out
+
+
+def search_args(sy, rng, P, S):
+    """Arguments of :func:`search` for three impactors on their own random housings (SDOF,
+    planar, stuck SDOF), placed so that an event inside the segment is likely but not sure;
+    allocated as :func:`advance` does."""
+    ni, n2, nf = 3, sy.n2, sy.nf
+    dims = np.array([1, 2, 1], np.int64)
+    stuck = np.array([0, 0, 1], np.int64)
+    house = np.zeros((ni, 2, n2), complex)
+    for j in range(ni):
+        house[j, :dims[j]] = cplx(rng, dims[j], n2) * 1e-3
+    z, v = np.zeros((ni, 2)), np.zeros((ni, 2))
+    limit = np.ones(ni)
+    normal = np.zeros((ni, 2))
+    xs = []
+    for t in np.linspace(0.0, S, 41):
+        yd = sy.eval(t, 4)[3]
+        X = np.zeros((ni, 5, 2))
+        for j in range(ni):
+            KF.row_derivs(house[j], dims[j], yd, 4, X[j])
+        xs.append(X)
+    xs = np.array(xs)  # (time, impactor, order, row)
+    for j in range(ni):
+        d = dims[j]
+        span = np.ptp(xs[:, j, 0, :d], axis=0).max() + 1e-12
+        if stuck[j]:
+            a0 = xs[0, j, 2, :d]
+            normal[j, :d] = -a0 / np.linalg.norm(a0)
+            continue
+        limit[j] = rng.uniform(0.3, 1.5) * span
+        z[j, :d] = xs[0, j, 0, :d] + rng.uniform(-0.3, 0.3, d) * limit[j] / np.sqrt(d)
+        v[j, :d] = xs[0, j, 1, :d] * rng.uniform(0.0, 1.0)
+    args = dict(
+        t_cur=sy.t0, horizon=S * rng.choice([0.5, 1.0, 3.0]), yh=sy.yh, lam=sy.lam,
+        lam_max=sy.lam_max, W=sy.W, w0=sy.w0, ws=sy.ws, part_plus=sy.pp, part_minus=sy.pm,
+        omegas=sy.omegas, amps=sy.amps, u0=sy.u0, us=sy.us, house=house,
+        house_abs=np.abs(house), imp_rep=np.arange(ni, dtype=np.int64), imp_dim=dims,
+        imp_z=z, imp_v=v, imp_limit=limit, imp_stuck=stuck,
+        imp_grace=rng.integers(0, 2, ni).astype(np.int64), release_n=normal, P=P,
+        yh_tau=np.zeros(n2, complex), y_tau=np.zeros(n2, complex),
+        uder=np.zeros((P + 5, nf)), yd=np.zeros((P + 5, n2), complex),
+        Xs=np.zeros((ni + 1, P + 5, 2)), ybound=np.zeros((P + 6, n2)), u_abs=np.zeros(nf),
+        us_abs=np.zeros(nf), ub=np.zeros((P + 6, nf)), wu=np.zeros(P + 6),
+        exc=np.zeros(n2), Eb=np.zeros((ni + 1, P + 6)), reach=np.zeros(ni + 1),
+        cand_j=np.zeros(2 * ni + 1, np.int64), cand_fid=np.zeros(2 * ni + 1, np.int64),
+        cand_s0=np.zeros(2 * ni + 1), cand_shift=np.zeros(2 * ni + 1),
+        cand_lv=np.zeros(2 * ni + 1, np.int64), cand_out=np.zeros((2 * ni + 1, 3)),
+        active=np.zeros(2 * ni + 1, np.bool_), shifts=np.zeros(2 * ni + 1),
+        rwork=np.zeros((2, P + 6)), coef=np.zeros(P + 6), pwork=np.zeros(3 * (P + 6) + 6),
+        root_out=np.zeros(3), scan_result=np.zeros(2),
+        counters=np.zeros(KE.N_COUNTERS, np.int64), result=np.zeros(4))
+    return args
+
+
+def run_search(fn, args):
+    a = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in args.items()}
+    ret = fn(*a.values())
+    return ret, a
+
+
+def test_search_twin_and_first_root(rng):
+    # The whole four-stage search, compiled and as Python (whose stages are the compiled
+    # kernels): the same return value, event (impactor, function, state flag) and counters,
+    # the event time to 8 ulps of t and the state at the event to ULPS. Then the answer
+    # against the truth: every event function sampled at 1201 points of the segment and its
+    # first sign change refined by brentq on the flow; the search must report the earliest
+    # one (impactor and function) at the same time to 1e-12 of the segment plus the root's
+    # round-off (64 ulps of g's terms over |g'|), or no event when no sample is <= 0.
+    from scipy.optimize import brentq
+    P = 6
+    stats = dict(found=0, none=0, fallback=0, certified=0)
+    for trial in range(24):
+        sy = System(rng, n2=4, nh=1)
+        S = KE.SEGMENT_REACH / sy.lam_max
+        args = search_args(sy, rng, P, S)
+        ret, a = run_search(KE.search, args)
+        ret_py, a_py = run_search(KE.search_py, args)
+        assert ret == ret_py
+        np.testing.assert_array_equal(a['counters'], a_py['counters'])
+        np.testing.assert_array_equal(a['result'][1:], a_py['result'][1:])
+        assert abs(a['result'][0] - a_py['result'][0]) <= 8 * EPS * (sy.t0 + S)
+        res = a['result']
+        if res[3] == 1.0:
+            agree(a['yh_tau'], sy.eval(res[0], 0)[0], sy.scale(0)[0])
+        stats['fallback'] += a['counters'][KE.CNT_FALLBACK] > 0
+        # the truth on [0, min(S, horizon)]
+        end = min(S, args['horizon'])
+        shifts = {}
+        for j in range(3):
+            if args['imp_grace'][j]:
+                X = a['Xs'][j]  # the site's rows at the start (stage 1)
+                fid = FN_RELEASE if args['imp_stuck'][j] else (
+                    FN_WALL_POS if args['imp_dim'][j] == 1 else FN_PLANAR)
+                for f in ((fid, FN_WALL_NEG) if fid == FN_WALL_POS else (fid,)):
+                    shifts[(j, f)] = KE.grace_shift(f, X, args['imp_limit'][j])
+        samples = sample_functions(sy, args['house'], args['imp_dim'], args['imp_stuck'],
+                                   args['imp_z'], args['imp_v'], args['imp_limit'],
+                                   args['release_n'], end)
+        best = (np.inf, None)
+        for key, (s, g) in samples.items():
+            j, fid = key
+            g = g + shifts.get(key, 0.0)
+            if g[0] <= 0:
+                best = min(best, (0.0, key))  # on the wall now (or leaving: skip below)
+                continue
+            hit = np.flatnonzero(g <= 0)
+            if hit.size:
+                i = hit[0]
+
+                def fun(t, j=j, fid=fid, key=key):
+                    return true_event(sy_site(sy, args['house'][j]), fid, t, args['imp_z'][j],
+                                      args['imp_v'][j], args['imp_limit'][j],
+                                      args['release_n'][j], shifts.get(key, 0.0))
+                t = brentq(fun, s[i - 1], s[i], xtol=1e-16, rtol=4 * EPS)
+                best = min(best, (t, key))
+        if best[1] is None or (best[0] == 0.0):
+            if best[1] is None:
+                assert res[1] < 0, (trial, res)
+                stats['none'] += 1
+            continue
+        t_ref, (j, fid) = best
+        assert (int(res[1]), int(res[2])) == (j, fid), (trial, res, best)
+        assert abs(res[0] - t_ref) <= 1e-12 * S, (trial, res[0], t_ref)
+        stats['found'] += 1
+        stats['certified'] += a['counters'][KE.CNT_FALLBACK] == 0
+    assert stats['found'] >= 5 and stats['none'] >= 3 and stats['certified'] >= 3, stats
+
+
+def sy_site(sy, house_rows):
+    """``sy`` seen through another impactor's housing rows (for :func:`true_event`)."""
+    view = object.__new__(System)
+    view.__dict__.update(sy.__dict__)
+    view.rows = house_rows
+    return view
