@@ -959,3 +959,96 @@ def sy_site(sy, house_rows):
     view.__dict__.update(sy.__dict__)
     view.rows = house_rows
     return view
+
+
+# ============================================================== 3. grazing runs
+def near_graze_sdof(delta, dt, taylor_order=exact_mod.TAYLOR_ORDER):
+    """Housing x = A cos(w t) at 200 Hz, impactor at rest, its + wall overlapped by ``delta``
+    (m) at the housing's lowest point ``t = pi/w`` (``delta < 0``: missed by ``-delta``).
+
+    Returns the propagator after 8 periods, its events and the closed-form first contact
+    ``t* = (pi - psi)/w`` with ``sin(psi/2) = sqrt(delta/(2A))`` (well conditioned).
+    """
+    M, A, limit = 2.0, 0.5e-6, 1e-3
+    w = 2 * np.pi * 200.0
+    model = sdof_model(M, w * w * M, 0.0, dict(name='i', kind='sdof', mass=1e-3, cor=0.5,
+                                               clearance=2 * limit,
+                                               position=[limit - 2 * A + delta]))
+    prop = ExactPropagator(model, Forcing(1), dt=dt, q0=[np.sqrt(M) * A], stick_rule='none',
+                           taylor_order=taylor_order)
+    prop.advance(int(round(0.04 / dt)))
+    t_star = (np.pi - 2 * np.arcsin(np.sqrt(max(delta, 0.0) / (2 * A)))) / w
+    return prop, prop.take_events(), t_star, (A, w)
+
+
+@pytest.mark.parametrize('dt,order', [(2e-2, 6), (2e-4, 6), (2e-2, 2), (2e-2, 12)])
+def test_dip_below_the_taylor_remainder_is_caught(dt, order):
+    # The wall is overlapped by 1e-13 m (2e-7 of the housing's 0.5 um amplitude) for 0.8 us
+    # per period, and both ends of every output step (4 periods at dt = 20 ms) have a positive
+    # gap. For Taylor degrees 2 and 6 the dip is below the model's remainder over a segment,
+    # A (1.5)^(P+1)/(P+1)! (1.7e-9 m at P = 6), so it cannot be certified from the Taylor
+    # model; at P = 12 (1.6e-14 m) it can. The first impact must be at the closed-form time
+    # to 1e-11 s (the gap's round-off, 1e-19 m, over its slope A w psi = 4e-7 m/s, is
+    # 5e-13 s), with any output step (20 ms and 0.2 ms) and any degree.
+    delta = 1e-13
+    prop, ev, t_star, (A, w) = near_graze_sdof(delta, dt, order)
+    remainder = A * 1.5 ** (order + 1) / np.prod(np.arange(2.0, order + 2))
+    assert (delta < remainder) == (order <= 6)
+    assert ev.size >= 1 and ev['kind'][0] == IMPACT
+    assert abs(ev['t'][0] - t_star) < 1e-11, (ev['t'][0], t_star)
+    # a real (tiny) closing velocity, as the closed form says: A w sin(psi)
+    psi = np.pi - w * t_star
+    assert ev['v_n'][0] == pytest.approx(A * w * np.sin(psi), rel=1e-3)
+
+
+@pytest.mark.parametrize('dt', [2e-2, 2e-4])
+def test_near_miss_by_less_than_the_remainder_is_no_impact(dt):
+    # The mirror case: the wall missed by 1e-13 m at each of 8 lowest points. No event at all
+    # (a false contact would be an impact with a non-positive closing velocity).
+    prop, ev, _, _ = near_graze_sdof(-1e-13, dt)
+    assert ev.size == 0
+    assert prop.grazing_undecided == 0
+
+
+def whirl(delta, dt=2e-3, periods=3):
+    """Planar housing whirling on a circle of radius A (x_h = A (cos wt, sin wt)), impactor at
+    rest at (p, 0) with p + A = c + delta: the impactor's relative path is a circle
+    internally tangent to the housing's wall (delta = 0); it crosses the wall by ``delta``
+    (m) at t = pi/w. Closed form: |r|^2 = p^2 + A^2 - 2 p A cos(wt) = c^2 at
+    t* = (pi - psi)/w, sin^2(psi/2) = delta (2c + delta)/(4 p A)."""
+    M, Kst, c = 2.0, 5e4, 1e-3
+    A = 0.3 * c
+    p = 0.7 * c + delta
+    w = np.sqrt(Kst / M)
+    model = planar_model(M, Kst, 0.0, dict(name='p', kind='planar', mass=1e-3, cor=0.5,
+                                           clearance=c, position=[p - A, 0.0],
+                                           velocity=[0.0, 0.0]))
+    prop = ExactPropagator(model, Forcing(2), dt=dt, q0=np.sqrt(M) * np.array([A, 0.0]),
+                           qd0=np.sqrt(M) * np.array([0.0, A * w]), stick_rule='none')
+    prop.advance(int(round(periods * 2 * np.pi / w / dt)))
+    s2 = max(delta, 0.0) * (2 * c + delta) / (4 * p * A)
+    t_star = (np.pi - 2 * np.arcsin(np.sqrt(s2))) / w
+    return prop, prop.take_events(), t_star, (A, p, w, c)
+
+
+def test_tangential_graze_of_a_cylindrical_impactor():
+    # delta = 1e-12 m: contact along the wall with a normal velocity 5e-5 of the sliding one.
+    # The impact time to 1e-11 s (round-off of c^2 - |r|^2, 2e-22 m^2, over its slope
+    # 2 p A w sin(psi), 6.5e-9 m^2/s: 3e-14 s), the normal along the line of centres to
+    # 1e-6 rad (the contact point's angle is psi A/c from the x axis).
+    prop, ev, t_star, (A, p, w, c) = whirl(1e-12)
+    assert ev.size >= 1 and ev['kind'][0] == IMPACT
+    assert abs(ev['t'][0] - t_star) < 1e-11, (ev['t'][0], t_star)
+    theta = w * t_star
+    r = np.array([p - A * np.cos(theta), -A * np.sin(theta)])
+    np.testing.assert_allclose(ev['normal'][0], r / np.linalg.norm(r), atol=1e-6)
+    # the normal closing speed of the closed form: d|r|/dt = p A w sin(wt)/|r|
+    assert ev['v_n'][0] == pytest.approx(p * A * w * np.sin(theta) / c, rel=1e-3)
+
+
+def test_tangential_near_miss_of_a_cylindrical_impactor():
+    # delta = -1e-12 m: the relative circle stays 1e-12 m inside the wall for 3 periods
+    # (tangent to it within 1e-9 of the clearance): no event.
+    prop, ev, _, _ = whirl(-1e-12)
+    assert ev.size == 0
+    assert prop.grazing_undecided == 0
