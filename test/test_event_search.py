@@ -1052,3 +1052,81 @@ def test_tangential_near_miss_of_a_cylindrical_impactor():
     prop, ev, _, _ = whirl(-1e-12)
     assert ev.size == 0
     assert prop.grazing_undecided == 0
+
+
+def release_graze(eta, dt=1e-3, t_end=0.2):
+    """A stuck SDOF impactor whose release function touches zero.
+
+    The housing (M = 2 kg, K = 5e4 N/m, with the stuck impactor m = 0.02 kg) is driven at
+    W and 2W so that its stuck steady state has ``f = -a_h = S (cos phi - (1 + eta) cos 2 phi)``
+    with ``phi = W t - pi/2``: pressed at the start (f = S (1 + eta)), a local minimum
+    ``-eta S`` at ``phi = 0``, a true crossing near ``phi = 2 pi/3``. The run starts on that
+    steady state, the impactor resting on the + wall at the housing's velocity (it sticks at
+    once, cor = 0). Closed forms of the roots of ``2 a c^2 - c - a = 0``, ``c = cos phi``,
+    ``a = 1 + eta``: the dip's first root ``1 - c = 2 eta/(4a - 1 + sqrt(1 + 8a^2))`` (well
+    conditioned), the later one ``c = (1 - sqrt(1 + 8a^2))/(4a)``.
+    """
+    M, Kst, m, S, limit = 2.0, 5e4, 0.02, 10.0, 1e-3
+    Mt = M + m
+    W = 0.3 * np.sqrt(Kst / Mt)
+    a = 1.0 + eta
+    phi0 = -np.pi / 2
+    F1 = (Kst - Mt * W ** 2) * S / W ** 2
+    F2 = -(Kst - 4 * Mt * W ** 2) * a * S / (4 * W ** 2)
+    forcing = Forcing(1, [Harmonic(0, F1, W, phi0), Harmonic(0, F2, 2 * W, 2 * phi0)])
+    x0 = a * S / (4 * W ** 2)   # x_p(0): cos(phi0) = 0, cos(2 phi0) = -1
+    v0 = S / W                  # x_p'(0): sin(phi0) = -1, sin(2 phi0) = 0
+    model = sdof_model(M, Kst, 0.0, dict(name='i', kind='sdof', mass=m, cor=0.0,
+                                         clearance=2 * limit, position=[limit],
+                                         velocity=[v0]))
+    prop = ExactPropagator(model, forcing, dt=dt, q0=[np.sqrt(M) * x0],
+                           qd0=[np.sqrt(M) * v0])
+    prop.advance(int(round(t_end / dt)))
+    ev = prop.take_events()
+    root = np.sqrt(1 + 8 * a * a)
+    one_minus_c = 2 * eta / (4 * a - 1 + root)
+    phi_dip = -2 * np.arcsin(np.sqrt(one_minus_c / 2)) if eta > 0 else np.nan
+    phi_cross = np.arccos((1 - root) / (4 * a))
+    times = ((phi_dip - phi0) / W, (phi_cross - phi0) / W)
+
+    def f(t):  # the release function and its slope (m/s^2, m/s^3)
+        ph = W * t + phi0
+        return S * (np.cos(ph) - a * np.cos(2 * ph)), S * W * (-np.sin(ph) + 2 * a *
+                                                                np.sin(2 * ph))
+    return prop, ev, times, f, np.sqrt(Kst / Mt)
+
+
+def _release_tolerance(ev, f, t, w_s):
+    """1e-11 s plus the time shift of the stuck steady state by the start's micro-impacts:
+    they change the housing velocity by sum |v_h_jump|, a free vibration whose acceleration
+    (w_s times that) moves the root by itself over the slope |f'(t)|."""
+    jumps = np.abs(ev['v_h_jump'][ev['t'] < 1e-6]).sum()
+    return 1e-11 + 2 * w_s * jumps / abs(f(t)[1])
+
+
+@pytest.mark.parametrize('eta', [1e-4, 1e-7])
+def test_release_function_dipping_below_zero_releases_at_the_dip(eta):
+    # The contact force dips to -eta S for 2 sqrt(2 eta/3)/(2 pi) of a forcing period (0.8 %
+    # and 0.03 %, 11 us). The release must be at the dip's first root (closed form), to
+    # 1e-11 s plus the start's perturbation (see _release_tolerance; measured 0 here: the
+    # impactor starts exactly on the wall at the housing's velocity).
+    prop, ev, (t_dip, t_cross), f, w_s = release_graze(eta)
+    assert abs(f(t_dip)[0]) < 1e-12 * 10.0 and abs(f(t_cross)[0]) < 1e-12 * 10.0
+    kinds = ev['kind']
+    assert kinds[kinds != IMPACT][0] == STICK and ev['t'][kinds == STICK][0] < 1e-6
+    rel = ev['t'][kinds == RELEASE]
+    assert rel.size >= 1
+    assert abs(rel[0] - t_dip) <= _release_tolerance(ev, f, t_dip, w_s), (rel[0], t_dip)
+
+
+@pytest.mark.parametrize('eta', [-1e-6, -1e-9])
+def test_release_function_touching_zero_does_not_release(eta):
+    # The contact force comes down to +|eta| S (1e-5 and 1e-8 m/s^2, against 10 m/s^2) and
+    # rises again: no release there; the release is at the later true crossing (closed
+    # form, same tolerance).
+    prop, ev, (_, t_cross), f, w_s = release_graze(eta)
+    kinds = ev['kind']
+    assert kinds[kinds != IMPACT][0] == STICK and ev['t'][kinds == STICK][0] < 1e-6
+    rel = ev['t'][kinds == RELEASE]
+    assert rel.size >= 1
+    assert abs(rel[0] - t_cross) <= _release_tolerance(ev, f, t_cross, w_s), (rel[0], t_cross)
