@@ -1233,3 +1233,41 @@ def test_planar_stick_lasts_longer_than_an_instant():
                                (np.arange(k.size) > i))
         if later.size:
             assert t[later[0]] - t[i] > 1e-9, (t[i], ev['impactor'][i])
+
+
+# ============================================================== whole runs of the exact twins
+EXACT_KERNELS = ('grace_shift', 'fn_taylor', 'near_eval', 'refine_root', 'third_bound',
+                 'out_of_reach', 'search', 'switch_slot', 'release_normals', 'record',
+                 'impact', 'advance')
+
+
+def _scenario(name):
+    if name == 'dip':  # a graze below the Taylor remainder: the fallback scan
+        prop, ev, _, _ = near_graze_sdof(1e-13, 2e-2)
+    elif name == 'release':  # a release at a dip of the contact force
+        prop, ev, _, _, _ = release_graze(1e-7, t_end=0.05)
+    else:  # impacts, sticks, releases and in-kernel switches of 3 impactors
+        prop, _, ev = run_scene(steps=60)
+    q, qd = prop.state()
+    return ev, np.concatenate([q, qd]), prop.work_counters()
+
+
+@pytest.mark.parametrize('name', ['dip', 'release', 'table'])
+def test_exact_kernels_twins_on_whole_runs(monkeypatch, name):
+    # Every kernel of kernels/exact.py replaced by its Python twin (they call each other
+    # through the module, so advance_py runs search_py, impact_py, ...; the flow, poly, scan
+    # and ledger kernels stay compiled) on three short runs that reach every stage: Taylor
+    # certificates, the fallback scan, Newton refinement, sticking, releases, in-kernel
+    # switches. Against the compiled run: the same events (kind, impactor) and work counters,
+    # event times to 1e-15 s (a few ulps of t; the runs stop before the planar bounce-downs
+    # that amplify round-off, see the table test) and the final state to 1e-12 relative.
+    ev, state, work = _scenario(name)
+    for k in EXACT_KERNELS:
+        monkeypatch.setattr(KE, k, getattr(KE, k + '_py'))
+    ev_py, state_py, work_py = _scenario(name)
+    monkeypatch.undo()
+    assert ev.size >= 1 and work == work_py
+    np.testing.assert_array_equal(ev_py['kind'], ev['kind'])
+    np.testing.assert_array_equal(ev_py['impactor'], ev['impactor'])
+    np.testing.assert_allclose(ev_py['t'], ev['t'], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(state_py, state, rtol=0, atol=1e-12 * np.abs(state).max())
