@@ -407,6 +407,12 @@ def test_certified_first_root_respects_s_start_and_a_negative_start():
     assert out[0] <= 1.0 <= out[1] and out[1] - out[0] < 1e-4
     assert KP.certified_first_root(np.array([-1e-3, -1.0, 0.0]), 2, 1e-6, 3e-6, 2.0, 0.0, work,
                                    out) == KP.ROOT_UNDECIDED
+    # Three roots (0.5, 0.52, 0.54) inside a remainder K s^4 = 1.28e-3 s^4: a function within
+    # it may have its first root anywhere in about [0.45, 0.6] and is not monotone there, so
+    # no bracket can be certified (the value tests alone would pass on [0, 1]).
+    a = -np.polynomial.polynomial.polyfromroots([0.5, 0.52, 0.54])
+    K = 1.28e-3
+    assert KP.certified_first_root(a, 3, K, 4 * K, 1.0, 0.0, work, out) == KP.ROOT_UNDECIDED
 
 
 # ============================================================== 2. properties: flow bounds
