@@ -1277,3 +1277,47 @@ def test_exact_kernels_twins_on_whole_runs(monkeypatch, name):
     np.testing.assert_array_equal(ev_py['impactor'], ev['impactor'])
     np.testing.assert_allclose(ev_py['t'], ev['t'], rtol=0, atol=1e-15)
     np.testing.assert_allclose(state_py, state, rtol=0, atol=1e-12 * np.abs(state).max())
+
+
+def test_search_refines_an_overlapping_bracket_with_the_earlier_root(rng):
+    # Two SDOF impactors on the same housing row reach their + walls 1e-7 apart in time; the
+    # earlier one closes 10x slower, so its certified bracket is about 10x wider and ends
+    # later: "earliest bracket end" picks the wrong one. The search must refine every bracket
+    # overlapping the best one and report the earlier root (impactor 0) at its time, to 1e-3
+    # of the separation; the precondition (both certified, overlapping, impactor 2's bracket
+    # ending first) is checked on the search's own candidate table.
+    from scipy.optimize import brentq
+    P = 6
+    sy = System(rng, n2=4, nh=1)
+    S = KE.SEGMENT_REACH / sy.lam_max
+    args = search_args(sy, rng, P, S)
+    house = args['house']
+    house[2] = house[0]
+    args['house_abs'] = np.abs(house)
+    args['imp_stuck'][:] = 0
+    args['imp_grace'][:] = 0
+    args['horizon'] = S
+    args['imp_limit'][1] = 1e3  # the planar one stays out of reach
+    s = np.linspace(0.0, S, 401)
+    x = np.array([(house[0, 0] @ sy.eval(t, 0)[1]).real for t in s])
+    xd = np.array([(house[0, 0] @ sy.eval(t, 1)[3][1]).real for t in s])
+    x_at = lambda t: (house[0, 0] @ sy.eval(t, 0)[1]).real  # noqa: E731
+    r_a = 0.3 * S
+    r_b = r_a * (1 + 1e-7)
+    u = np.abs(xd).max()
+    for j, (r, speed) in ((0, (r_a, 0.2 * u)), (2, (r_b, 2.0 * u))):
+        args['imp_z'][j] = [x[0], 0.0]
+        args['imp_v'][j] = [u + speed, 0.0]   # closing at >= speed throughout: one root
+        args['imp_limit'][j] = x[0] + (u + speed) * r - x_at(r)
+    _, a = run_search(KE.search, args)
+    out = a['cand_out']
+    cj = a['cand_j']
+    rows = {int(cj[c]): out[c] for c in range(2) if out[c, 0] >= 0}
+    assert set(rows) == {0, 2}, out
+    assert rows[2][1] < rows[0][1] and rows[0][0] < rows[2][1], rows
+    res = a['result']
+    assert int(res[1]) == 0 and int(res[2]) == FN_WALL_POS, res
+    g = lambda t: true_event(sy_site(sy, house[0]), FN_WALL_POS, t, args['imp_z'][0],  # noqa
+                             args['imp_v'][0], args['imp_limit'][0], np.zeros(2))
+    t_ref = brentq(g, 0.5 * r_a, 1.5 * r_a, xtol=1e-18, rtol=4 * EPS)
+    assert abs(res[0] - t_ref) <= 1e-3 * (r_b - r_a), (res[0], t_ref, r_b)
