@@ -987,7 +987,8 @@ def near_graze_sdof(delta, dt, taylor_order=exact_mod.TAYLOR_ORDER):
     return prop, prop.take_events(), t_star, (A, w)
 
 
-@pytest.mark.parametrize('dt,order', [(2e-2, 6), (2e-4, 6), (2e-2, 2), (2e-2, 12)])
+@pytest.mark.parametrize('dt,order', [(2e-2, 6), (2e-4, 6), (2e-2, 2), (2e-2, 12),
+                                      (2.5e-3, 6), (2.5e-3 - 2e-7, 6)])
 def test_dip_below_the_taylor_remainder_is_caught(dt, order):
     # The wall is overlapped by 1e-13 m (2e-7 of the housing's 0.5 um amplitude) for 0.8 us
     # per period, and both ends of every output step (4 periods at dt = 20 ms) have a positive
@@ -995,7 +996,9 @@ def test_dip_below_the_taylor_remainder_is_caught(dt, order):
     # A (1.5)^(P+1)/(P+1)! (1.7e-9 m at P = 6), so it cannot be certified from the Taylor
     # model; at P = 12 (1.6e-14 m) it can. The first impact must be at the closed-form time
     # to 1e-11 s (the gap's round-off, 1e-19 m, over its slope A w psi = 4e-7 m/s, is
-    # 5e-13 s), with any output step (20 ms and 0.2 ms) and any degree.
+    # 5e-13 s), with any output step (20 ms and 0.2 ms; 2.5 ms, a step end at the lowest
+    # point; 2.5 ms - 0.2 us, a step end inside the 1 us overlap, its gap negative) and any
+    # degree.
     delta = 1e-13
     prop, ev, t_star, (A, w) = near_graze_sdof(delta, dt, order)
     remainder = A * 1.5 ** (order + 1) / np.prod(np.arange(2.0, order + 2))
@@ -1007,7 +1010,7 @@ def test_dip_below_the_taylor_remainder_is_caught(dt, order):
     assert ev['v_n'][0] == pytest.approx(A * w * np.sin(psi), rel=1e-3)
 
 
-@pytest.mark.parametrize('dt', [2e-2, 2e-4])
+@pytest.mark.parametrize('dt', [2e-2, 2e-4, 2.5e-3])
 def test_near_miss_by_less_than_the_remainder_is_no_impact(dt):
     # The mirror case: the wall missed by 1e-13 m at each of 8 lowest points. No event at all
     # (a false contact would be an impact with a non-positive closing velocity).
