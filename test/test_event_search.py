@@ -1040,12 +1040,17 @@ def whirl(delta, dt=2e-3, periods=3):
     return prop, prop.take_events(), t_star, (A, p, w, c)
 
 
-def test_tangential_graze_of_a_cylindrical_impactor():
-    # delta = 1e-12 m: contact along the wall with a normal velocity 5e-5 of the sliding one.
-    # The impact time to 1e-11 s (round-off of c^2 - |r|^2, 2e-22 m^2, over its slope
-    # 2 p A w sin(psi), 6.5e-9 m^2/s: 3e-14 s), the normal along the line of centres to
-    # 1e-6 rad (the contact point's angle is psi A/c from the x axis).
-    prop, ev, t_star, (A, p, w, c) = whirl(1e-12)
+HALF_TURN = np.pi / np.sqrt(5e4 / 2.0)  # whirl's deepest point (s)
+
+
+@pytest.mark.parametrize('dt', [2e-3, HALF_TURN, HALF_TURN - 3e-7])
+def test_tangential_graze_of_a_cylindrical_impactor(dt):
+    # delta = 1e-12 m: contact along the wall with a normal velocity 5e-5 of the sliding one,
+    # overlapping for 1.2 us (steps of 2 ms, a step end at the deepest point, a step end
+    # inside the overlap). The impact time to 1e-11 s (round-off of c^2 - |r|^2, 2e-22 m^2,
+    # over its slope 2 p A w sin(psi), 6.5e-9 m^2/s: 3e-14 s), the normal along the line of
+    # centres to 1e-6 rad (the contact point's angle is psi A/c from the x axis).
+    prop, ev, t_star, (A, p, w, c) = whirl(1e-12, dt)
     assert ev.size >= 1 and ev['kind'][0] == IMPACT
     assert abs(ev['t'][0] - t_star) < 1e-11, (ev['t'][0], t_star)
     theta = w * t_star
