@@ -1019,6 +1019,28 @@ def test_near_miss_by_less_than_the_remainder_is_no_impact(dt):
     assert prop.grazing_undecided == 0
 
 
+@pytest.mark.parametrize('order', [2, 6])
+def test_free_flight_between_walls_leaves_each_wall_and_meets_the_next(order):
+    # A housing of 1e12 kg (it moves by 1e-13 of the impactor's speed) and an impactor bouncing
+    # between its walls with e = 0.8: after each impact the search starts on the wall it
+    # leaves (g = 0, g' > 0, the "leaving" polynomial g/s) and must find the opposite wall
+    # after a flight of D / (v e^k): closed-form times to 1e-12 s over 8 impacts, alternating
+    # walls, normal speeds e^k to 1e-9.
+    e, D, v = 0.8, 2e-3, 1.0
+    model = sdof_model(1e12, 1e16, 0.0, dict(name='i', kind='sdof', mass=0.1, cor=e,
+                                             clearance=D, velocity=[v]))
+    prop = ExactPropagator(model, Forcing(1), dt=1e-3, stick_rule='none', taylor_order=order)
+    prop.advance(40)
+    ev = prop.take_events()
+    ev = ev[ev['kind'] == IMPACT][:8]
+    assert ev.size == 8
+    speeds = v * e ** np.arange(8)
+    t_ref = D / 2 / v + np.concatenate([[0.0], np.cumsum(D / speeds[1:])])
+    np.testing.assert_allclose(ev['t'], t_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ev['v_n'], speeds, rtol=1e-9)
+    np.testing.assert_array_equal(ev['normal'][:, 0], [1.0, -1.0] * 4)
+
+
 def whirl(delta, dt=2e-3, periods=3):
     """Planar housing whirling on a circle of radius A (x_h = A (cos wt, sin wt)), impactor at
     rest at (p, 0) with p + A = c + delta: the impactor's relative path is a circle
