@@ -1375,3 +1375,26 @@ def test_search_refines_an_overlapping_bracket_with_the_earlier_root(rng):
                              args['imp_v'][0], args['imp_limit'][0], np.zeros(2))
     t_ref = brentq(g, 0.5 * r_a, 1.5 * r_a, xtol=1e-18, rtol=4 * EPS)
     assert abs(res[0] - t_ref) <= 1e-3 * (r_b - r_a), (res[0], t_ref, r_b)
+
+
+def test_derivative_bounds_from_a_later_start(rng):
+    # The scan calls derivative_bounds from tau > 0 (the hold part at tau, the held input
+    # W u = w0 + ws t still measured from the interval start): the bounds must dominate
+    # |d^m y/dt^m| on [tau, Th] (801 samples, 1e-12 slack) for m <= 5, and the twin agree.
+    for _ in range(6):
+        sy = System(rng, nh=2)
+        tau, Th = 1e-3, 1e-3 + KE.SEGMENT_REACH / sy.lam_max
+        order = 5
+        yh_tau = sy.eval(tau, 0)[0]
+        u_abs = np.maximum(np.abs(sy.u0 + sy.us * tau), np.abs(sy.u0 + sy.us * Th))
+        outs = []
+        for fn in (KF.derivative_bounds, KF.derivative_bounds_py):
+            out = np.empty((order + 1, sy.n2))
+            fn(yh_tau, sy.lam, sy.W, sy.pp, sy.pm, sy.w0, sy.ws, tau, Th, u_abs, np.abs(sy.us),
+               sy.omegas, sy.amps, order, np.empty((order + 1, sy.nf)), np.empty(order + 1),
+               out)
+            outs.append(out)
+        agree(outs[0], outs[1], outs[1], 8)
+        for t in np.linspace(tau, Th, 801):
+            yd = sy.eval(t, order)[3]
+            assert np.all(np.abs(yd) <= outs[0] * (1 + 1e-12))
