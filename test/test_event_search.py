@@ -476,7 +476,7 @@ def taylor_case(rng, fid, P=6):
     """A random system with an event function of kind ``fid`` positive at the start."""
     sy = System(rng, nh=2)
     S = KE.SEGMENT_REACH / sy.lam_max
-    X, Eb, reach, exc, ybound = site_setup(sy, P, S, stuck=fid == FN_RELEASE)
+    X, Eb, _, _, _ = site_setup(sy, P, S, stuck=fid == FN_RELEASE)
     move = Eb[1] * S + 1e-12
     z = np.zeros(2)
     v = np.zeros(2)
@@ -599,6 +599,7 @@ def test_near_eval_matches_point_eval_to_its_truncation_error(rng):
         agree(yd_n, yd_p, sc)
         yh_t, y_t, yd_t = near_step(sy, s, d, KE.near_eval_py)
         agree(yh_n, yh_t, sc[0], 8)
+        agree(y_n, y_t, sc[0], 8)
         agree(yd_n, yd_t, sc, 8)
         errs = []
         for reach in (0.04, 0.02):
@@ -1000,7 +1001,7 @@ def test_dip_below_the_taylor_remainder_is_caught(dt, order):
     # point; 2.5 ms - 0.2 us, a step end inside the 1 us overlap, its gap negative) and any
     # degree.
     delta = 1e-13
-    prop, ev, t_star, (A, w) = near_graze_sdof(delta, dt, order)
+    _, ev, t_star, (A, w) = near_graze_sdof(delta, dt, order)
     remainder = A * 1.5 ** (order + 1) / np.prod(np.arange(2.0, order + 2))
     assert (delta < remainder) == (order <= 6)
     assert ev.size >= 1 and ev['kind'][0] == IMPACT
@@ -1072,7 +1073,7 @@ def test_tangential_graze_of_a_cylindrical_impactor(dt):
     # inside the overlap). The impact time to 1e-11 s (round-off of c^2 - |r|^2, 2e-22 m^2,
     # over its slope 2 p A w sin(psi), 6.5e-9 m^2/s: 3e-14 s), the normal along the line of
     # centres to 1e-6 rad (the contact point's angle is psi A/c from the x axis).
-    prop, ev, t_star, (A, p, w, c) = whirl(1e-12, dt)
+    _, ev, t_star, (A, p, w, c) = whirl(1e-12, dt)
     assert ev.size >= 1 and ev['kind'][0] == IMPACT
     assert abs(ev['t'][0] - t_star) < 1e-11, (ev['t'][0], t_star)
     theta = w * t_star
@@ -1146,7 +1147,7 @@ def test_release_function_dipping_below_zero_releases_at_the_dip(eta):
     # and 0.03 %, 11 us). The release must be at the dip's first root (closed form), to
     # 1e-11 s plus the start's perturbation (see _release_tolerance; measured 0 here: the
     # impactor starts exactly on the wall at the housing's velocity).
-    prop, ev, (t_dip, t_cross), f, w_s = release_graze(eta)
+    _, ev, (t_dip, t_cross), f, w_s = release_graze(eta)
     assert abs(f(t_dip)[0]) < 1e-12 * 10.0 and abs(f(t_cross)[0]) < 1e-12 * 10.0
     kinds = ev['kind']
     assert kinds[kinds != IMPACT][0] == STICK and ev['t'][kinds == STICK][0] < 1e-6
@@ -1160,7 +1161,7 @@ def test_release_function_touching_zero_does_not_release(eta):
     # The contact force comes down to +|eta| S (1e-5 and 1e-8 m/s^2, against 10 m/s^2) and
     # rises again: no release there; the release is at the later true crossing (closed
     # form, same tolerance).
-    prop, ev, (_, t_cross), f, w_s = release_graze(eta)
+    _, ev, (_, t_cross), f, w_s = release_graze(eta)
     kinds = ev['kind']
     assert kinds[kinds != IMPACT][0] == STICK and ev['t'][kinds == STICK][0] < 1e-6
     rel = ev['t'][kinds == RELEASE]
@@ -1257,10 +1258,10 @@ def test_events_do_not_depend_on_the_taylor_degree():
     # three impactors, sticks, releases): the same sequence, times to 1e-13 s (the refinement
     # stops within 4 ulps of t, then the bounce-downs amplify; see the table test), samples
     # to 1e-12 of their peak.
-    ref, s_ref, ev_ref = run_scene(steps=100)
+    _, s_ref, ev_ref = run_scene(steps=100)
     assert {IMPACT, STICK, RELEASE} <= set(ev_ref['kind'])
     for order in (2, 4, 9, 12):
-        prop, s_o, ev_o = run_scene(steps=100, taylor_order=order)
+        _, s_o, ev_o = run_scene(steps=100, taylor_order=order)
         np.testing.assert_array_equal(ev_o['kind'], ev_ref['kind'])
         np.testing.assert_array_equal(ev_o['impactor'], ev_ref['impactor'])
         np.testing.assert_allclose(ev_o['t'], ev_ref['t'], rtol=0, atol=1e-13)
