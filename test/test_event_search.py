@@ -991,7 +991,7 @@ def near_graze_sdof(delta, dt, taylor_order=exact_mod.TAYLOR_ORDER):
 @pytest.mark.parametrize('dt,order', [(2e-2, 6), (2e-4, 6), (2e-2, 2), (2e-2, 12),
                                       (2.5e-3, 6), (2.5e-3 - 2e-7, 6)])
 def test_dip_below_the_taylor_remainder_is_caught(dt, order):
-    # The wall is overlapped by 1e-13 m (2e-7 of the housing's 0.5 um amplitude) for 0.8 us
+    # The wall is overlapped by 1e-13 m (2e-7 of the housing's 0.5 um amplitude) for 1 us
     # per period, and both ends of every output step (4 periods at dt = 20 ms) have a positive
     # gap. For Taylor degrees 2 and 6 the dip is below the model's remainder over a segment,
     # A (1.5)^(P+1)/(P+1)! (1.7e-9 m at P = 6), so it cannot be certified from the Taylor
@@ -1068,7 +1068,7 @@ HALF_TURN = np.pi / np.sqrt(5e4 / 2.0)  # whirl's deepest point (s)
 
 @pytest.mark.parametrize('dt', [2e-3, HALF_TURN, HALF_TURN - 3e-7])
 def test_tangential_graze_of_a_cylindrical_impactor(dt):
-    # delta = 1e-12 m: contact along the wall with a normal velocity 5e-5 of the sliding one,
+    # delta = 1e-12 m: contact along the wall with a normal velocity 7e-5 of the sliding one,
     # overlapping for 1.2 us (steps of 2 ms, a step end at the deepest point, a step end
     # inside the overlap). The impact time to 1e-11 s (round-off of c^2 - |r|^2, 2e-22 m^2,
     # over its slope 2 p A w sin(psi), 6.5e-9 m^2/s: 3e-14 s), the normal along the line of
@@ -1143,8 +1143,8 @@ def _release_tolerance(ev, f, t, w_s):
 
 @pytest.mark.parametrize('eta', [1e-4, 1e-7])
 def test_release_function_dipping_below_zero_releases_at_the_dip(eta):
-    # The contact force dips to -eta S for 2 sqrt(2 eta/3)/(2 pi) of a forcing period (0.8 %
-    # and 0.03 %, 11 us). The release must be at the dip's first root (closed form), to
+    # The contact force dips to -eta S for 2 sqrt(2 eta/3)/(2 pi) of a forcing period (0.26 %
+    # and 0.008 %, 11 us). The release must be at the dip's first root (closed form), to
     # 1e-11 s plus the start's perturbation (see _release_tolerance; measured 0 here: the
     # impactor starts exactly on the wall at the housing's velocity).
     _, ev, (t_dip, t_cross), f, w_s = release_graze(eta)
@@ -1225,7 +1225,7 @@ def test_table_mode_equals_the_python_fallback(monkeypatch, fallback):
     # impactor's bounce-down sequences (closing speeds down to 1e-6 m/s) grow the difference
     # tenfold every few impacts after 0.05 s (measured over 0.3 s: 1e-16 s up to 0.045 s,
     # 1e-13 s at 0.056 s, different sequences from 0.058 s). Compared over the first 0.05 s
-    # (6 switches): the same event sequence (kind, impactor), times to 1e-13 s, samples to
+    # (6 switches, 4 of them in the kernel): the same event sequence (kind, impactor), times to 1e-13 s, samples to
     # 1e-12 of their peak, the energy ledger to 1e-12 relative.
     table, s_t, ev_t = run_scene(steps=100)
     assert table._table_mode
