@@ -1399,3 +1399,49 @@ def test_derivative_bounds_from_a_later_start(rng):
         for t in np.linspace(tau, Th, 801):
             yd = sy.eval(t, order)[3]
             assert np.all(np.abs(yd) <= outs[0] * (1 + 1e-12))
+
+
+def test_out_of_reach_never_clears_a_reachable_wall(rng):
+    # Stage 1's filter: an impactor is skipped when its straight flight plus the housing's
+    # excursion bound (site_bounds' reach) cannot reach the clearance in the segment. With
+    # one or two free modes (no input) the excursion bound is tight (1.5 against the true
+    # 2 sin(0.75) = 1.36 over S = 1.5/|lam|), so a filter that shrank it would show. A wall
+    # placed at the sampled largest |z + v s - x(s)| (less 1e-9 of it) must never be cleared;
+    # one placed 1 % beyond the bound's reach always is.
+    cleared_far = 0
+    for trial in range(200):
+        n2 = 1 + trial % 2
+        n_rows = 1 + (trial // 2) % 2
+        sy = System(rng, n2=n2, decay=0.5)
+        sy.W[:] = 0
+        sy.amps[:] = 0
+        sy.pp[:] = 0
+        sy.pm[:] = 0
+        sy.w0[:] = 0
+        sy.ws[:] = 0
+        S = KE.SEGMENT_REACH / sy.lam_max
+        _, Eb, reach, _, _ = site_setup(sy, 4, S)
+        if n_rows == 1:  # site_setup uses both rows; recompute the one-row reach
+            Eb1 = np.zeros(8)
+            exc = np.empty(sy.n2)
+            KF.excursion_bounds(sy.yh, sy.lam, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, S, exc)
+            ybound = np.empty((6, sy.n2))
+            KF.derivative_bounds(sy.yh, sy.lam, sy.W, sy.pp, sy.pm, sy.w0, sy.ws, 0.0, S,
+                                 np.zeros(sy.nf), np.zeros(sy.nf), sy.omegas, sy.amps, 5,
+                                 np.empty((6, sy.nf)), np.empty(6), ybound)
+            reach = KF.site_bounds(np.abs(sy.rows[:1]), 1, ybound, 5, exc, Eb1)
+        s = np.linspace(0.0, S, 2001)
+        x = np.array([(sy.rows[:n_rows] @ sy.eval(t, 0)[1]).real for t in s])
+        X = np.zeros((3, 2))
+        X[0, :n_rows] = x[0]
+        z = np.zeros(2)
+        v = np.zeros(2)
+        z[:n_rows] = x[0] + rng.normal(size=n_rows) * 0.1 * reach
+        v[:n_rows] = rng.normal(size=n_rows) * 0.1 * reach / S
+        r = z[:n_rows] + v[:n_rows] * s[:, None] - x
+        far = np.max(np.abs(r)) if n_rows == 1 else np.max(np.linalg.norm(r, axis=1))
+        assert not KE.out_of_reach(n_rows, reach, X, z, v, far * (1 - 1e-9), S), trial
+        ends = [np.linalg.norm(z[:n_rows] - x[0]), np.linalg.norm(z[:n_rows] + v[:n_rows] * S -
+                                                                  x[0])]
+        cleared_far += KE.out_of_reach(n_rows, reach, X, z, v, 1.01 * (max(ends) + reach), S)
+    assert cleared_far == 200
