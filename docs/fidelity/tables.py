@@ -20,8 +20,7 @@ def capture():
 
 
 def grid():
-    rows = [json.loads(line) for line in (HERE / 'attractor_grid.jsonl').read_text().splitlines()
-            if line.startswith('{')]
+    rows = json.loads((HERE / 'attractor_grid.json').read_text())['rows']
     names = ['exact', 'exact/none', 'newmark', 'siconos mj']
     print('| r | zeta | mu | e | d | orbit (mm) | rho | ' + ' | '.join(names) + ' |')
     print('|' + '---|' * (7 + len(names)))
