@@ -112,7 +112,9 @@ def sdof_system(point, offset=0.0, velocity=0.0):
     Returns
     -------
     model : LinearModel
+        One mode, ``q = sqrt(M) x``, with the impactor (SI).
     forcing : Forcing
+        ``F0 cos(Omega t)`` on the housing (N).
     omega : float
         Forcing frequency (rad/s).
     """
@@ -154,6 +156,7 @@ def run_from_rest(point, periods, method='exact', per_cycle=400, chunk=200, offs
     Returns
     -------
     AttractorRun
+        Per-period peaks (m), impacts (s, -, m/s), sticks (s) and the last period (s, m).
     """
     model, forcing, omega = sdof_system(point, offset)
     period = 2.0 * np.pi / omega
@@ -185,7 +188,20 @@ def run_from_rest(point, periods, method='exact', per_cycle=400, chunk=200, offs
 
 
 def orbit_deviation(run, orbit):
-    """Largest ``|x - x_orbit|`` over the run's last period, over the orbit amplitude (-)."""
+    """Largest ``|x - x_orbit|`` over the run's last period, over the orbit amplitude.
+
+    Parameters
+    ----------
+    run : AttractorRun
+        The run (its last period of samples).
+    orbit : SymmetricTwoImpactOrbit
+        The closed-form orbit.
+
+    Returns
+    -------
+    float
+        The deviation (-).
+    """
     from ..dampers.analytic import orbit_state
     return float(np.max(np.abs(run.tail_x - orbit_state(orbit, run.tail_t)[0]))
                  / orbit.amplitude)
@@ -221,7 +237,14 @@ def first_divergence(a, b, rel=1e-3):
     """Index of the first impact where two runs part, and the time of it.
 
     Two impact sequences agree at impact ``k`` if the walls are equal and the times differ by
-    less than ``rel`` of the forcing period ``period`` (given in the runs).
+    less than ``rel`` of the forcing period ``a.period``.
+
+    Parameters
+    ----------
+    a, b : AttractorRun
+        The runs (same point, same start).
+    rel : float
+        Tolerance on the impact times, as a fraction of the forcing period (-).
 
     Returns
     -------
