@@ -111,6 +111,57 @@ def stick_rules(names, repeat, duration):
                   + ' '.join(f'{1e6 * v:.4g}' for v in r['peak']), flush=True)
 
 
+CHATTER = ['forcing.0.amplitude=50 N', 'impactors.0.cor=0.8', 'impactors.0.clearance=0.02 mm',
+           'impactors.0.mass_ratio=0.1']
+
+
+def stick_study(repeat, duration):
+    """Convergence of the stick rules on an SDOF that chatters down twice a cycle.
+
+    The answer (RMS displacement of the primary mass over the second half, energy lost per
+    second in impacts and locks) against the same run with a threshold 1e4 times smaller
+    than the default (paper rule, fraction 2e-7), for both rules and thresholds from 10x the
+    default down: error against impacts per stick and CPU.
+    """
+    duration = duration or 20.0
+    print(f'\nstick rules on the chattering SDOF ({", ".join(CHATTER)}), {duration:g} s, '
+          'ledger on; reference: paper rule at fraction 2e-7')
+
+    def answer(rule, fraction):
+        scene = load('sdof', CHATTER + [f'simulation.stick_rule={rule}',
+                                        f'simulation.stick_fraction={fraction}'])
+        n = int(round(duration / scene.scene['simulation']['dt']))
+        best = np.inf
+        for _ in range(repeat):
+            sim = scene.make_simulation(ledger=True)
+            start = time.process_time()
+            out = sim.advance(n)
+            best = min(best, time.process_time() - start)
+        kinds = sim.take_events()['kind']
+        half = out.displacement[n // 2:, 0]
+        led = sim.energy()
+        return dict(rms=np.sqrt(np.mean(half**2)), lost=(led.impacts + led.sticking) / duration,
+                    impacts=int(np.count_nonzero(kinds == 0)),
+                    sticks=int(np.count_nonzero(kinds == 1)), cpu=best)
+
+    ref = answer('paper', 2e-7)
+    print(f"reference: RMS {1e6 * ref['rms']:.6g} um, loss {ref['lost']:.6g} W, "
+          f"{ref['impacts']} impacts, {ref['sticks']} sticks, CPU {ref['cpu']:.3f} s")
+    print(f"{'rule':13s} {'fraction':>8s} {'impacts':>8s} {'sticks':>7s} {'imp/stick':>9s} "
+          f"{'CPU s':>6s} {'RMS error':>9s} {'loss error':>10s}")
+    rows = []
+    for rule in ('paper', 'accumulation'):
+        for fraction in (2e-2, 6e-3, 2e-3, 6e-4, 2e-4, 2e-5):
+            r = answer(rule, fraction)
+            r.update(rule=rule, fraction=fraction, rms_err=r['rms'] / ref['rms'] - 1,
+                     loss_err=r['lost'] / ref['lost'] - 1)
+            rows.append(r)
+            print(f"{rule:13s} {fraction:8.0e} {r['impacts']:8d} {r['sticks']:7d} "
+                  f"{r['impacts'] / max(r['sticks'], 1):9.1f} {r['cpu']:6.3f} "
+                  f"{r['rms_err']:9.2e} {r['loss_err']:10.2e}", flush=True)
+    return rows
+
+
 def hpotp_variant(n_impactors, n_modes):
     """The HPOTP scene with ``n_impactors`` of the same total mass and clearance, ``n_modes``."""
     path = resolve_scene('hpotp')
@@ -203,9 +254,14 @@ def main(argv=None):
     parser.add_argument('--stick-rules', action='store_true',
                         help='also compare the paper and accumulation stick rules')
     parser.add_argument('--curve', metavar='DIR', help='measure the cost curve into DIR')
+    parser.add_argument('--stick-study', action='store_true',
+                        help='only the stick-rule convergence study on a chattering SDOF')
     args = parser.parse_args(argv)
     if args.curve:
         cost_curve(args.curve, args.repeat, args.duration or 2.0)
+        return
+    if args.stick_study:
+        stick_study(args.repeat, args.duration)
         return
     names = args.scenes.split(',')
     scene_table(names, args.repeat, args.duration)
