@@ -9,7 +9,7 @@ import csv
 import os
 import sys
 
-from .study import EXIT_USAGE, _error, _g, _print_json, _table
+from .study import EXIT_DIVERGED, EXIT_USAGE, _error, _g, _print_json, _table
 
 _SHORTHANDS = ('duration', 'method', 'dt', 'window')
 
@@ -29,12 +29,13 @@ def run_study(args):
     Returns
     -------
     int
-        0 if every point (or at least one) succeeded, 1 if all failed, 2 for bad input.
+        0 if every point (or at least one) succeeded, 1 if all failed, 2 for bad input, 3 if
+        a point's run diverged (its one-line reason on stderr; the other points are kept).
     """
     try:
         result = {'frf': _frf, 'sweep': _sweep, 'stability': _stability,
                   'convergence': _convergence}[args.command](args)
-    except (_Usage, ValueError) as exc:   # UnitError is a ValueError
+    except (_Usage, ValueError) as exc:   # UnitError and TooLarge are ValueErrors
         _error(str(exc))
         return EXIT_USAGE
     module = _module(args.command)
@@ -55,6 +56,8 @@ def run_study(args):
         labels = ', '.join(f'{k}={v}' for k, v in f['labels'].items())
         print(f'study: warning: point failed ({labels}): {f["error"]}', file=sys.stderr)
     n_points = len(result['points'])
+    if any(f.get('diverged') for f in result['failures']):
+        return EXIT_DIVERGED
     return 1 if n_points and len(result['failures']) == n_points else 0
 
 

@@ -235,7 +235,8 @@ def point_record(r):
 
 def failure(r):
     """JSON-ready record of a failed point."""
-    return {'labels': r.point.labels, 'overrides': list(r.point.overrides), 'error': r.error}
+    return {'labels': r.point.labels, 'overrides': list(r.point.overrides), 'error': r.error,
+            'diverged': r.diverged}
 
 
 def plot(result, path):

@@ -47,6 +47,7 @@ def verdict(point):
     """
     import numpy as np
 
+    from ..divergence import Divergence
     from .measure import finite_or_none, load_point, lookup, start, window_impact_rates
     p = point.params
     scene = load_point(point)
@@ -67,8 +68,17 @@ def verdict(point):
             raise ValueError('no retained mode moves the chosen sensors; cannot perturb them')
         q0 *= amp / at_sensors
     sim = start(scene, q0=q0)
-    samples = sim.advance_to(cfg['duration'])
     window = cfg['window']
+    try:
+        samples = sim.advance_to(cfg['duration'])
+    except Divergence as exc:   # grew past what floating point carries: unstable
+        rates = window_impact_rates(sim.take_events(), sim.impactor_names, sim.t - window,
+                                    sim.t)
+        return {'stable': False, 'rms_radial_m': None, 'previous_rms_radial_m': None,
+                'growth_ratio': None, 'growth_rate_1_s': None, 'diverged_at_s': exc.t,
+                'divergence': exc.what, 'impacts_per_second': sum(rates.values()),
+                'impactor_rates_per_second': rates,
+                'resolved': {k: lookup(scene.scene, k) for k in p.get('keys', ())}}
     t = samples.t
     r2 = np.sum(samples.displacement[:, idx] ** 2, axis=1)
     last = t > t[-1] - window
@@ -84,7 +94,7 @@ def verdict(point):
     return {'stable': not unstable, 'rms_radial_m': finite_or_none(r1),
             'previous_rms_radial_m': finite_or_none(r0), 'growth_ratio': finite_or_none(ratio),
             'growth_rate_1_s': finite_or_none(math.log(ratio) / window)
-            if ratio > 0 and math.isfinite(ratio) else None,
+            if ratio > 0 and math.isfinite(ratio) else None, 'diverged_at_s': None,
             'impacts_per_second': sum(rates.values()), 'impactor_rates_per_second': rates,
             'resolved': {k: lookup(scene.scene, k) for k in p.get('keys', ())}}
 
@@ -285,6 +295,7 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
                      'rms_radial_m': v['rms_radial_m'] if r.ok else None,
                      'growth_ratio': v['growth_ratio'] if r.ok else None,
                      'growth_rate_1_s': v['growth_rate_1_s'] if r.ok else None,
+                     'diverged_at_s': v.get('diverged_at_s') if r.ok else None,
                      'impacts_per_second': v['impacts_per_second'] if r.ok else None,
                      'error': r.error})
         if checks:
