@@ -80,6 +80,7 @@ def test_chunked_advance_equals_one_engine_call():
     b = load('sdof').make_simulation()
     sa = a.advance(n)
     sb = b.integrator.advance(n)
+    assert a.t == b.t   # the time base ends where one call leaves it
     eps = np.finfo(float).eps
     assert np.abs(sa.t - sb.t).max() <= 2 * eps * sb.t.max()
     for field in ('displacement', 'velocity'):
@@ -141,3 +142,12 @@ def test_study_point_that_diverges_exits_3_and_keeps_the_others(capsys):
     assert status == EXIT_DIVERGED
     assert 'Traceback' not in err and 'Divergence: diverged at t =' in err
     assert 'forcing.0.amplitude' in err
+
+
+def test_study_refuses_existing_csv_before_running(capsys, tmp_path):
+    out = tmp_path / 't.csv'
+    out.write_text('mine')
+    status, _, err = cli(capsys, 'frf', 'sdof', '--hz', '25', '--executor', 'serial',
+                         '--csv', str(out))
+    assert status == 2 and f'{out} exists; pass --overwrite' in err
+    assert out.read_text() == 'mine'

@@ -345,3 +345,15 @@ def test_bad_file_subprocess_no_traceback(synthetic, tmp_path):
     assert proc.returncode == 2
     assert 'truncated' in proc.stderr and 'Traceback' not in proc.stderr
     assert proc.stdout == ''
+
+
+def test_existing_plot_or_csv_needs_overwrite(synthetic, tmp_path, capsys):
+    """An existing --plot/--csv file is refused (exit 2, file untouched) without --overwrite."""
+    png, csv_path = tmp_path / 'r.png', tmp_path / 'r.csv'
+    png.write_bytes(b'mine')
+    assert study(['report', str(synthetic[0]), '--plot', str(png), '--csv', str(csv_path)]) == 2
+    assert f'{png} exists; pass --overwrite' in capsys.readouterr().err
+    assert png.read_bytes() == b'mine' and not csv_path.exists()
+    assert study(['report', str(synthetic[0]), '--plot', str(png), '--csv', str(csv_path),
+                  '--overwrite']) == 0
+    assert png.read_bytes()[:4] == b'\x89PNG'

@@ -9,7 +9,8 @@ import csv
 import os
 import sys
 
-from .study import EXIT_DIVERGED, EXIT_USAGE, _error, _g, _print_json, _table
+from .study import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists, _error,
+                    _g, _print_json, _table, refuse_existing)
 
 _SHORTHANDS = ('duration', 'method', 'dt', 'window')
 
@@ -33,9 +34,10 @@ def run_study(args):
         a point's run diverged (its one-line reason on stderr; the other points are kept).
     """
     try:
+        refuse_existing([args.csv, args.plot], args.overwrite)   # before the runs, not after
         result = {'frf': _frf, 'sweep': _sweep, 'stability': _stability,
                   'convergence': _convergence}[args.command](args)
-    except (_Usage, ValueError) as exc:   # UnitError and TooLarge are ValueErrors
+    except (_Usage, ValueError, OutputExists) as exc:   # UnitError, TooLarge: ValueErrors
         _error(str(exc))
         return EXIT_USAGE
     module = _module(args.command)
@@ -73,8 +75,17 @@ def run_validate(args):
         _error(f'--workers must be >= 1, got {args.workers}')
         return EXIT_USAGE
     from ..studies.validation import validate
+    out = args.out or (QUICK_VALIDATION_OUT if args.quick else 'docs/validation.md')
+    plot_dir = os.path.splitext(out)[0]
+    plots = ([os.path.join(plot_dir, f) for f in sorted(os.listdir(plot_dir))
+              if f.endswith('.png')] if os.path.isdir(plot_dir) else [])
     try:
-        r = validate(args.out, quick=args.quick, workers=args.workers, seed=args.seed,
+        refuse_existing([out] + plots, args.overwrite)
+    except OutputExists as exc:
+        _error(str(exc))
+        return EXIT_USAGE
+    try:
+        r = validate(out, quick=args.quick, workers=args.workers, seed=args.seed,
                      progress=args.progress)
     except OSError as exc:
         _error(f'cannot write output: {exc}')

@@ -11,14 +11,14 @@
                       [--best-over KEY] [--objective acceleration|displacement] [study options]
     study stability SCENE --kcc-key KEY [--kcc V1,V2,...] [--weight-key KEY --weights ...]
                           [--clearance-key KEY --clearances ...] [--onset] [study options]
-    study validate [--out docs/validation.md] [--quick] [--workers N]
+    study validate [--out docs/validation.md] [--quick] [--workers N] [--overwrite]
     study convergence SCENE [--methods M1,M2] [--dts DT1,DT2] [--modes N1,N2] [--ref-dt S]
                             [--ref-modes N] [study options]
-    study report FILE.mcap [--json] [--plot PATH.png] [--csv PATH]
+    study report FILE.mcap [--json] [--plot PATH.png] [--csv PATH] [--overwrite]
     study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]
 
 study options: [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S] [--window S]
-[--json] [--csv PATH] [--plot PATH.png] [--workers N] [--executor process|serial|dask]
+[--json] [--csv PATH] [--plot PATH.png] [--overwrite] [--workers N] [--executor process|serial|dask]
 [--dask-address ADDR] [--seed N] [--progress | --no-progress]
 
 SCENE is a ready-made scene name (``config/scenes/<name>.yaml``) or a path to a YAML file.
@@ -45,6 +45,8 @@ import sys
 import time
 
 EXIT_USAGE = 2
+#: Default document of ``study validate --quick`` (the full one is docs/validation.md).
+QUICK_VALIDATION_OUT = 'validation-quick.md'
 #: A run diverged (same value as :data:`impact_damper_sim.divergence.EXIT_DIVERGED`).
 EXIT_DIVERGED = 3
 #: Largest scene file read (bytes): scenes are a few kB; anything larger is not one.
@@ -100,6 +102,8 @@ def _parser():
                         help='also plot spectra or waterfalls, impact rate and stuck state')
     report.add_argument('--csv', metavar='PATH',
                         help='also write the summary as CSV (section,name,quantity,value,unit)')
+    report.add_argument('--overwrite', action='store_true',
+                        help='replace existing --plot/--csv files (default: refuse)')
     _study_parsers(sub, scene_args)
     from ..recording.cli import add_recover_parser
     add_recover_parser(sub)
@@ -116,6 +120,8 @@ def _study_parsers(sub, scene_args):
             p.add_argument(f'--{key}', metavar=meta, help=text)
         p.add_argument('--csv', metavar='PATH', help='also write the table as CSV')
         p.add_argument('--plot', metavar='PATH.png', help='also write a plot (PNG)')
+        p.add_argument('--overwrite', action='store_true',
+                       help='replace existing --csv/--plot files (default: refuse)')
         p.add_argument('--workers', type=int, metavar='N',
                        help='parallel workers (default: CPU count)')
         p.add_argument('--executor', choices=('process', 'serial', 'dask'), default='process',
@@ -228,10 +234,13 @@ def _study_parsers(sub, scene_args):
                     '4.3.2 HPOTP sweep, Table 4.4.1 RBS stability, Table 4.4.2 HPOTP onset) '
                     'in parallel and write a markdown document with the paper columns next to '
                     'ours, plots next to it (OUT without .md, e.g. docs/validation/*.png).')
-    val.add_argument('--out', default='docs/validation.md', metavar='PATH.md',
-                     help='markdown file (default docs/validation.md)')
+    val.add_argument('--out', metavar='PATH.md',
+                     help='markdown file (default docs/validation.md; with --quick, '
+                          f'{QUICK_VALIDATION_OUT}, never the full document)')
     val.add_argument('--quick', action='store_true',
                      help='small subset, short runs, no HPOTP runs (well under a minute)')
+    val.add_argument('--overwrite', action='store_true',
+                     help='replace an existing document and its plots (default: refuse)')
     val.add_argument('--workers', type=int, metavar='N',
                      help='parallel workers (default: CPU count; 1 runs serially in-process)')
     val.add_argument('--seed', type=int, default=0, help='study seed (default 0)')
@@ -274,12 +283,13 @@ def main(argv=None):
             return run_validate(args)
         if args.command == 'report':
             from ..studies.report import run_report
+            refuse_existing([args.plot, args.csv], args.overwrite)
             return run_report(args)
         if args.command == 'recover':
             from ..recording.cli import run_recover
             return run_recover(args)
         return _simulate(args)
-    except (SceneError, TooLarge) as exc:
+    except (SceneError, TooLarge, OutputExists) as exc:
         _error(str(exc))
         return EXIT_USAGE
     except Divergence as exc:
@@ -288,6 +298,33 @@ def main(argv=None):
     except BrokenPipeError:   # e.g. `study keys | head`
         sys.stderr.close()
         return 0
+
+
+class OutputExists(Exception):
+    """An output file exists and ``--overwrite`` was not given (exit 2)."""
+
+
+def refuse_existing(paths, overwrite):
+    """Refuse, before any work, to replace existing output files without ``--overwrite``.
+
+    Parameters
+    ----------
+    paths : iterable of str or None
+        Output paths (None: not requested).
+    overwrite : bool
+        ``--overwrite`` was given.
+
+    Raises
+    ------
+    OutputExists
+        Naming the existing files.
+    """
+    import os
+    existing = [p for p in paths if p and os.path.exists(p)]
+    if existing and not overwrite:
+        raise OutputExists(f"{', '.join(existing)} exist{'s' if len(existing) == 1 else ''}; "
+                           'pass --overwrite to replace '
+                           f"{'it' if len(existing) == 1 else 'them'}")
 
 
 def _check_scene_file(scene):
