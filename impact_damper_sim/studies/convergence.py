@@ -152,6 +152,13 @@ def make_points(scene, methods, dts, modes, overrides, params, ref_dt, ref_modes
     return points
 
 
+def _available_modes(scene):
+    """Modes of the condensed system of a built scene (the most a basis can retain)."""
+    condensation = getattr(scene.basis, 'condensation', None)
+    master = getattr(condensation, 'master', None)
+    return int(master.size) if master is not None else int(scene.basis.n_modes)
+
+
 def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, ref_dt=None,
                 ref_modes=None, n_impacts=20, isolation=2e-3, seed=0, executor='process',
                 workers=None, dask_address=None, progress=None):
@@ -167,7 +174,8 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
         Time steps (s); each must divide the largest. Default: the scene's ``simulation.dt``
         times 2, 1, 1/2 and 1/4.
     modes : sequence of int, optional
-        Retained mode counts (dimensionless); default the scene's count and twice it.
+        Retained mode counts (dimensionless); default the scene's count and twice it (at
+        most the condensed system's mode count: the SDOF has one).
     overrides : sequence of str
         Scene overrides (``simulation.duration``, ``simulation.window``, ...).
     ref_dt : float, optional
@@ -208,7 +216,9 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
         if abs(coarse / d - round(coarse / d)) > 1e-9 * coarse / d:
             raise ValueError(f'dt = {d:g} s does not divide the largest step {coarse:g} s')
     n0 = int(base.basis.n_modes)
-    modes = sorted({int(m) for m in (modes or [n0, 2 * n0])})
+    n_max = _available_modes(base)
+    # default: the scene's count and twice it, as far as the condensed system has modes
+    modes = sorted({int(m) for m in (modes or [n0, min(2 * n0, n_max)])})
     if any(m < 1 for m in modes):
         raise ValueError('mode counts must be >= 1')
     ref_modes = int(ref_modes or modes[-1])

@@ -259,6 +259,13 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
         raise ValueError('weights and clearances need their scene keys '
                          '(--weight-key, --clearance-key)')
     base = load(scene, list(overrides))
+    from .measure import lookup
+    if kccs and lookup(base.scene, kcc_key) is None:
+        couplings = base.scene['structure'].get('cross_couplings') or []
+        raise ValueError(f'--kcc-key {kcc_key}: no such key in scene {base.name} (it has '
+                         f'{len(couplings)} structure.cross_couplings entr'
+                         f"{'y' if len(couplings) == 1 else 'ies'}; a stability map needs "
+                         'a cross-coupled stiffness, e.g. scene rbs_kcc)')
     start = time.perf_counter()
     found = None
     if find_onset:
