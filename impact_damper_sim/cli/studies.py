@@ -255,12 +255,15 @@ def _print_sweep(r):
           'reduction without/with impactors')
     print(_table(header, rows))
     if r['best']:
-        unit = 'm' if r['objective'] == 'displacement' else 'm_s2'
-        field = f"worst_{r['objective']}_{unit}"
+        from ..analysis import G0
+        disp = r['objective'] == 'displacement'
+        field = f"worst_{r['objective']}_{'m' if disp else 'm_s2'}"
+        scale = 1.0 if disp else 1.0 / G0   # in the table's units: m, or g
         others = [k for k in keys if k != r['best_over']]
         print(f"\nbest {r['best_over']} (least worst-case {r['objective']} over the phases):")
-        print(_table(others + [r['best_over'], field],
-                     [[b[k] for k in others] + [b[r['best_over']], _g(b[field], 4)]
+        print(_table(others + [r['best_over'],
+                               f"worst {r['objective']} ({'m' if disp else 'g'})"],
+                     [[b[k] for k in others] + [b[r['best_over']], _g(b[field] * scale, 4)]
                       for b in r['best']]))
     print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
 
@@ -311,7 +314,9 @@ def _print_stability(r):
         rows = [[row['kcc'], _g(row['kcc_N_m']),
                  scene_value(row['weight'], 'scene_weight') if row['impactors'] else '-',
                  scene_value(row['clearance'], 'scene_clearance') if row['impactors'] else '-',
-                 row['verdict'], _g(row['rms_radial_m'], 4), _g(row['growth_ratio'], 4),
+                 (f"unstable (diverged at {_g(row['diverged_at_s'], 3)} s)"
+                  if row.get('diverged_at_s') is not None else row['verdict']),
+                 _g(row['rms_radial_m'], 4), _g(row['growth_ratio'], 4),
                  _g(row['growth_rate_1_s'], 3), _g(row['impacts_per_second'], 4)]
                 + ([row['verdict_half_dt'], row['verdict_other_method'],
                     'yes' if row['verified'] else 'NO'] if verify else [])
@@ -328,8 +333,12 @@ def _print_stability(r):
                   'unchanged')
     if r['onset']:
         o = r['onset']
+        from ..studies.display import axis_unit
+        unit, factor = axis_unit(o['kcc_key'], [row['kcc'] for row in r['rows']])
+        given = (f" = {_g(o['onset_kcc_N_m'] / factor, 7)} {unit}"
+                 if unit and unit != 'N/m' else '')   # also in the unit of --kcc
         print(f"linear onset without impactors: {o['kcc_key']} = {_g(o['onset_kcc_N_m'], 7)} "
-              f"N/m (whirl {_g(o['whirl_frequency_hz'], 6)} Hz, {o['evaluations']} "
+              f"N/m{given} (whirl {_g(o['whirl_frequency_hz'], 6)} Hz, {o['evaluations']} "
               'eigenvalue evaluations)')
     print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
 

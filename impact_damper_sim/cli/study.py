@@ -217,7 +217,8 @@ def _study_parsers(sub, scene_args):
                       metavar='M1,M2', help='methods to cross (default: all four)')
     conv.add_argument('--dts', default='', metavar='DT1,DT2',
                       help="time steps, each dividing the largest, e.g. '100 us,50 us' "
-                           '(default: the scene dt x 2, 1, 1/2, 1/4)')
+                           '(default: the scene dt x 2, 1, 1/2, 1/4; x 1 to 1/8 when a '
+                           "sensor's low-pass would reach Nyquist at twice dt)")
     conv.add_argument('--modes', default='', metavar='N1,N2',
                       help="retained mode counts (default: the scene's and twice it)")
     conv.add_argument('--ref-dt', metavar='S', help='step of the reference (default: smallest/2)')

@@ -172,7 +172,8 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
         Methods to cross (see :data:`METHODS`).
     dts : sequence of float, optional
         Time steps (s); each must divide the largest. Default: the scene's ``simulation.dt``
-        times 2, 1, 1/2 and 1/4.
+        times 2, 1, 1/2 and 1/4 (1, 1/2, 1/4, 1/8 when twice the step would put Nyquist at
+        or below a sensor's low-pass).
     modes : sequence of int, optional
         Retained mode counts (dimensionless); default the scene's count and twice it (at
         most the condensed system's mode count: the SDOF has one).
@@ -207,10 +208,21 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise ValueError(f"unknown method(s) {', '.join(unknown)}; expected {METHODS}")
-    dts = sorted({float(d) for d in (dts or [cfg['dt'] * f for f in (2, 1, 0.5, 0.25)])},
-                 reverse=True)
+    cutoffs = [s['lowpass'] for s in base.scene['sensors'] if s.get('lowpass')]
+    if not dts:
+        # the scene dt x 2, 1, 1/2, 1/4; x 2 only where the sensors' low-pass stays below
+        # Nyquist (the RMS acceleration is filtered at the coarsest step)
+        factors = [2, 1, 0.5, 0.25]
+        if cutoffs and max(cutoffs) >= 0.5 / (2 * cfg['dt']):
+            factors = [1, 0.5, 0.25, 0.125]
+        dts = [cfg['dt'] * f for f in factors]
+    dts = sorted({float(d) for d in dts}, reverse=True)
     if any(not d > 0 for d in dts):
         raise ValueError('time steps must be > 0 s')
+    if cutoffs and max(cutoffs) >= 0.5 / dts[0]:
+        raise ValueError(f'the largest step {dts[0]:g} s puts Nyquist ({0.5 / dts[0]:g} Hz) at '
+                         f'or below the sensor low-pass {max(cutoffs):g} Hz; use smaller '
+                         '--dts')
     coarse = dts[0]
     for d in dts:
         if abs(coarse / d - round(coarse / d)) > 1e-9 * coarse / d:

@@ -255,12 +255,20 @@ def plot(result, path):
     col = _COLUMN[result['unit']]
     fig, ax = plt.subplots(figsize=(7, 4.5))
     xs = [r[col] for r in result['rows']]
+    unsettled = False
     for s in result['sensors']:
         for case, style in (('without', '--'), ('with', '-o')):
             ys = [r[f'{s}_{case}_m'] for r in result['rows']]
             if any(y is not None for y in ys):
                 ax.plot(xs, [float('nan') if y is None else y for y in ys], style, ms=3,
                         label=f'{s}, {case} impactors')
+        # points whose amplitude had not settled: the value is the last window's peak
+        bad = [(x, r[f'{s}_with_m']) for x, r in zip(xs, result['rows'])
+               if not r['settled'] and r[f'{s}_with_m'] is not None]
+        if bad:
+            ax.plot(*zip(*bad), 'o', ms=9, mfc='none', mec='r', mew=1.2,
+                    label=None if unsettled else 'not settled (last window peak)')
+            unsettled = True
     ax.set_xlabel('frequency ratio r' if result['unit'] == 'ratio' else 'frequency (Hz)')
     ax.set_ylabel('steady amplitude (m)')
     ax.set_title(f"frequency response: {result['scene']}")

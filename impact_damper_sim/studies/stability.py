@@ -401,26 +401,48 @@ def plot(result, path):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    import numpy as np
+
+    from .display import axis_unit
+    unit, factor = axis_unit(result['kcc_key'], [row['kcc'] for row in result['rows']])
+    unit, factor = (unit, factor) if unit else ('N/m', 1.0)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     groups = {}
     for row in result['rows']:
-        if row['kcc_N_m'] is not None and row['rms_radial_m'] is not None:
+        if row['kcc_N_m'] is not None and row['verdict'] != 'error':
             groups.setdefault((row['impactors'], row['weight'], row['clearance']), []).append(row)
+    finite = [row['rms_radial_m'] for rows in groups.values() for row in rows
+              if row['rms_radial_m'] is not None]
+    # diverged runs (and absurd amplitudes) sit on a band at the top, not at 1e43 m
+    top = max(finite) if finite else 1.0
+    cap = min(top, 1.0) * 3.0
+    diverged_label = True
     for (imp, w, c), rows in groups.items():
         label = 'no impactors' if not imp else (
             f"W={w if w is not None else result.get('scene_weight')}, "
             f"D={c if c is not None else result.get('scene_clearance')}")
-        line, = ax.plot([r['kcc_N_m'] for r in rows], [r['rms_radial_m'] for r in rows], '-',
-                        label=label)
-        for r in rows:
-            ax.plot(r['kcc_N_m'], r['rms_radial_m'], 'o' if r['verdict'] == 'stable' else 'x',
-                    color=line.get_color())
+        xs = [r['kcc_N_m'] / factor for r in rows]
+        ys = [min(r['rms_radial_m'], cap) if r['rms_radial_m'] is not None else np.nan
+              for r in rows]
+        line, = ax.plot(xs, ys, '-', label=label)
+        for x, y, r in zip(xs, ys, rows):
+            if r['rms_radial_m'] is None or r['rms_radial_m'] > cap:
+                ax.plot(x, cap, '^', color=line.get_color(), ms=8,
+                        label=f'diverged, or above {cap:.2g} m (off scale)'
+                        if diverged_label else None)
+                diverged_label = False
+            else:
+                ax.plot(x, y, 'o' if r['verdict'] == 'stable' else 'x',
+                        color=line.get_color())
     if result['onset']:
-        ax.axvline(result['onset']['onset_kcc_N_m'], color='k', ls=':', label='linear onset')
+        ax.axvline(result['onset']['onset_kcc_N_m'] / factor, color='k', ls=':',
+                   label='linear onset')
     ax.set_yscale('log')
-    ax.set_xlabel('Kcc (N/m)')
+    if finite:
+        ax.set_ylim(top=cap * 1.5)
+    ax.set_xlabel(f'Kcc ({unit})')
     ax.set_ylabel('RMS radial amplitude, last window (m)')
-    ax.set_title(f"stability: {result['scene']} (o stable, x unstable)")
+    ax.set_title(f"stability: {result['scene']} (o stable, x unstable, ^ diverged)")
     ax.grid(True, alpha=0.3)
     if groups or result['onset']:
         ax.legend(fontsize=7)

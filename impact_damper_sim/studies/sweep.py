@@ -287,26 +287,34 @@ def plot(result, path):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from .display import axis_unit
     obj = result['objective']
-    unit = 'm' if obj == 'displacement' else 'm_s2'
+    # the table's units: displacement in m, acceleration in g
+    field, ylabel = (('m', 'm') if obj == 'displacement' else ('g', 'g'))
     keys = [g['key'] for g in result['grid']]
     xkey = result['best_over'] or keys[0]
     others = [k for k in keys if k != xkey]
+    given = next(g['values'] for g in result['grid'] if g['key'] == xkey)
+    xunit, xfactor = axis_unit(xkey, given)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     groups = {}
     for row in result['rows']:
         groups.setdefault(tuple(row[k] for k in others), []).append(row)
+    numeric = True
     for group, rows in groups.items():
         xs = [row[f'{xkey}_si'] for row in rows]
         if any(x is None or not isinstance(x, (int, float)) for x in xs):
-            xs = list(range(len(rows)))
+            xs, numeric = list(range(len(rows))), False
+        else:
+            xs = [x / xfactor for x in xs]
         label = ', '.join(f'{k}={v}' for k, v in zip(others, group)) or 'with impactors'
         for phase, style in zip([p['name'] for p in result['phases']], ('-o', '--s', ':^')):
-            ys = [row[f'{phase}_worst_{obj}_{unit}'] for row in rows]
+            ys = [row[f'{phase}_worst_{obj}_{field}'] for row in rows]
             ax.plot(xs, [float('nan') if y is None else y for y in ys], style, ms=4,
                     label=f'{label} ({phase})')
-    ax.set_xlabel(f'{xkey} (SI)')
-    ax.set_ylabel(f"worst {obj} ({'m' if unit == 'm' else 'm/s^2'})")
+    ax.set_xlabel(f'{xkey} ({xunit})' if numeric and xunit else
+                  xkey if numeric else f'{xkey} (point index)')
+    ax.set_ylabel(f'worst {obj} over the sensors ({ylabel})')
     ax.set_title(f"sweep: {result['scene']}")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
