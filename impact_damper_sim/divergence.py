@@ -80,6 +80,16 @@ class Divergence(RuntimeError):
         return Divergence(self.what, self.t, setting)
 
 
+class StudyDiverged(RuntimeError):
+    """A study cannot go on because a run it depends on diverged (e.g. its reference).
+
+    The message is the run's one-line :class:`Divergence` text; ``code`` is
+    :data:`EXIT_DIVERGED`.
+    """
+
+    code = EXIT_DIVERGED
+
+
 class TooLarge(ValueError):
     """A run refused up front: its sample arrays would not fit in memory.
 
@@ -278,6 +288,6 @@ def _linear_growth(scene):
         return None
 
 
-__all__ = ['Divergence', 'EXIT_DIVERGED', 'MAX_DISPLACEMENT', 'MAX_SAMPLE_BYTES', 'TooLarge',
+__all__ = ['Divergence', 'EXIT_DIVERGED', 'StudyDiverged', 'MAX_DISPLACEMENT', 'MAX_SAMPLE_BYTES', 'TooLarge',
            'check_allocation', 'check_samples', 'check_state', 'from_engine_error',
            'memory_limit', 'sample_bytes', 'scene_advice']

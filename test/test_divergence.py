@@ -151,3 +151,11 @@ def test_study_refuses_existing_csv_before_running(capsys, tmp_path):
                          '--csv', str(out))
     assert status == 2 and f'{out} exists; pass --overwrite' in err
     assert out.read_text() == 'mine'
+
+
+def test_convergence_whose_reference_diverges_exits_3(capsys):
+    status, _, err = cli(capsys, 'convergence', 'sdof', '--executor', 'serial', '--methods',
+                         'exact', '--dts', '1e-4', '--duration', '0.2', '--window', '0.1',
+                         '--set', HUGE_FORCE)
+    assert status == EXIT_DIVERGED and err.count('\n') == 1
+    assert 'the reference run diverged: Divergence: diverged at t =' in err

@@ -9,6 +9,8 @@ import csv
 import os
 import sys
 
+from ..divergence import StudyDiverged
+
 from .study import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists, _error,
                     _g, _print_json, _table, refuse_existing)
 
@@ -40,6 +42,9 @@ def run_study(args):
     except (_Usage, ValueError, OutputExists) as exc:   # UnitError, TooLarge: ValueErrors
         _error(str(exc))
         return EXIT_USAGE
+    except StudyDiverged as exc:
+        _error(str(exc))
+        return EXIT_DIVERGED
     module = _module(args.command)
     try:
         if args.csv:

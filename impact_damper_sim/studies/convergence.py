@@ -246,6 +246,9 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
                          progress=progress)
     wall = time.perf_counter() - start
     ref = results[0]
+    if ref.diverged:
+        from ..divergence import StudyDiverged
+        raise StudyDiverged(f'the reference run diverged: {ref.error}')
     if not ref.ok:
         raise ValueError(f'the reference run failed: {ref.error}')
     rv = ref.value
