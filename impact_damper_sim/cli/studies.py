@@ -259,6 +259,11 @@ def _print_sweep(r):
     print(f"sweep of {r['scene']} ({r['source']}); worst case over the sensors; red = "
           'reduction without/with impactors')
     print(_table(header, rows))
+    diverged = sorted({row['without_diverged_at_s'] for row in r['rows']
+                       if row.get('without_diverged_at_s') is not None})
+    if diverged:
+        print(f"without impactors the run diverged (at t = {_g(diverged[0], 4)} s first): the "
+              "structure is unbounded without them, so 'red' is n/a (unbounded)")
     if r['best']:
         from ..analysis import G0
         disp = r['objective'] == 'displacement'

@@ -67,19 +67,30 @@ def peaks(point):
         ``peak_acceleration_m_s2`` (largest mean acceleration per sample period, impacts
         included, through the sensor's ``lowpass`` if it has one) and ``rms_displacement_m``; the worst case over the sensors
         (``worst_displacement_m``, ``worst_acceleration_m_s2``, with the sensor names) and
-        ``impacts_per_second`` per impactor. ``resolved``: the ``keys``' SI values.
+        ``impacts_per_second`` per impactor. ``resolved``: the ``keys``' SI values. With
+        ``params['divergence_is_result']`` (the no-impactor references), a run that diverges
+        returns ``phases`` None, ``diverged_at_s`` (s) and ``divergence`` (what).
     """
     import numpy as np
 
     from ..analysis import refined_peak
     from ..filters import scene_lowpass
     from .measure import load_point, lookup, start, window_impact_rates
+    from ..divergence import Divergence
     scene = load_point(point)
     cfg = scene.scene['simulation']
     sim = start(scene)
     lowpass = scene_lowpass(scene, sim.dt)   # checks the cutoffs before the run
     v0 = sim.integrator.model.sensors @ sim.integrator.state()[1]
-    samples = sim.advance_to(cfg['duration'])
+    try:
+        samples = sim.advance_to(cfg['duration'])
+    except Divergence as exc:
+        if not point.params.get('divergence_is_result'):
+            raise
+        # a reference without impactors that grows without bound (a linearly unstable
+        # structure) is a result: the reduction the impactors give is unbounded
+        return {'phases': None, 'diverged_at_s': exc.t, 'divergence': exc.what,
+                'resolved': {k: lookup(scene.scene, k) for k in point.params.get('keys', ())}}
     acc = lowpass.apply(sim.mean_acceleration(samples, v0))
     events = sim.take_events()
     t, x = samples.t, samples.displacement
@@ -144,7 +155,7 @@ def make_points(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, has_impacto
             refs.setdefault(tuple(ref.items()), ref)
     for ref in refs.values():
         ov = list(overrides) + [f'{k}={v}' for k, v in ref.items()] + ['impactors=[]']
-        ref_params = dict(params, keys=list(ref))
+        ref_params = dict(params, keys=list(ref), divergence_is_result=True)
         points.append(Point(peaks, scene, tuple(ov), point_seed(seed, '\n'.join([scene] + ov)),
                             ref_params, {'grid': ref, 'reference': True}))
     return points
@@ -227,9 +238,11 @@ def tabulate(results, keys, phase_names):
         for k in keys:
             row[f'{k}_si'] = r.value['resolved'].get(k) if r.ok else None
         ref = refs.get(tuple(sorted((k, v) for k, v in grid.items() if not is_impactor_key(k))))
+        ref_ok = ref is not None and ref.ok
+        row['without_diverged_at_s'] = ref.value.get('diverged_at_s') if ref_ok else None
         for name in phase_names:
             ph = r.value['phases'][name] if r.ok else None
-            rph = ref.value['phases'][name] if ref is not None and ref.ok else None
+            rph = ref.value['phases'][name] if ref_ok and ref.value['phases'] else None
             for what, unit in (('displacement', 'm'), ('acceleration', 'm_s2')):
                 col = f'worst_{what}_{unit}'
                 val = ph[col] if ph else None
