@@ -7,8 +7,8 @@ traceback, never exit 1 (every point failed) or 3 (diverged) on a shipped scene.
 
 The default selection shortens each run (``--duration 0.1 --window 0.05``: the option
 defaults that broke, mode counts and time steps, are untouched) and runs ``convergence``
-on the SDOF and the cantilever only; ``make test-slow`` runs every pair with the scenes'
-own durations.
+on the SDOF and the cantilever only; ``make test-slow`` adds convergence on the rotor
+scenes (short runs) and runs the other commands with the scenes' own durations.
 """
 import pytest
 
@@ -79,8 +79,15 @@ def test_command_runs_with_defaults_on_scene(name, scene, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize('scene', sorted(SLOW_CONVERGENCE))
+def test_convergence_runs_with_defaults_on_rotor_scene(scene, capsys):
+    argv, status, message = command('convergence', scene)
+    check(capsys, argv + SHORT, status, message)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize('scene', SCENES)
-@pytest.mark.parametrize('name', sorted(DURATION_COMMANDS))
+@pytest.mark.parametrize('name', sorted(DURATION_COMMANDS - {'convergence'}))
 def test_command_runs_with_the_scene_duration(name, scene, capsys):
     argv, status, message = command(name, scene)
-    check(capsys, argv + ['--workers', '1'] if name != 'simulate' else argv, status, message)
+    check(capsys, argv, status, message)
