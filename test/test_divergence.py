@@ -159,3 +159,12 @@ def test_convergence_whose_reference_diverges_exits_3(capsys):
                          '--set', HUGE_FORCE)
     assert status == EXIT_DIVERGED and err.count('\n') == 1
     assert 'the reference run diverged: Divergence: diverged at t =' in err
+
+
+@pytest.mark.parametrize('argv', [['frf', 'sdof', '--hz', '25'],
+                                  ['sweep', 'sdof', '--grid', 'impactors.0.cor=0.5'],
+                                  ['convergence', 'sdof', '--dts', '1e-9']])
+def test_studies_refuse_runs_too_large_for_memory_up_front(capsys, argv):
+    status, _, err = cli(capsys, *argv, '--executor', 'serial',
+                         *([] if 'convergence' in argv else ['--dt', '1e-9']))
+    assert status == 2 and 'GiB' in err and err.count('\n') == 1

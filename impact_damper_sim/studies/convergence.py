@@ -238,6 +238,8 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
     if abs(coarse / ref_dt - round(coarse / ref_dt)) > 1e-9 * coarse / ref_dt:
         raise ValueError(f'ref_dt = {ref_dt:g} s does not divide the largest step {coarse:g} s')
     duration = round(cfg['duration'] / coarse) * coarse
+    from .measure import check_memory
+    check_memory(base, duration, min(ref_dt, dts[-1]))
     params = {'coarse_dt': coarse, 'window': cfg['window'], 'duration': duration}
     start = time.perf_counter()
     points = make_points(scene, list(methods), dts, modes, overrides, params, ref_dt, ref_modes,

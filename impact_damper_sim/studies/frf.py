@@ -179,6 +179,8 @@ def frf(scene, values, unit='ratio', overrides=(), *, tol=0.005, max_duration=No
     from ..scene.build import load
     from ..scene.schema import SceneError
     base = load(scene, list(overrides))
+    from .measure import check_memory
+    check_memory(base, max(base.scene['simulation']['duration'], max_duration or 0.0))
     if not base.scene['forcing']:
         raise SceneError("scene key 'forcing': the scene has no forcing to sweep", base.source)
     points = make_points(scene, values, unit, overrides, n_forcing=len(base.scene['forcing']),

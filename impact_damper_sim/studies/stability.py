@@ -259,6 +259,8 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
         raise ValueError('weights and clearances need their scene keys '
                          '(--weight-key, --clearance-key)')
     base = load(scene, list(overrides))
+    from .measure import check_memory
+    check_memory(base)
     from .measure import lookup
     if kccs and lookup(base.scene, kcc_key) is None:
         couplings = base.scene['structure'].get('cross_couplings') or []

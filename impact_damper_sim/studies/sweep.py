@@ -208,6 +208,8 @@ def sweep(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, best_over=None,
     if len(set(names)) != len(names):
         raise ValueError(f'phase names must differ, got {names}')
     base = load(scene, list(overrides))
+    from .measure import check_memory
+    check_memory(base)
     points = make_points(scene, grid, overrides, phases=phases,
                          has_impactors=bool(base.scene['impactors']), seed=seed)
     start = time.perf_counter()
