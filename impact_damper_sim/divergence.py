@@ -288,6 +288,7 @@ def _linear_growth(scene):
         return None
 
 
-__all__ = ['Divergence', 'EXIT_DIVERGED', 'StudyDiverged', 'MAX_DISPLACEMENT', 'MAX_SAMPLE_BYTES', 'TooLarge',
+__all__ = ['Divergence', 'EXIT_DIVERGED', 'MAX_DISPLACEMENT', 'MAX_SAMPLE_BYTES', 'StudyDiverged',
+           'TooLarge',
            'check_allocation', 'check_samples', 'check_state', 'from_engine_error',
            'memory_limit', 'sample_bytes', 'scene_advice']

@@ -220,7 +220,8 @@ def test_complete_basis_equals_mass_update_planar(capsys):
     dv = np.abs(sa.velocity - sb.velocity).max() / np.abs(sa.velocity).max()
     dt_ev = np.abs(ea['t'] - eb['t']).max()
     with capsys.disabled():
-        print(f'\nplanar basis switch vs mass update: velocity {dv:.2e} (bound {a_v * budget:.2e}),'
+        print(f'\nplanar basis switch vs mass update: velocity {dv:.2e} '
+              f'(bound {a_v * budget:.2e}),'
               f' event times {dt_ev:.2e} s (bound {a_t * budget:.2e} s); amplification '
               f'{a_v:.3g}, {pb.n_config_changes} switches')
     assert dv <= a_v * budget

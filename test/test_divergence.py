@@ -72,7 +72,8 @@ def test_chunked_advance_equals_one_engine_call():
     """The divergence checks cut a run into chunks. The engine stamps a sample
     ``t_start + k dt`` from the chunk's start, so a chunk boundary moves sample times by at
     most one ulp (2.2e-16 relative); that perturbation reaches the state through the impacts
-    (measured: 5e-14 relative on the SDOF over 0.51 s, 17 events). Bounds: times 2 eps relative, same
+    (measured: 5e-14 relative on the SDOF over 0.51 s, 17 events). Bounds: times 2 eps
+    relative, same
     event sequence with times within 1e-13 s, responses within 1e-11 relative (200 x the
     measurement: the impact amplification varies with the orbit)."""
     n = 5 * CHECK_EVERY + 17
@@ -115,7 +116,8 @@ def test_cli_blow_up_is_one_line_with_exit_3(capsys):
 
 
 def test_cli_chatter_is_a_divergence(capsys):
-    status, _, err = cli(capsys, 'simulate', 'rbs', '--duration', '0.2', '--window', '0.1', '--set',
+    status, _, err = cli(capsys, 'simulate', 'rbs', '--duration', '0.2', '--window', '0.1',
+                         '--set',
                          'rotor.multiplier=1e8')
     assert status == EXIT_DIVERGED and err.count('\n') == 1
     assert 'rotor.multiplier (1e+08)' in err

@@ -18,8 +18,8 @@
     study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]
 
 study options: [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S] [--window S]
-[--json] [--csv PATH] [--plot PATH.png] [--overwrite] [--workers N] [--executor process|serial|dask]
-[--dask-address ADDR] [--seed N] [--progress | --no-progress]
+[--json] [--csv PATH] [--plot PATH.png] [--overwrite] [--workers N]
+[--executor process|serial|dask] [--dask-address ADDR] [--seed N] [--progress | --no-progress]
 
 SCENE is a ready-made scene name (``config/scenes/<name>.yaml``) or a path to a YAML file.
 ``--duration``, ``--method``, ``--dt`` and ``--window`` are shorthands for
