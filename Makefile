@@ -36,7 +36,7 @@ test-slow: $(STAMP)
 
 # the paper's results next to ours (docs/validation.md and docs/validation/*.png; minutes)
 validation: $(STAMP)
-	$(VENV)/bin/study validate --out docs/validation.md
+	$(VENV)/bin/study validate --out docs/validation.md --overwrite
 
 # speed/accuracy trade: docs/convergence.md, docs/convergence/*.{csv,json,png} (about 10 min)
 convergence: $(STAMP)
