@@ -45,7 +45,7 @@ convergence: $(STAMP)
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
 BENCHES := bench/sdof_methods.py bench/ivp_baseline.py bench/modal_vs_direct.py \
            bench/realtime_offline.py bench/long_run.py bench/node_realtime.py \
-           bench/node_startup.py
+           bench/node_startup.py bench/impact_cost.py
 
 bench: $(STAMP)
 	for b in $(BENCHES); do $(PY) $$b || exit 1; done

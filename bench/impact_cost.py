@@ -24,7 +24,7 @@ Targets (issue 11): hpotp <= 5 us per impact, ``study simulate hpotp`` >= 20 x r
 hpotp_x10 >= 3 x real time. Usage::
 
     .venv/bin/python bench/impact_cost.py [--repeat 3] [--scenes hpotp] [--stick-rules]
-    .venv/bin/python bench/impact_cost.py --curve docs/impact-cost --duration 2
+    .venv/bin/python bench/impact_cost.py --curve docs/impact-cost [--replot]
 """
 from __future__ import annotations
 
@@ -217,12 +217,28 @@ def cost_curve(out_dir, repeat, duration):
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    # growth law: marginal cost per impact ~ a * modes^p * impactors^q (least squares in logs)
-    A = np.array([[1.0, np.log(r['modes']), np.log(r['impactors'])] for r in rows])
-    b = np.log([max(r['marginal_us_per_impact'], 1e-3) for r in rows])
-    coef, *_ = np.linalg.lstsq(A, b, rcond=None)
-    print(f'growth law (marginal cost per impact): {np.exp(coef[0]):.3g} us x '
-          f'modes^{coef[1]:.2f} x impactors^{coef[2]:.2f}')
+    plot_curve(rows, out_dir, duration)
+
+
+def growth_law(rows):
+    """Per retained-mode count, CPU per simulated second = a + b x impacts per second (least
+    squares over the impactor counts); then b = c x modes^p. Prints and returns ``(c, p)``."""
+    modes = sorted({r['modes'] for r in rows})
+    slopes = []
+    for n_modes in modes:
+        sel = [r for r in rows if r['modes'] == n_modes]
+        x = np.array([r['impacts_per_s'] for r in sel])
+        y = np.array([r['cpu_per_sim_s'] for r in sel])
+        b, a = np.polyfit(x, y, 1)
+        slopes.append(b)
+        print(f'{int(n_modes):3d} modes: CPU per simulated s = {a:.3f} + {1e6 * b:.1f} us x impacts/s')
+    p, log_c = np.polyfit(np.log(modes), np.log(slopes), 1)
+    print(f'growth law: {1e6 * np.exp(log_c):.2f} us x modes^{p:.2f} per impact')
+    return np.exp(log_c), p
+
+
+def plot_curve(rows, out_dir, duration):
+    growth_law(rows)
     try:
         import matplotlib
         matplotlib.use('Agg')
@@ -241,8 +257,8 @@ def cost_curve(out_dir, repeat, duration):
     ax.axhline(1.0, color='k', lw=0.8, ls='--', label='real time')
     ax.set_xlabel('impacts per simulated second')
     ax.set_ylabel('CPU seconds per simulated second')
-    ax.set_title(f'HPOTP, exact engine, first {duration:g} s of the ramp '
-                 '(labels: impactors)', fontsize=10)
+    ax.set_title(f'HPOTP ramp, exact engine, {duration:g} s simulated, one core '
+                 '(labels: impactors, same total mass)', fontsize=10)
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -256,15 +272,23 @@ def main(argv=None):
     parser.add_argument('--scenes', default=','.join(SCENES), help='comma list of scenes')
     parser.add_argument('--duration', type=float,
                         help="simulated time (s); default each scene's simulation.duration "
-                             '(2 s for --curve)')
+                             '(6 s for --curve)')
     parser.add_argument('--stick-rules', action='store_true',
                         help='also compare the paper and accumulation stick rules')
     parser.add_argument('--curve', metavar='DIR', help='measure the cost curve into DIR')
+    parser.add_argument('--replot', action='store_true',
+                        help="with --curve: only the growth law and plot from DIR's CSV")
     parser.add_argument('--stick-study', action='store_true',
                         help='only the stick-rule convergence study on a chattering SDOF')
     args = parser.parse_args(argv)
+    if args.curve and args.replot:
+        with open(Path(args.curve) / 'cost_curve.csv') as fh:
+            rows = [{k: (int(v) if k in ('impactors', 'modes') else float(v))
+                     for k, v in r.items()} for r in csv.DictReader(fh)]
+        plot_curve(rows, Path(args.curve), args.duration or 6.0)
+        return
     if args.curve:
-        cost_curve(args.curve, args.repeat, args.duration or 2.0)
+        cost_curve(args.curve, args.repeat, args.duration or 6.0)
         return
     if args.stick_study:
         stick_study(args.repeat, args.duration)
