@@ -1468,3 +1468,94 @@ def test_third_bound_gives_a_cubic_lower_bound(rng, fid):
             assert g >= quad - G3 * s ** 3 / 6 - 64 * EPS * mag, (s, g, quad, G3)
             worst = max(worst, abs(g - quad) / (G3 * s ** 3 / 6))
     assert worst > 0.1, worst
+
+
+# ============================================================== quiet windows (several steps)
+def _quiet_args(sy, u_grid, k0, k1, limit, h):
+    """Arguments of :func:`quiet_window` for one planar impactor at rest at the housing's
+    position now (so the answer is 'the housing moves less than ``limit``')."""
+    _, y0, _, _ = sy.eval(0.0, 0)
+    x0 = (sy.rows @ y0).real
+    Xs = np.zeros((2, 8, 2))
+    Xs[0, 0] = x0
+    return ((k1 - k0) * h, sy.yh, sy.lam, sy.W, sy.pp, sy.pm, sy.omegas, u_grid, k0, k1,
+            np.abs(sy.rows)[None], np.array([0]), np.array([2]), x0[None].copy(),
+            np.zeros((1, 2)), np.array([limit]), np.array([0]), np.array([0]), Xs,
+            np.empty(sy.nf), np.empty(sy.n2, complex), np.empty(sy.n2, complex),
+            np.empty(sy.n2))
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_quiet_window_bounds_the_motion_across_step_kinks(seed):
+    # The certificate spans several output steps, across the kinks of the held input. The
+    # smallest clearance it certifies (bisected) must exceed the housing's true excursion,
+    # sampled on the exact flow step by step (a new input slope each step), and be within a
+    # modest factor of it (a bound that can fail, not a vacuous one).
+    rng = np.random.default_rng(seed)
+    sy = System(rng, n2=4, nf=2, nh=1, decay=30.0, wmax=300.0)
+    h, k0, k1 = 1e-3, 0, 6
+    u_grid = rng.normal(size=(k1 + 1, sy.nf)) * 5.0
+    sy.u0, sy.us = u_grid[0], (u_grid[1] - u_grid[0]) / h
+    sy.w0, sy.ws = sy.W @ sy.u0, sy.W @ sy.us
+    _, y0, _, _ = sy.eval(0.0, 0)
+    x0 = (sy.rows @ y0).real
+    yh, worst = sy.yh.copy(), 0.0
+    for g in range(k0, k1):
+        u0, us = u_grid[g], (u_grid[g + 1] - u_grid[g]) / h
+        w0, ws = sy.W @ u0, sy.W @ us
+        t_g = sy.t0 + g * h
+        yh_t, y_t = np.empty(sy.n2, complex), np.empty(sy.n2, complex)
+        uder, yd = np.empty((1, sy.nf)), np.empty((1, sy.n2), complex)
+        for s in np.linspace(0.0, h, 200):
+            KF.point_eval(yh, sy.lam, sy.W, w0, ws, sy.pp, sy.pm, sy.omegas, sy.amps, u0, us,
+                          t_g, s, 0, yh_t, y_t, uder, yd)
+            worst = max(worst, float(np.linalg.norm((sy.rows @ y_t).real - x0)))
+        yh = yh_t.copy()
+    lo, hi = 0.0, 1.0
+    while not KE.quiet_window(*_quiet_args(sy, u_grid, k0, k1, hi, h)):
+        hi *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if KE.quiet_window(*_quiet_args(sy, u_grid, k0, k1, mid, h)):
+            hi = mid
+        else:
+            lo = mid
+    assert worst > 0.0
+    assert hi >= worst
+    assert hi <= 50.0 * worst
+    for limit in (0.5 * worst, hi * 1.01):  # the compiled kernel and its twin agree
+        args = _quiet_args(sy, u_grid, k0, k1, limit, h)
+        assert KE.quiet_window(*args) == KE.quiet_window_py(*args)
+
+
+def test_quiet_window_never_certifies_stuck_or_grace():
+    rng = np.random.default_rng(4)
+    sy = System(rng)
+    u_grid = np.zeros((3, sy.nf))
+    args = list(_quiet_args(sy, u_grid, 0, 2, 1e9, 1e-3))
+    assert KE.quiet_window(*args)
+    args[16] = np.array([1])  # stuck
+    assert not KE.quiet_window(*args)
+    args[16], args[17] = np.array([0]), np.array([1])  # on a boundary
+    assert not KE.quiet_window(*args)
+
+
+def test_quiet_steps_change_no_event():
+    # One call of many steps certifies quiet windows ahead; one call per step never can
+    # (the window needs the next input samples). The events must be the same. dt = 2^-12 s
+    # keeps both time bases exact (t = k dt either way), so only the certificates differ.
+    M, Kst = 2.0, 5e4
+    wn = np.sqrt(Kst / M)
+    model = sdof_model(M, Kst, 0.02, dict(name='i', kind='sdof', mass=0.2, cor=0.6,
+                                          clearance=2e-3))
+    runs = []
+    for per_call in (4096, 1):
+        prop = ExactPropagator(model, harmonic(1, 8.0, 0.9 * wn), dt=2.0 ** -12)
+        for _ in range(4096 // per_call):
+            prop.advance(per_call)
+        runs.append((prop.take_events(), prop.work_counters()))
+    (ev_a, c_a), (ev_b, c_b) = runs
+    assert c_a['quiet_steps'] > 500 and c_b['quiet_steps'] == 0
+    assert ev_a.size == ev_b.size and ev_a.size > 20
+    np.testing.assert_array_equal(ev_a['kind'], ev_b['kind'])
+    np.testing.assert_allclose(ev_a['t'], ev_b['t'], rtol=0, atol=1e-12)

@@ -319,7 +319,8 @@ class ExactPropagator(IntegratorBase):
     def work_counters(self):
         """Work done so far, by kind: a dict of counts (see ``kernels.exact.CNT_*``)."""
         names = ('steps', 'searches', 'candidates', 'taylor_expansions', 'flow_evaluations',
-                 'ledger_evaluations', 'fallback_scans', 'kernel_switches', 'segments')
+                 'ledger_evaluations', 'fallback_scans', 'kernel_switches', 'segments',
+                 'quiet_steps')
         counts = dict(zip(names, (int(c) for c in self.counters)))
         counts['python_switches'] = self._python_switches
         return counts

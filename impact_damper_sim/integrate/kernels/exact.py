@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .flow import (add_particular, derivative_bounds, excursion_bounds, input_derivs,
+from .flow import (add_particular, cabs, derivative_bounds, excursion_bounds, input_derivs,
                    more_derivs, point_eval, row_derivs, site_bounds, state_derivs)
 from .ledger import ledger_node_count, ledger_nodes, ledger_panel, ledger_step
 from .poly import BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step
@@ -71,7 +71,11 @@ CNT_LEDGER_EVALS = 5   # flow evaluations of the ledger's quadrature
 CNT_FALLBACK = 6       # event functions decided by the safe-step scan
 CNT_SWITCHES = 7       # configuration switches inside the kernel
 CNT_SEGMENTS = 8       # sub-intervals cut short at a Taylor segment end
-N_COUNTERS = 9
+CNT_QUIET = 9          # output steps certified event-free in advance (no search)
+N_COUNTERS = 10
+
+#: Output steps ahead that a quiet-window certificate tries to cover.
+QUIET_STEPS = 8
 
 #: Longest Taylor segment in units of the fastest mode's time constant (|lambda| S).
 SEGMENT_REACH = 1.5
@@ -492,6 +496,53 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
 search = njit(cache=True)(search_py)
 
 
+def quiet_window_py(T, yh, lam, W, part_plus, part_minus, omegas, u_grid, k0, k1, house_abs,
+                    imp_rep, imp_dim, imp_z, imp_v, imp_limit, imp_stuck, imp_grace, Xs, u_max,
+                    w_max, w_zero, exc):
+    """True if no free impactor can reach its clearance within ``T`` (s) from now.
+
+    Valid whatever the input does between the grid samples ``u_grid[k0..k1]`` (N) that span
+    the window, so unlike a search it may cross output steps, where the held input has kinks:
+    the housing's excursion is bounded from ``|exp(lam t) - 1| |yh|`` plus ``T`` times the
+    largest ``|W u|`` over the window (:func:`.flow.excursion_bounds`), and each impactor
+    flies straight (:func:`out_of_reach`). ``Xs[site, 0]`` holds the housing rows' position
+    now (m); a stuck impactor, or one on a boundary, is never certified.
+    """
+    ni = imp_dim.size
+    for j in range(ni):
+        if imp_stuck[j] == 1 or imp_grace[j] == 1:
+            return False
+    nf = W.shape[1]
+    for f in range(nf):
+        m = 0.0
+        for g in range(k0, k1 + 1):
+            m = max(m, abs(u_grid[g, f]))
+        u_max[f] = m
+    for k in range(lam.size):
+        acc = 0.0
+        for f in range(nf):
+            acc += cabs(W[k, f]) * u_max[f]
+        w_max[k] = acc + 0j
+        w_zero[k] = 0j
+    excursion_bounds(yh, lam, w_max, w_zero, part_plus, part_minus, omegas, T, exc)
+    for j in range(ni):
+        site = imp_rep[j]
+        n_rows = imp_dim[j]
+        total = 0.0
+        for r in range(n_rows):
+            acc = 0.0
+            for k in range(lam.size):
+                acc += house_abs[site, r, k] * exc[k]
+            total += acc * acc
+        if not out_of_reach(n_rows, np.sqrt(total), Xs[site], imp_z[j], imp_v[j], imp_limit[j],
+                            T):
+            return False
+    return True
+
+
+quiet_window = njit(cache=True)(quiet_window_py)
+
+
 def switch_slot_py(yh, V_old, pp_old, pm_old, Vinv_new, pp_new, pm_new, omegas, t, y, x):
     """Carry the state from one configuration to another with the same coordinates.
 
@@ -751,6 +802,10 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     us = np.empty(nf)
     release_n = np.zeros((ni, 2))
     cap = ev_t.size
+    quiet_until = -np.inf
+    u_max = np.empty(nf)
+    w_max = np.empty(n2, dtype=np.complex128)
+    w_zero = np.empty(n2, dtype=np.complex128)
     nn_cap = tb_snodes.shape[1] if ledger_on else 0
     pn_s = np.empty(nn_cap)
     pn_w = np.empty(nn_cap)
@@ -798,7 +853,10 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
             best_fid = -1
             tau = horizon
             have_state = False
-            if ni > 0:
+            if ni > 0 and t_cur == t_k and quiet_until >= t_b:
+                counters[CNT_QUIET] += 1  # certified event-free: the whole step, no search
+            elif ni > 0:
+                taylor_before = counters[CNT_TAYLOR]
                 undecided = search(t_cur, horizon, yh, lam, tb_lam_max[slot], W, w0, ws,
                                    part_plus, part_minus, omegas, amps, u0, us, house,
                                    tb_house_abs[slot], imp_rep, imp_dim, imp_z, imp_v,
@@ -816,6 +874,16 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                 best_j = int(search_result[1])
                 best_fid = int(search_result[2])
                 have_state = search_result[3] == 1.0
+                if best_j == -1 and t_cur == t_k and counters[CNT_TAYLOR] == taylor_before \
+                        and k + 1 < n_steps:
+                    # nothing came near a wall in this step: try to certify the next ones too
+                    k_end = min(k + QUIET_STEPS, n_steps - 1)
+                    t_end = t_base + (k_end + 1) * h
+                    if quiet_window(t_end - t_cur, yh, lam, W, part_plus, part_minus, omegas,
+                                    u_grid, k, k_end + 1, tb_house_abs[slot], imp_rep, imp_dim,
+                                    imp_z, imp_v, imp_limit, imp_stuck, imp_grace, Xs, u_max,
+                                    w_max, w_zero, exc):
+                        quiet_until = t_end
             whole_step = best_j == -1 and t_cur == t_k
             if ledger_on:
                 if whole_step:
