@@ -188,7 +188,7 @@ def test_row_derivs_row_bound_site_bounds_more_derivs_twins(rng):
     agree(part, yd, sy.scale(order))
 
 
-def test_excursion_bounds_and_clear_twins(rng):
+def test_excursion_bounds_twins(rng):
     for _ in range(10):
         sy = System(rng)
         T = rng.uniform(1e-5, 1e-2)
@@ -196,13 +196,6 @@ def test_excursion_bounds_and_clear_twins(rng):
         KF.excursion_bounds(sy.yh, sy.lam, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, T, out)
         KF.excursion_bounds_py(sy.yh, sy.lam, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, T, out_py)
         agree(out, out_py, out)
-        X = rng.normal(size=(3, 2)) * 1e-3
-        for n_rows in (1, 2):
-            z = X[0] + rng.normal(size=2) * 1e-4
-            v = rng.normal(size=2) * 1e-2
-            limit = rng.uniform(1e-4, 2e-3)
-            assert KF.excursion_clear(sy.rows, n_rows, out * 1e-3, X, z, v, limit, T) == \
-                KF.excursion_clear_py(sy.rows, n_rows, out * 1e-3, X, z, v, limit, T)
 
 
 def test_input_derivs_add_particular_step_factors_twins(rng):

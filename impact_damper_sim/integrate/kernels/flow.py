@@ -300,32 +300,3 @@ def excursion_bounds_py(yh, lam, w0, ws, part_plus, part_minus, omegas, T, out):
 
 
 excursion_bounds = njit(cache=True)(excursion_bounds_py)
-
-
-def excursion_clear_py(rows, n_rows, exc, X, z, v, limit, T):
-    """True if a free impactor cannot reach its clearance within ``T`` (s).
-
-    Each housing row moves by at most ``sum_k |rows_k| exc_k`` from ``X[0]`` (``exc`` from
-    :func:`excursion_bounds`); the impactor moves on a straight line.
-    """
-    reach = 0.0
-    for r in range(n_rows):
-        acc = 0.0
-        for k in range(exc.size):
-            acc += cabs(rows[r, k]) * exc[k]
-        reach += acc * acc
-    reach = np.sqrt(reach)
-    if n_rows == 1:
-        r0 = z[0] - X[0, 0]
-        r_end = r0 + v[0] * T
-        return max(r0, r_end) + reach < limit and min(r0, r_end) - reach > -limit
-    # squared distances: no square roots (glibc's hypot is slow) on this hot path
-    a0 = z[0] - X[0, 0]
-    a1 = z[1] - X[0, 1]
-    b0 = a0 + v[0] * T
-    b1 = a1 + v[1] * T
-    room = limit - reach
-    return room > 0.0 and max(a0 * a0 + a1 * a1, b0 * b0 + b1 * b1) < room * room
-
-
-excursion_clear = njit(cache=True)(excursion_clear_py)
