@@ -35,7 +35,8 @@ def command(name, scene):
         expect = (0, None) if s['forcing'] else (2, 'no forcing to sweep')
         return ['frf', scene, '--ratio', '1', '--executor', 'serial'], *expect
     if name == 'sweep':
-        return ['sweep', scene, '--grid', 'impactors.0.cor=0.5', '--executor', 'serial'], 0, None
+        expect = (0, None) if s['impactors'] else (2, 'does not apply to scene')
+        return ['sweep', scene, '--grid', 'impactors.0.cor=0.5', '--executor', 'serial'], *expect
     if name == 'stability':
         expect = ((0, None) if s['structure'].get('cross_couplings')
                   else (2, 'a stability map needs a cross-coupled stiffness'))

@@ -223,6 +223,7 @@ def _sweep(args):
         if not sep or not key.strip() or not vals:
             raise _Usage(f'--grid {text!r}: expected KEY=V1,V2,...')
         grid.append((key.strip(), vals))
+    _check_grid_keys(args.scene, grid, _overrides(args))
     phases = DEFAULT_PHASES
     if args.phase:
         phases = []
@@ -238,6 +239,23 @@ def _sweep(args):
                 raise _Usage(f'--phase {text!r}: expected NAME=T0:T1 (s; T1 may be empty)')
     return sweep(args.scene, grid, _overrides(args), phases=phases, best_over=args.best_over,
                  objective=args.objective, **_runner(args))
+
+
+def _check_grid_keys(scene, grid, overrides):
+    """Refuse, before any run, a grid key the scene cannot take (exit 2, one line)."""
+    from ..scene.build import resolve_scene
+    from ..scene.schema import SceneError, apply_overrides, load_yaml, validate
+    from ..scene.spec import SCHEMA
+    path = resolve_scene(scene)
+    raw = load_yaml(path)
+    validate(SCHEMA, apply_overrides(raw, list(overrides)), source=str(path))  # its own error
+    for key, vals in grid:
+        try:
+            validate(SCHEMA, apply_overrides(raw, list(overrides) + [f'{key}={vals[0]}']),
+                     source=str(path))
+        except SceneError as exc:
+            first = str(exc).strip().splitlines()[-1].strip()
+            raise _Usage(f'--grid {key}: does not apply to scene {scene!r} ({first})') from exc
 
 
 def _print_sweep(r):
