@@ -96,7 +96,7 @@ def test_unbalance_command_scales_a_linear_scene_exactly(ros_context):
 def test_dampers_enabled_switches_impacts(ros_context):
     node = make_node(ros_context, 'sdof')
     published = []
-    node._impact_pub.publish = published.append   # count what would go on the wire
+    node._impact_pub.publish = lambda msg, ns=None: published.append(msg)   # on the wire
     try:
         run_for(node, 1.0)
         on = len(published)

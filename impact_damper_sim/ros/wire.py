@@ -1,0 +1,195 @@
+"""What goes on the wire: publishers that serialize once, a vectorised ``Imu`` packer, guards.
+
+* :class:`Outlet` publishes serialized bytes (rclpy sends ``bytes`` as they are) and gives
+  the same bytes to the recorder, so a message is serialized once for both.
+* :class:`ImuPacker` writes a whole chunk of ``sensor_msgs/Imu`` samples as CDR in one NumPy
+  pass from a template serialized by rclpy; the field offsets are found in that template, and
+  the packer checks its first output against ``serialize_message`` (a round trip) before it
+  is used.
+* :func:`guard_services` makes every service of a node answer (a refusal with the reason)
+  instead of raising into the executor, which would stop the node.
+"""
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from rclpy.serialization import deserialize_message, serialize_message
+
+
+def type_name(msg_type):
+    """``pkg/msg/Type`` of a generated message class (str)."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
+def stamp(t):
+    """A ``builtin_interfaces/Time`` for sim time ``t`` (s)."""
+    ns = int(round(t * 1e9))
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def set_stamp(header, t):
+    """Set ``header.stamp`` to ``t`` (s) in place (cheaper than a new Time per message)."""
+    ns = int(round(t * 1e9))
+    header.stamp.sec, header.stamp.nanosec = divmod(ns, 1_000_000_000)
+
+
+class Outlet:
+    """A publisher that serializes a message once and gives the same bytes to the recorder.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Owner; its ``_record(topic, type_name, qos, data, ns)`` receives every message.
+    msg_type : type
+        Message class.
+    topic : str
+        Topic name (relative names resolve in the node's namespace).
+    qos : QoSProfile
+        Offered QoS (also written to the record file).
+    """
+
+    def __init__(self, node, msg_type, topic, qos):
+        self.pub = node.create_publisher(msg_type, topic, qos)
+        self.topic = self.pub.topic_name   # fully qualified; cached (a C call each time)
+        self.type_name = type_name(msg_type)
+        self.msg_type = msg_type
+        self.qos = qos
+        self.count = 0   # messages published
+        self._record = node._record
+
+    def publish(self, msg, ns=None):
+        """Serialize ``msg`` once, publish and record the bytes (``ns``: log time, ns)."""
+        self.publish_raw(serialize_message(msg), ns)
+
+    def publish_raw(self, data, ns=None, wire=True):
+        """Publish (if ``wire``) and record serialized bytes ``data`` (``ns``: log time)."""
+        if wire:
+            self.pub.publish(data)
+        self.count += 1
+        self._record(self.topic, self.type_name, self.qos, data, ns)
+
+    def has_subscribers(self):
+        """bool: Some subscription is matched (DDS drops what nobody reads anyway)."""
+        return self.pub.get_subscription_count() > 0
+
+
+class ImuPacker:
+    """Serializes chunks of ``sensor_msgs/Imu`` samples that differ only in stamp and data.
+
+    Parameters
+    ----------
+    template : sensor_msgs.msg.Imu
+        Frame id, orientation and covariances of every sample (copied now).
+
+    Raises
+    ------
+    RuntimeError
+        The packed bytes do not deserialize to the message rclpy would build (the CDR
+        layout is not the one assumed); the caller then falls back to ``serialize_message``.
+    """
+
+    def __init__(self, template):
+        from sensor_msgs.msg import Imu
+        self._msg_type = Imu
+        probe = deserialize_message(serialize_message(template), Imu)
+        sentinels = {'av': (1.0e-300 * 3.0, 5.0e-300 * 7.0, 9.0e-300 * 11.0),
+                     'la': (-2.0e-300 * 3.0, -6.0e-300 * 7.0, -10.0e-300 * 11.0)}
+        probe.angular_velocity.x, probe.angular_velocity.y, probe.angular_velocity.z = \
+            sentinels['av']
+        probe.linear_acceleration.x, probe.linear_acceleration.y, \
+            probe.linear_acceleration.z = sentinels['la']
+        probe.header.stamp.sec, probe.header.stamp.nanosec = 0x5EC0CAFE & 0x7FFFFFFF, 0x0DDBA11
+        raw = serialize_message(probe)
+        offsets = {}
+        for key, values in sentinels.items():
+            offsets[key] = raw.find(struct.pack('<3d', *values))
+        offsets['stamp'] = raw.find(struct.pack('<iI', probe.header.stamp.sec,
+                                                probe.header.stamp.nanosec))
+        if min(offsets.values()) < 0 or raw[:2] != b'\x00\x01':   # little-endian CDR only
+            raise RuntimeError('sensor_msgs/Imu: unexpected CDR layout')
+        self.size = len(raw)
+        self.dtype = np.dtype({'names': ['sec', 'nsec', 'av', 'la'],
+                               'formats': ['<i4', '<u4', ('<f8', 3), ('<f8', 3)],
+                               'offsets': [offsets['stamp'], offsets['stamp'] + 4,
+                                           offsets['av'], offsets['la']],
+                               'itemsize': self.size})
+        self._template = np.frombuffer(serialize_message(template), np.uint8)
+        # the round trip: a packed sample must be exactly what rclpy serializes
+        check = deserialize_message(serialize_message(template), Imu)
+        check.header.stamp.sec, check.header.stamp.nanosec = 12, 345678901
+        check.angular_velocity.x, check.angular_velocity.y, check.angular_velocity.z = \
+            0.25, -1.5, 3.0e-7
+        check.linear_acceleration.x, check.linear_acceleration.y, \
+            check.linear_acceleration.z = -9.5, 1.0e5, 2.0 ** -40
+        packed = self.pack(np.array([12_345_678_901]),
+                           np.array([[-9.5, 1.0e5, 2.0 ** -40]]),
+                           np.array([[0.25, -1.5, 3.0e-7]]))[0]
+        if packed != serialize_message(check):
+            raise RuntimeError('sensor_msgs/Imu: packed bytes differ from rclpy serialization')
+
+    def pack(self, t_ns, linear_acceleration, angular_velocity):
+        """Serialized samples (list of bytes), one per row.
+
+        Parameters
+        ----------
+        t_ns : ndarray of int, shape (k,)
+            Sample stamps (ns, >= 0).
+        linear_acceleration : ndarray, shape (k, 3)
+            Linear acceleration (m/s^2).
+        angular_velocity : ndarray, shape (k, 3)
+            Angular velocity (rad/s).
+        """
+        k = len(t_ns)
+        buf = np.empty(k, self.dtype)
+        buf.view(np.uint8).reshape(k, self.size)[:] = self._template
+        sec, nsec = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
+        buf['sec'], buf['nsec'] = sec, nsec
+        buf['la'], buf['av'] = linear_acceleration, angular_velocity
+        raw = buf.tobytes()
+        n = self.size
+        return [raw[i:i + n] for i in range(0, k * n, n)]
+
+
+def _refusal(request, response, reason):
+    """Fill ``response`` as a refusal of ``request`` (every service type the node offers)."""
+    from rcl_interfaces.msg import SetParametersResult
+    if hasattr(response, 'results') and hasattr(request, 'parameters'):   # SetParameters
+        response.results = [SetParametersResult(successful=False, reason=reason)
+                            for _ in request.parameters]
+    elif hasattr(response, 'result') and hasattr(request, 'parameters'):   # ...Atomically
+        response.result = SetParametersResult(successful=False, reason=reason)
+    elif hasattr(response, 'success') and hasattr(response, 'message'):   # SetBool, Trigger
+        response.success, response.message = False, reason
+    return response
+
+
+def guard_services(node, log):
+    """Wrap every service callback of ``node`` so that no request can raise into the executor.
+
+    A callback that raises (for example ``Parameter.Type(200)`` on a malformed
+    ``SetParameters`` request) or returns something other than its response type answers a
+    refusal naming the error instead, and ``log(message)`` is told.
+    """
+    for srv in node.services:
+        if getattr(srv.callback, '_guarded', False):
+            continue
+        original, response_type, name = srv.callback, srv.srv_type.Response, srv.srv_name
+
+        def guarded(request, response, _cb=original, _type=response_type, _name=name):
+            try:
+                out = _cb(request, response)
+                if isinstance(out, _type):
+                    return out
+                reason = f'internal error: the callback returned {type(out).__name__}'
+            except Exception as exc:   # any request must get an answer, never stop the node
+                reason = f'refused: {type(exc).__name__}: {exc}'
+            log(f'service {_name}: {reason}')
+            return _refusal(request, _type(), reason)
+
+        guarded._guarded = True
+        srv.callback = guarded
+
+
+__all__ = ['ImuPacker', 'Outlet', 'guard_services', 'set_stamp', 'stamp', 'type_name']
