@@ -118,10 +118,11 @@ def expected(name):
     if name == 'method':
         return 'one of ' + ', '.join(repr(m) for m in METHODS)
     if name == 'sample_rate':
-        return 'a double, 0 (from the scene) or 100 .. 100000 Hz'
+        return 'a double, 0 (from the scene) or in [100, 100000] Hz'
     if bounds is not None:
-        return f'{"an int" if kind == "int" else "a finite double"} in {bounds[0]:g} .. ' \
-               f'{bounds[1]:g}'
+        fmt = (lambda v: str(int(v))) if kind == 'int' else (lambda v: f'{v:g}')
+        return (f'{"an int" if kind == "int" else "a finite double"} in '
+                f'[{fmt(bounds[0])}, {fmt(bounds[1])}]')
     return {'bool': 'a bool', 'string': 'a string', 'string[]': 'a string array'}[kind]
 
 
@@ -146,7 +147,7 @@ def check(name, value):
     if kind == 'double' and not math.isfinite(value):
         return f'{value!r} is not {expected(name)}'
     if bounds is not None and not bounds[0] <= value <= bounds[1]:
-        return f'{value!r} is outside {expected(name)[2:]}'
+        return f'{value!r} is not {expected(name)}'
     if name == 'sample_rate' and 0.0 < value < 100.0:
         return f'{value!r} is not {expected(name)}'
     if name == 'method' and value not in METHODS:
