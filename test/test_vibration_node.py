@@ -96,7 +96,11 @@ def test_unbalance_command_scales_a_linear_scene_exactly(ros_context):
 def test_dampers_enabled_switches_impacts(ros_context):
     node = make_node(ros_context, 'sdof')
     published = []
-    node._impact_pub.publish = lambda msg, ns=None: published.append(msg)   # on the wire
+    from rclpy.serialization import deserialize_message
+    node._impact_pub.has_subscribers = lambda: True
+    node._impact_pub.publish_raw = (   # what would go on the wire
+        lambda data, ns=None, wire=True: published.append(deserialize_message(data,
+                                                                               WrenchStamped)))
     try:
         run_for(node, 1.0)
         on = len(published)

@@ -174,6 +174,11 @@ def declare_all(node):
                 and given.type_ == Parameter.Type.INTEGER):
             # '-p real_time_factor:=1' means 1.0: YAML reads it as an int
             given = overrides[name] = Parameter(name, value=float(given.value))
+        if (given is not None and kind_of(PARAMETERS[name][0]) == 'string[]'
+                and isinstance(given.value, (list, tuple)) and len(given.value) == 0):
+            # rclpy reads an empty list as a byte array; empty means none: unset
+            del overrides[name]
+            given = None
         if given is not None and given.type_ != Parameter.Type.NOT_SET:
             why = check(name, given.value)
             if why:

@@ -33,10 +33,10 @@ from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
 from ..scene.schema import SceneError
 from . import interface as itf
 from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
-from .wire import ImuPacker, Outlet, guard_services, set_stamp, stamp
+from .wire import ImuPacker, Outlet, StampedPacker, guard_services, stamp
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
-_stamp, _set_stamp = stamp, set_stamp
+_stamp = stamp
 
 
 class _HandoffLock:
@@ -206,7 +206,17 @@ class VibrationNode(Node):
         self._impactor_axes = [[axis_of[d] for d in dofs] for dofs in dofs_of]
         self._joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
                              for d in dofs]
-        self._impact_msg = WrenchStamped()   # reused: publishing serializes it at once
+        self._impact_packers = []
+        for frame in self._impactor_frames:
+            template = WrenchStamped()
+            template.header.frame_id = frame
+            try:
+                self._impact_packers.append(StampedPacker(template,
+                                                          ('wrench.force', 'wrench.torque')))
+            except RuntimeError as exc:   # another CDR layout: message by message
+                self.get_logger().warning(f'{exc}; falling back to serialize_message',
+                                          once=True)
+                self._impact_packers.append(None)
         self._tick_period = p['tick_period']
         self._diag_timer = self.create_timer(p['diagnostics_period'], self.publish_diagnostics)
         self._state_timer = self.create_timer(p['state_period'], self.publish_state)
@@ -557,17 +567,16 @@ class VibrationNode(Node):
             columns.append((pub, data, wire))
         ev = batch.events
         impacts = ev[ev['kind'] == _IMPACT]
-        impact_ns = np.rint(impacts['t'] * 1e9).astype(np.int64).tolist()
+        impact_items = self._impact_items(impacts)
         j = 0
         pending = self._pending
         for i, ns in enumerate(t_ns.tolist()):
-            while j < len(impact_ns) and impact_ns[j] <= ns:
-                pending.append((impact_ns[j], self._impact_pub, self._impact(impacts[j]), True))
+            while j < len(impact_items) and impact_items[j][0] <= ns:
+                pending.append(impact_items[j])
                 j += 1
             for pub, data, wire in columns:
                 pending.append((ns, pub, data[i], wire))
-        for j in range(j, len(impact_ns)):
-            pending.append((impact_ns[j], self._impact_pub, self._impact(impacts[j]), True))
+        pending.extend(impact_items[j:])
         self.stats.samples += k
         self.stats_total['samples'] += k
         peak = float(np.max(np.abs(batch.linear_acceleration))) if k else 0.0
@@ -579,17 +588,42 @@ class VibrationNode(Node):
         if batch.states_changed:
             self._queue_state()
 
-    def _impact(self, e):
-        j = int(e['impactor'])
+    def _impact_items(self, impacts):
+        """Queue items (ns, outlet, bytes, wire) of a chunk's impacts, in time order."""
+        if impacts.size == 0:
+            return []
+        t_ns = np.rint(impacts['t'] * 1e9).astype(np.int64)
+        force = np.zeros((impacts.size, 3))
+        which = impacts['impactor'].astype(np.int64)
+        for j in np.unique(which).tolist():   # plane DOFs -> x, y, z of the frame
+            rows = which == j
+            for k, axis in enumerate(self._impactor_axes[j]):
+                force[rows, axis] = impacts['impulse'][rows] * impacts['normal'][rows, k]
+        torque = np.column_stack([np.abs(impacts['v_n']), np.abs(impacts['v_n_after']),
+                                  impacts['loss']])
+        items = []
+        wire = self._impact_pub.has_subscribers()
+        for j in np.unique(which).tolist():
+            rows = np.flatnonzero(which == j)
+            packer = self._impact_packers[j]
+            if packer is not None:
+                data = packer.pack(t_ns[rows], force[rows], torque[rows])
+            else:
+                data = [serialize_message(self._impact_message(j, t_ns[r], force[r], torque[r]))
+                        for r in rows]
+            items += [(ns, self._impact_pub, d, wire)
+                      for ns, d in zip(t_ns[rows].tolist(), data)]
+        if len(items) > 1:
+            items.sort(key=lambda item: item[0])
+        return items
+
+    def _impact_message(self, j, ns, force, torque):
         msg = WrenchStamped()
-        _set_stamp(msg.header, float(e['t']))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 1_000_000_000)
         msg.header.frame_id = self._impactor_frames[j]
-        impulse = [0.0, 0.0, 0.0]
-        for k, axis in enumerate(self._impactor_axes[j]):   # plane DOFs -> x, y, z
-            impulse[axis] = float(e['impulse'] * e['normal'][k])
         f, tq = msg.wrench.force, msg.wrench.torque
-        f.x, f.y, f.z = impulse
-        tq.x, tq.y, tq.z = abs(float(e['v_n'])), abs(float(e['v_n_after'])), float(e['loss'])
+        f.x, f.y, f.z = (float(v) for v in force)
+        tq.x, tq.y, tq.z = (float(v) for v in torque)
         return msg
 
     def _queue_time(self):

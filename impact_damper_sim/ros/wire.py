@@ -2,10 +2,10 @@
 
 * :class:`Outlet` publishes serialized bytes (rclpy sends ``bytes`` as they are) and gives
   the same bytes to the recorder, so a message is serialized once for both.
-* :class:`ImuPacker` writes a whole chunk of ``sensor_msgs/Imu`` samples as CDR in one NumPy
+* :class:`StampedPacker` (and :class:`ImuPacker`) writes a whole chunk of stamped messages
+  (``sensor_msgs/Imu`` samples, ``geometry_msgs/WrenchStamped`` impacts) as CDR in one NumPy
   pass from a template serialized by rclpy; the field offsets are found in that template, and
-  the packer checks its first output against ``serialize_message`` (a round trip) before it
-  is used.
+  the packer checks a packed message against rclpy (a round trip) before it is used.
 * :func:`guard_services` makes every service of a node answer (a refusal with the reason)
   instead of raising into the executor, which would stop the node.
 """
@@ -75,85 +75,99 @@ class Outlet:
         return self.pub.get_subscription_count() > 0
 
 
-class ImuPacker:
-    """Serializes chunks of ``sensor_msgs/Imu`` samples that differ only in stamp and data.
+class StampedPacker:
+    """Serializes chunks of one stamped message type that differ only in stamp and vectors.
+
+    The message has a ``header`` and some ``geometry_msgs/Vector3`` fields (``paths``, e.g.
+    ``('angular_velocity', 'linear_acceleration')`` of an ``Imu``); everything else is the
+    template's. Offsets are found by serializing the template with sentinel values, and the
+    packer checks a packed message against rclpy (a round trip) before it is used.
 
     Parameters
     ----------
-    template : sensor_msgs.msg.Imu
-        Frame id, orientation and covariances of every sample (copied now).
+    template : message
+        Frame id and every other field of each message (copied now).
+    paths : sequence of str
+        Dotted paths of the Vector3 fields the chunks fill, in :meth:`pack`'s order.
 
     Raises
     ------
     RuntimeError
-        The packed bytes do not deserialize to the message it should be (the CDR
-        layout is not the one assumed); the caller then falls back to ``serialize_message``.
+        The packed bytes do not deserialize to the message they should be (the CDR layout is
+        not the one assumed); the caller then falls back to ``serialize_message``.
     """
 
-    def __init__(self, template):
-        from sensor_msgs.msg import Imu
-        self._msg_type = Imu
-        probe = deserialize_message(serialize_message(template), Imu)
-        sentinels = {'av': (1.0e-300 * 3.0, 5.0e-300 * 7.0, 9.0e-300 * 11.0),
-                     'la': (-2.0e-300 * 3.0, -6.0e-300 * 7.0, -10.0e-300 * 11.0)}
-        probe.angular_velocity.x, probe.angular_velocity.y, probe.angular_velocity.z = \
-            sentinels['av']
-        probe.linear_acceleration.x, probe.linear_acceleration.y, \
-            probe.linear_acceleration.z = sentinels['la']
-        probe.header.stamp.sec, probe.header.stamp.nanosec = 0x5EC0CAFE & 0x7FFFFFFF, 0x0DDBA11
+    def __init__(self, template, paths):
+        msg_type = type(template)
+        self.paths = tuple(paths)
+        probe = deserialize_message(serialize_message(template), msg_type)
+        sentinels = [tuple(float(v) * (i + 1) * 1.0e-300 for v in (3.0, 7.0, 11.0))
+                     for i in range(len(self.paths))]
+        for path, values in zip(self.paths, sentinels):
+            _set_vector(probe, path, values)
+        probe.header.stamp.sec, probe.header.stamp.nanosec = 0x5EC0CAFE, 0x0DDBA11
         raw = serialize_message(probe)
-        offsets = {}
-        for key, values in sentinels.items():
-            offsets[key] = raw.find(struct.pack('<3d', *values))
-        offsets['stamp'] = raw.find(struct.pack('<iI', probe.header.stamp.sec,
-                                                probe.header.stamp.nanosec))
-        if min(offsets.values()) < 0 or raw[:2] != b'\x00\x01':   # little-endian CDR only
-            raise RuntimeError('sensor_msgs/Imu: unexpected CDR layout')
+        offsets = [raw.find(struct.pack('<3d', *values)) for values in sentinels]
+        stamp_at = raw.find(struct.pack('<iI', 0x5EC0CAFE, 0x0DDBA11))
+        if min(offsets + [stamp_at]) < 0 or raw[:2] != b'\x00\x01':   # little-endian CDR
+            raise RuntimeError(f'{type_name(msg_type)}: unexpected CDR layout')
         self.size = len(raw)
-        self.dtype = np.dtype({'names': ['sec', 'nsec', 'av', 'la'],
-                               'formats': ['<i4', '<u4', ('<f8', 3), ('<f8', 3)],
-                               'offsets': [offsets['stamp'], offsets['stamp'] + 4,
-                                           offsets['av'], offsets['la']],
+        names = [f'v{i}' for i in range(len(self.paths))]
+        self.dtype = np.dtype({'names': ['sec', 'nsec', *names],
+                               'formats': ['<i4', '<u4'] + [('<f8', 3)] * len(names),
+                               'offsets': [stamp_at, stamp_at + 4, *offsets],
                                'itemsize': self.size})
+        self._names = names
         self._template = np.frombuffer(serialize_message(template), np.uint8).copy()
         # rclpy leaves the alignment padding after frame_id uninitialized: zero it, so that
-        # equal samples are equal bytes
+        # equal messages are equal bytes
         end = 4 + 8 + 4 + len(template.header.frame_id.encode()) + 1
         self._template[end:4 + -(-(end - 4) // 8) * 8] = 0
-        # the round trip: a packed sample must read back as the message rclpy would send
-        check = deserialize_message(serialize_message(template), Imu)
+        # the round trip: a packed message must read back as the one rclpy would send
+        check = deserialize_message(serialize_message(template), msg_type)
         check.header.stamp.sec, check.header.stamp.nanosec = 12, 345678901
-        check.angular_velocity.x, check.angular_velocity.y, check.angular_velocity.z = \
-            0.25, -1.5, 3.0e-7
-        check.linear_acceleration.x, check.linear_acceleration.y, \
-            check.linear_acceleration.z = -9.5, 1.0e5, 2.0 ** -40
-        packed = self.pack(np.array([12_345_678_901]),
-                           np.array([[-9.5, 1.0e5, 2.0 ** -40]]),
-                           np.array([[0.25, -1.5, 3.0e-7]]))[0]
-        if len(packed) != self.size or deserialize_message(packed, Imu) != check:
-            raise RuntimeError('sensor_msgs/Imu: packed bytes differ from rclpy serialization')
+        values = [(0.25 * (i + 1), -1.5e5, 2.0 ** -40) for i in range(len(self.paths))]
+        for path, v in zip(self.paths, values):
+            _set_vector(check, path, v)
+        packed = self.pack(np.array([12_345_678_901]), *[np.array([v]) for v in values])[0]
+        if len(packed) != self.size or deserialize_message(packed, msg_type) != check:
+            raise RuntimeError(f'{type_name(msg_type)}: packed bytes do not read back')
 
-    def pack(self, t_ns, linear_acceleration, angular_velocity):
-        """Serialized samples (list of bytes), one per row.
+    def pack(self, t_ns, *vectors):
+        """Serialized messages (list of bytes), one per row.
 
         Parameters
         ----------
         t_ns : ndarray of int, shape (k,)
-            Sample stamps (ns, >= 0).
-        linear_acceleration : ndarray, shape (k, 3)
-            Linear acceleration (m/s^2).
-        angular_velocity : ndarray, shape (k, 3)
-            Angular velocity (rad/s).
+            Stamps (ns, >= 0).
+        *vectors : ndarray, shape (k, 3)
+            One array per path, in the units of that field.
         """
         k = len(t_ns)
         buf = np.empty(k, self.dtype)
         buf.view(np.uint8).reshape(k, self.size)[:] = self._template
         sec, nsec = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
         buf['sec'], buf['nsec'] = sec, nsec
-        buf['la'], buf['av'] = linear_acceleration, angular_velocity
+        for name, values in zip(self._names, vectors):
+            buf[name] = values
         raw = buf.tobytes()
         n = self.size
         return [raw[i:i + n] for i in range(0, k * n, n)]
+
+
+def _set_vector(msg, path, values):
+    target = msg
+    for part in path.split('.'):
+        target = getattr(target, part)
+    target.x, target.y, target.z = values
+
+
+class ImuPacker(StampedPacker):
+    """A :class:`StampedPacker` of ``sensor_msgs/Imu``: ``pack(t_ns, linear_acceleration,
+    angular_velocity)``."""
+
+    def __init__(self, template):
+        super().__init__(template, ('linear_acceleration', 'angular_velocity'))
 
 
 def _refusal(request, response, reason):
@@ -196,4 +210,4 @@ def guard_services(node, log):
         srv.callback = guarded
 
 
-__all__ = ['ImuPacker', 'Outlet', 'guard_services', 'set_stamp', 'stamp', 'type_name']
+__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'set_stamp', 'stamp', 'type_name']
