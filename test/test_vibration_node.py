@@ -639,3 +639,49 @@ def test_fuzzed_messages_on_every_subscribed_topic(ros_context):
     finally:
         sender.destroy_node()
         node.destroy_node()
+
+
+def test_console_script_survives_malformed_requests_and_stops_cleanly(ros_context, tmp_path):
+    """The real process: a SetParameters with ParameterValue type 200 is refused, the node
+    stays up, and Ctrl-C (SIGINT) while recording exits 0 with the file finished and no
+    'Failed to publish log message to rosout'."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+    from rcl_interfaces.msg import ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    path = tmp_path / 'sigint.mcap'
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_context.get_domain_id()))
+    proc = subprocess.Popen(
+        [sys.executable, '-c', 'import sys; from impact_damper_sim.ros.vibration_node import '
+         'main; sys.exit(main())', '--ros-args', '-p', 'scene:=sdof', '-p', f'record:={path}'],
+        env=env, stderr=subprocess.PIPE, text=True)
+    client_node = Node('fuzzer', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(client_node)
+    try:
+        client = client_node.create_client(SetParameters, '/vibration_node/set_parameters')
+        assert client.wait_for_service(timeout_sec=120.0)
+        bad = SetParameters.Request(parameters=[ParameterMsg(
+            name='real_time_factor', value=ParameterValue(type=200, double_value=2.0))])
+        res = _call(ex, client, bad)
+        assert not res.results[0].successful
+        _spin(ex, 0.5)
+        assert proc.poll() is None   # still up
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+        assert proc.returncode == 0, err
+        assert 'Failed to publish log message to rosout' not in err, err
+        assert 'Traceback' not in err, err
+        assert 'recorded' in err   # the shutdown message still reaches the console
+        from mcap.reader import make_reader
+        with open(path, 'rb') as f:
+            summary = make_reader(f).get_summary()
+        assert summary is not None and summary.statistics.message_count > 100
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        client_node.destroy_node()
