@@ -58,7 +58,8 @@ def test_topic_table_names_every_topic():
     pytest.importorskip('rclpy')
     from impact_damper_sim.ros import interface as itf
     text = README.read_text()
-    for topic in (itf.IMPACTS, itf.IMPACTOR_STATE, itf.ROTOR_SPEED, itf.SPEED_COMMAND,
+    for topic in (itf.IMPACTS, itf.IMPACTOR_STATE, itf.ROTOR_SPEED, itf.ROTOR_JOINT_STATES,
+                  itf.SPEED_COMMAND,
                   itf.UNBALANCE_COMMAND, itf.CLOCK, itf.DIAGNOSTICS, 'accel/<accelerometer>'):
         assert f'| `{topic}`' in text, topic
 

@@ -685,3 +685,24 @@ def test_console_script_survives_malformed_requests_and_stops_cleanly(ros_contex
         if proc.poll() is None:
             proc.kill()
         client_node.destroy_node()
+
+
+def test_rotor_joint_states_carry_angle_and_speed(ros_context):
+    """At a constant 2400 rad/s the shaft angle is 2400 t, wrapped to [0, 2 pi)."""
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP + [
+        'rotor.speed={kind: constant, speed: 2400 rad/s}'])
+    got = []
+    node._joint_pub.publish = lambda msg, ns=None: got.append(msg)
+    try:
+        run_for(node, 0.1)
+        assert len(got) >= 9
+        for msg in got:
+            t = _sec(msg.header.stamp)
+            assert msg.name == ['rotor'] and msg.velocity[0] == 2400.0
+            assert len(msg.effort) == 0
+            assert 0.0 <= msg.position[0] < 2 * math.pi
+            expected = math.fmod(2400.0 * t, 2 * math.pi)
+            diff = abs(msg.position[0] - expected)
+            assert min(diff, 2 * math.pi - diff) < 1e-6
+    finally:
+        node.destroy_node()

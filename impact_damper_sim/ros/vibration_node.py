@@ -187,6 +187,7 @@ class VibrationNode(Node):
         self._impact_pub = Outlet(self, WrenchStamped, itf.IMPACTS, itf.EVENT_QOS)
         self._state_pub = Outlet(self, JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
         self._speed_pub = Outlet(self, Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
+        self._joint_pub = Outlet(self, JointState, itf.ROTOR_JOINT_STATES, itf.COMMAND_QOS)
         self._clock_pub = (Outlet(self, Clock, itf.CLOCK, itf.CLOCK_QOS)
                            if p['publish_clock'] else None)
         self._diag_pub = Outlet(self, DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
@@ -335,7 +336,7 @@ class VibrationNode(Node):
     def outlets(self):
         """list of _Outlet: Every publisher of the node (``topic``, ``type_name``, ``count``)."""
         return [*self._accel_pubs, self._impact_pub, self._state_pub, self._speed_pub,
-                self._diag_pub] + ([self._clock_pub] if self._clock_pub else [])
+                self._joint_pub, self._diag_pub] + ([self._clock_pub] if self._clock_pub else [])
 
     # -- recording ------------------------------------------------------------------------
     def start_recording(self, path, overwrite=False):
@@ -646,6 +647,11 @@ class VibrationNode(Node):
             msg.header.stamp = _stamp(t)
             msg.vector.x, msg.vector.y, msg.vector.z = speed, rate, x
             self._pending.append((ns, self._speed_pub, msg, True))
+            joint = JointState(name=['rotor'])
+            joint.header.stamp = msg.header.stamp
+            joint.position = [float(self.live.profile.angle(np.asarray(t))) % (2.0 * math.pi)]
+            joint.velocity = [speed]
+            self._pending.append((ns, self._joint_pub, joint, True))
 
     def publish_state(self):
         """Publish ``impactor_state`` now (the periodic timer's callback)."""
