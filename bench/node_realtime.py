@@ -42,6 +42,7 @@ import time
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
+import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
 from geometry_msgs.msg import Vector3Stamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -113,7 +114,17 @@ def run_case(scene, overrides, seconds, rtf, dampers=True, domain=61, record=Non
             *([Parameter('record', value=record)] if record else [])])
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
+        sent_at = []
         if subscriber:
+            # wall time of every sample put on the wire: how steady the stream is
+            pub = node._accel_pubs[0].pub
+            real_publish = pub.publish
+
+            def timed(data, _publish=real_publish, _now=time.monotonic):
+                sent_at.append(_now())
+                _publish(data)
+
+            pub.publish = timed
             topic = node._accel_pubs[0].topic
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
             proc = subprocess.Popen([sys.executable, '-c', SUBSCRIBER, topic, str(seconds),
@@ -150,6 +161,14 @@ def run_case(scene, overrides, seconds, rtf, dampers=True, domain=61, record=Non
              'accelerometers': len(node.live.accelerometers),
              'sample_rate': node.live.sample_rate}
         node.destroy_node()
+        if len(sent_at) > 2:
+            gaps = np.diff(np.array(sent_at))
+            # a burst: samples sent less than 0.1 ms apart; over 5 overflows keep-last-5
+            breaks = np.flatnonzero(gaps >= 1e-4)
+            runs = np.diff(np.concatenate([[-1], breaks, [gaps.size]]))
+            d['largest_burst'] = int(runs.max())
+            d['in_bursts_over_5_percent'] = 100.0 * runs[runs > 5].sum() / runs.sum()
+            d['gap_p99_ms'] = 1e3 * float(np.percentile(gaps, 99))
         if proc is not None:
             out = json.loads(proc.communicate(timeout=60)[0].strip().splitlines()[-1])
             sent = (out['last_ns'] - out['first_ns']) * 1e-9 * d['sample_rate'] + 1
@@ -247,7 +266,9 @@ def main(argv=None):
               f'{d["late_ticks"]:4d}  {d["message"][:50]}')
         if sub:
             print(f'{"":44s} subscriber process: {d["subscriber_cpu_percent"]:.0f} % of a '
-                  'core')
+                  f'core; node sent samples in bursts of at most {d["largest_burst"]} '
+                  f'(< 0.1 ms apart), {d["in_bursts_over_5_percent"]:.1f} % of them in bursts '
+                  f'over 5; 99th percentile gap {d["gap_p99_ms"]:.2f} ms')
     if not args.quick:
         lat = command_latency(args.scene, full, domain=70)
         if lat:

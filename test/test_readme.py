@@ -2,6 +2,8 @@
 import re
 from pathlib import Path
 
+import pytest
+
 from impact_damper_sim.scene.schema import markdown_table
 from impact_damper_sim.scene.spec import SCHEMA
 
@@ -96,3 +98,65 @@ def test_python_command_example_reaches_the_node(ros_context, tmp_path):
         assert node.live.profile.target == 1200.0
     finally:
         node.destroy_node()
+
+
+def _run_examples():
+    """Every README command that starts a node: sh-block lines and command-table cells."""
+    text = README.read_text()
+    lines = [ln for block in re.findall(r'```sh\n(.*?)```', text, flags=re.S)
+             for ln in block.splitlines()]
+    lines += re.findall(r'\| `(make run[^`]*)` \|', text)
+    found = []
+    for line in lines:
+        command = line.split('  #')[0].strip().rstrip('&').strip()
+        if re.match(r'(make run|\.venv/bin/(vibration_node|monitor))\b', command):
+            found.append(command)
+    return sorted(set(found))
+
+
+def test_readme_names_node_examples():
+    commands = _run_examples()
+    assert "make run SCENE=rbs NODE_ARGS='-p real_time_factor:=0.5'" in commands
+    assert any('__ns:=/rbs' in c for c in commands)
+
+
+@pytest.mark.parametrize('command', _run_examples())
+def test_readme_node_example_runs_as_written(command):
+    """Each example starts (the node logs its start-up line, or the monitor stays up) and
+    stops on Ctrl-C; a start-up error would print one line and exit 2."""
+    pytest.importorskip('rclpy')
+    import os
+    import signal
+    import subprocess
+    import time
+
+    from conftest import next_domain_id
+    env = dict(os.environ, ROS_DOMAIN_ID=str(next_domain_id()))
+    proc = subprocess.Popen(['bash', '-c', f'exec {command}'], cwd=README.parent, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    out = []
+    reader = __import__('threading').Thread(target=lambda: out.extend(proc.stdout),
+                                            daemon=True)
+    reader.start()
+    try:
+        started = 'monitor' in command   # the monitor has nothing to wait for
+        end = time.monotonic() + (5.0 if started else 180.0)
+        while time.monotonic() < end and proc.poll() is None:
+            if not started and 'accelerometers at' in ''.join(out):
+                break
+            time.sleep(0.2)
+        time.sleep(1.0)
+        text = ''.join(out)
+        assert proc.poll() is None, f'{command} exited {proc.returncode}:\n{text}'
+        assert 'Traceback' not in text, text
+        if not started:
+            assert 'accelerometers at' in text, text
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(timeout=30)
+        if not command.startswith('make'):
+            assert proc.returncode == 0, ''.join(out)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
