@@ -706,3 +706,16 @@ def test_rotor_joint_states_carry_angle_and_speed(ros_context):
             assert min(diff, 2 * math.pi - diff) < 1e-6
     finally:
         node.destroy_node()
+
+
+def test_slow_start_up_says_what_it_is_doing():
+    """A cold Numba cache keeps the node busy for tens of seconds: it logs that it is."""
+    from impact_damper_sim.ros.vibration_node import _Busy
+    said = []
+    busy = _Busy(said.append, 'compiling', period=0.05)
+    time.sleep(0.3)
+    elapsed = busy.stop()
+    n = len(said)
+    time.sleep(0.15)
+    assert elapsed >= 0.3 and n >= 3 and len(said) == n   # and quiet once stopped
+    assert all(s.startswith('still compiling (') for s in said)
