@@ -1,4 +1,5 @@
-"""The README stays true: its key table is the schema's and its API example runs."""
+"""The README and the docs/ pages stay true: generated tables equal their sources, and every
+example runs as written."""
 import re
 from pathlib import Path
 
@@ -10,9 +11,16 @@ from impact_damper_sim.scene.spec import SCHEMA
 README = Path(__file__).resolve().parents[1] / 'README.md'
 
 
+DOCS = sorted((README.parent / 'docs').glob('*.md'))
+
+
 def region(name):
-    text = README.read_text()
-    return text.split(f'<!-- {name}:start -->\n')[1].split(f'<!-- {name}:end -->')[0]
+    """The text between ``<!-- name:start -->`` and ``<!-- name:end -->``, in the README or
+    a docs/ page (exactly one of them)."""
+    found = [p.read_text() for p in [README, *DOCS]
+             if f'<!-- {name}:start -->' in p.read_text()]
+    assert len(found) == 1, f'region {name!r} in {len(found)} pages'
+    return found[0].split(f'<!-- {name}:start -->\n')[1].split(f'<!-- {name}:end -->')[0]
 
 
 def test_key_table_is_the_schema():
@@ -102,7 +110,7 @@ def test_python_command_example_reaches_the_node(ros_context, tmp_path):
 
 def _run_examples():
     """Every README command that starts a node: sh-block lines and command-table cells."""
-    text = README.read_text()
+    text = ''.join(p.read_text() for p in [README, *DOCS])
     lines = [ln for block in re.findall(r'```sh\n(.*?)```', text, flags=re.S)
              for ln in block.splitlines()]
     lines += re.findall(r'\| `(make run[^`]*)` \|', text)

@@ -543,7 +543,12 @@ def test_fuzzed_service_requests_never_stop_the_node(ros_context, tmp_path):
                                     ListParameters, SetParameters, SetParametersAtomically)
     from std_srvs.srv import SetBool
 
-    node = make_node(ros_context, 'sdof', record_overwrite=True)
+    import os
+    ns = f'/fuzz_{os.getpid()}'   # another node on this domain must not answer for ours
+    node = VibrationNode(context=ros_context, namespace=ns, start_stepping=False,
+                         clock=FakeClock(), parameter_overrides=[
+                             Parameter('scene', value='sdof'),
+                             Parameter('record_overwrite', value=True)])
     node._params['record'] = str(tmp_path / 'fuzz.mcap')
     fuzzer = Node('fuzzer', context=ros_context)
     ex = SingleThreadedExecutor(context=ros_context)
@@ -566,7 +571,7 @@ def test_fuzzed_service_requests_never_stop_the_node(ros_context, tmp_path):
     def params(k):
         return [ParameterMsg(name=str(rng.choice(names)), value=value()) for _ in range(k)]
 
-    base = '/vibration_node/'
+    base = f'{ns}/vibration_node/'
     clients = {kind: fuzzer.create_client(kind, base + srv) for kind, srv in [
         (SetParameters, 'set_parameters'), (SetParametersAtomically, 'set_parameters_atomically'),
         (GetParameters, 'get_parameters'), (DescribeParameters, 'describe_parameters'),
@@ -655,15 +660,16 @@ def test_console_script_survives_malformed_requests_and_stops_cleanly(ros_contex
     from rcl_interfaces.srv import SetParameters
     path = tmp_path / 'sigint.mcap'
     env = dict(os.environ, ROS_DOMAIN_ID=str(ros_context.get_domain_id()))
+    ns = f'/sigint_{os.getpid()}'   # another node on this domain must not answer for ours
     proc = subprocess.Popen(
         [sys.executable, '-c', 'import sys; from impact_damper_sim.ros.vibration_node import '
-         'main; sys.exit(main())', '--ros-args', '-p', 'scene:=sdof', '-p', f'record:={path}'],
-        env=env, stderr=subprocess.PIPE, text=True)
+         'main; sys.exit(main())', '--ros-args', '-r', f'__ns:={ns}', '-p', 'scene:=sdof',
+         '-p', f'record:={path}'], env=env, stderr=subprocess.PIPE, text=True)
     client_node = Node('fuzzer', context=ros_context)
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(client_node)
     try:
-        client = client_node.create_client(SetParameters, '/vibration_node/set_parameters')
+        client = client_node.create_client(SetParameters, f'{ns}/vibration_node/set_parameters')
         assert client.wait_for_service(timeout_sec=120.0)
         bad = SetParameters.Request(parameters=[ParameterMsg(
             name='real_time_factor', value=ParameterValue(type=200, double_value=2.0))])

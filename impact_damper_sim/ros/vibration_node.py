@@ -449,11 +449,17 @@ class VibrationNode(Node):
         self._thread.start()
 
     def stop(self):
-        """Stop the stepping thread and wait for it (idempotent)."""
+        """Stop the stepping thread and wait for it (idempotent).
+
+        What was already stepped (at most one chunk ahead of the clock) is published and
+        recorded now, so the counters, the topics and the log agree.
+        """
         self._stop.set()
         if self._thread is not None:
             self._thread.join()
             self._thread = None
+        if self.context.ok():
+            self._flush(math.inf)
 
     def _run(self):
         """The stepping thread: compute one chunk ahead, publish each item at its time.
