@@ -168,3 +168,33 @@ def test_readme_node_example_runs_as_written(command):
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+
+
+def test_command_table_names_every_study_command_and_option():
+    """Each `study` sub-command has a row naming its options (shared ones: the study-options
+    line under the table)."""
+    import argparse
+
+    from impact_damper_sim.cli.study import _parser
+    text = README.read_text()
+    shared = region('study-options')
+    sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    for name, parser in sub.choices.items():
+        rows = [ln for ln in text.splitlines() if ln.startswith(f'| `.venv/bin/study {name} ')
+                or ln.startswith(f'| `.venv/bin/study {name}`')]
+        assert len(rows) == 1, name
+        for action in parser._actions:
+            for option in (o for o in action.option_strings
+                           if o.startswith('--') and o != '--help'):
+                assert option in rows[0] or (option in shared and '[study options]' in rows[0]), \
+                    (name, option)
+
+
+def test_docs_links_resolve():
+    """Relative links of the README and the docs pages point at files of this repository."""
+    for page in [README, *DOCS]:
+        for target in re.findall(r'\]\(([^)#]+)(?:#[^)]*)?\)', page.read_text()):
+            if '://' in target:
+                continue
+            assert (page.parent / target).exists(), (page.name, target)
+    assert '../shared/' not in README.read_text()
