@@ -80,7 +80,7 @@ def kind_of(default):
 
 
 def parameters_markdown():
-    """The README's parameter table (markdown str), generated from :data:`PARAMETERS`."""
+    """The parameter table of docs/node.md (markdown str), generated from :data:`PARAMETERS`."""
     rows = ['| parameter | type | default | range | dynamic | description |',
             '|---|---|---|---|---|---|']
     for name, (default, description, bounds, read_only) in PARAMETERS.items():

@@ -3,7 +3,7 @@
 A thin adapter over :class:`~impact_damper_sim.realtime.LiveSimulation`: it declares and
 validates the parameters, feeds commands to the core, paces it with
 :class:`~impact_damper_sim.realtime.Pacer` and publishes what it produces. The topics and
-their encodings are in :mod:`impact_damper_sim.ros.interface` and the README.
+their encodings are in :mod:`impact_damper_sim.ros.interface` and docs/node.md.
 
 Run it with ``ros2 run impact_damper_sim vibration_node`` (or the ``vibration_node`` console
 script), e.g. ``--ros-args -p scene:=rbs -r __ns:=/rbs``.
