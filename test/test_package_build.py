@@ -8,8 +8,8 @@ Two groups of checks:
   ``share/<pkg>/``, the ament index marker, every Python module, and a working ``study --help``.
 * Static checks (no build) of ``package.xml``, ``setup.cfg``, ``setup.py`` and the package layout.
 
-colcon comes from ``requirements-dev.txt`` (``colcon-common-extensions``). If it is missing from the
-environment running pytest, the build tests fail rather than skip.
+colcon comes from ``requirements-dev.txt`` (``colcon-common-extensions``). If it is missing
+from the environment running pytest, the build tests fail rather than skip.
 """
 import ast
 import configparser

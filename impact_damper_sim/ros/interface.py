@@ -117,5 +117,5 @@ def accel_topic(sensor):
 
 __all__ = ['ACCEL_PREFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS', 'DIAGNOSTICS',
            'DIAGNOSTICS_QOS', 'EVENT_QOS', 'G0', 'IMPACTS', 'IMPACTOR_STATE', 'LATCHED_QOS',
-           'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES', 'UNBALANCE_COMMAND',
-           'accel_topic']
+           'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES',
+           'UNBALANCE_COMMAND', 'accel_topic']

@@ -210,4 +210,5 @@ def guard_services(node, log):
         srv.callback = guarded
 
 
-__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'set_stamp', 'stamp', 'type_name']
+__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'set_stamp', 'stamp',
+           'type_name']
