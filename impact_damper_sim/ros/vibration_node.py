@@ -835,5 +835,9 @@ def main(args=None):
     return status
 
 
+# PARAMETERS and parameters_markdown are re-exported: they were defined here before
+__all__ = ['PARAMETERS', 'VibrationNode', 'main', 'parameters_markdown']
+
+
 if __name__ == '__main__':
     sys.exit(main())
