@@ -43,7 +43,7 @@ test-slow: $(DEV)
 
 # the paper's results next to ours (docs/validation.md and docs/validation/*.png; minutes)
 validation: $(DEV)
-	$(VENV)/bin/study validate --out docs/validation.md
+	$(VENV)/bin/study validate --out docs/validation.md --overwrite
 
 # speed/accuracy trade: docs/convergence.md, docs/convergence/*.{csv,json,png} (about 10 min)
 convergence: $(DEV)

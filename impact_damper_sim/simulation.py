@@ -7,14 +7,25 @@ Everything is in SI units. Typical use::
     events = sim.take_events()           # impacts, sticks and releases since the last call
     sim.impactor_states()                # stuck/free, relative position and velocity
     sim.energy()                         # energy ledger (J)
+
+:meth:`Simulation.advance` checks every chunk of :data:`CHECK_EVERY` samples: a run that
+diverges raises :class:`~impact_damper_sim.divergence.Divergence` at once (what, when), and
+a request whose samples would not fit in memory raises
+:class:`~impact_damper_sim.divergence.TooLarge` before anything is allocated.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from .divergence import check_allocation, check_samples, check_state, from_engine_error
 from .integrate.events import EVENT_KINDS, Samples
 
 METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
+
+#: Samples per divergence check: a blow-up is caught within this many samples of its start
+#: (a chunk costs a call of the engine, a state read and a finiteness test: about 0.4 ms, 1 % of
+#: 8192 steps of the exact engine on hpotp; 1024 cost 6 to 12 %).
+CHECK_EVERY = 8192
 
 
 def make_integrator(method, model, forcing, dt, physical_model=None, **options):
@@ -100,11 +111,53 @@ class Simulation:
         return self.integrator.model.sensors @ qd
 
     def advance(self, n_steps):
-        """Advance ``n_steps`` sample periods and return their :class:`Samples`."""
+        """Advance ``n_steps`` sample periods and return their :class:`Samples`.
+
+        Raises
+        ------
+        TooLarge
+            Before anything runs, if the samples would not fit in memory.
+        Divergence
+            If the run diverges (non-finite or absurd state, unresolved chatter); raised at
+            the first chunk of :data:`CHECK_EVERY` samples that shows it. The simulation
+            stays at the end of that chunk.
+        """
+        n_steps = int(n_steps)
+        check_allocation(n_steps, self.integrator.model.sensors.shape[0])
         self._velocity_before_advance = self._last_velocity
-        samples = self.integrator.advance(int(n_steps))
+        chunks = []
+        done = 0
+        t_start, dt = self.integrator.t, getattr(self.integrator, 'dt', self.dt)
+        while True:
+            n = min(CHECK_EVERY, n_steps - done)
+            chunks.append(self._checked_advance(n))
+            done += n
+            # the engines stamp time as chunk start + k dt: put the time base back on
+            # t_start + done dt, where one call would have left it (no drift of an ulp a chunk)
+            t_exact = t_start + dt * done
+            if abs(self.integrator.t - t_exact) <= 8 * np.spacing(abs(t_exact)):
+                self.integrator.t = t_exact
+            if done >= n_steps:
+                break
+        samples = chunks[0] if len(chunks) == 1 else Samples(
+            *(np.concatenate([getattr(c, f) for c in chunks])
+              for f in ('t', 'displacement', 'velocity', 'acceleration')))
         if samples.t.size:
             self._last_velocity = samples.velocity[-1].copy()
+        return samples
+
+    def _checked_advance(self, n):
+        try:
+            with np.errstate(over='ignore', invalid='ignore'):
+                samples = self.integrator.advance(n)
+        except (FloatingPointError, RuntimeError) as exc:
+            div = from_engine_error(exc, self.integrator.t)
+            if div is None:
+                raise
+            raise div from exc
+        check_samples(samples, self.sensor_names)
+        q, qd = self.integrator.state()
+        check_state(q, qd, self.integrator.t)
         return samples
 
     def advance_to(self, t_end):

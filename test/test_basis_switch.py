@@ -162,18 +162,71 @@ def test_complete_basis_equals_mass_update_forced_chain_with_dashpot():
     assert pair[1][0].n_config_changes == pair[0][0].n_config_changes >= 10
 
 
-def test_complete_basis_equals_mass_update_planar():
-    """Tolerance 1e-9 s and 1e-9 relative, planar impactor on a 6-DOF rotor model, free decay.
-    Glancing planar impacts amplify rounding by about 1/e per impact (see test_exact), so the
-    comparison stops at 0.15 s, where the two runs still agree to 1e-11 s."""
+def amplification(model, forcing, dt, n_steps, q0, rel=1e-12, seed=1):
+    """How much the run amplifies a relative perturbation of its initial state.
+
+    Runs the mass update from ``q0`` and from ``q0 + rel |q0| d`` (``d`` a random unit
+    vector) and returns ``(A_v, A_t)``: the largest relative sensor-velocity change and the
+    largest event-time change (s), each per unit ``rel``. ``rel = 1e-12`` is in the linear
+    regime on the planar rotor (1e-15 to 1e-12 give the same A within a factor 2; 1e-11
+    already changes the event sequence).
+    """
+    d = np.random.default_rng(seed).standard_normal(q0.size)
+    d /= np.linalg.norm(d)
+    runs = []
+    for q in (q0, q0 + rel * np.linalg.norm(q0) * d):
+        prop = ExactPropagator(model, forcing, dt, q0=q)
+        runs.append((prop.advance(n_steps), prop.take_events()))
+    (sa, ea), (sb, eb) = runs
+    assert np.array_equal(ea['kind'], eb['kind']), 'perturbation left the linear regime'
+    a_v = np.abs(sa.velocity - sb.velocity).max() / np.abs(sa.velocity).max() / rel
+    a_t = np.abs(ea['t'] - eb['t']).max() / rel
+    return a_v, a_t
+
+
+#: Relative rounding of one basis switch, in units of eps: the 12-component state passes
+#: through two 6 x 6 products (at most 6 eps each, n eps for a length-n dot product) of a
+#: mass-normalized basis whose condition is sqrt(m_max / m_min) = sqrt(3) on the rotor:
+#: 2 x 6 x 1.7 = 21, rounded up.
+SWITCH_ROUNDING = 32
+
+
+def test_complete_basis_equals_mass_update_planar(capsys):
+    """Planar impactor on a 6-DOF rotor model, free decay, 0.15 s: both formulations give
+    the same event sequence, and their difference is rounding, amplified by the run.
+
+    Glancing planar impacts amplify any perturbation of the state exponentially (by ~1e3 at
+    0.1 s and ~1.5e6 at 0.15 s here), so a fixed bound does not bound rounding: the two
+    formulations differ by a few eps per switch, and which few depends on the BLAS kernels
+    and the CPU (OPENBLAS_CORETYPE=Prescott gives 1.8e-10, Haswell 8.7e-10, and a fresh
+    machine 3.2e-9 against the former fixed 0.95e-9). The bound is that of the analysis:
+    the run's own amplification A (measured by :func:`amplification`) x switches x
+    :data:`SWITCH_ROUNDING` eps, for velocities (relative) and event times (s). Its size,
+    ~2e-7 relative, keeps the test able to fail: a formulation error (a wrong stuck mass, a
+    non-conservative switch) is >= 1e-4."""
     system = rotor()
     basis = modal_reduction(system)
     model = modal_model(basis, [[4, 5]], [dict(name='p', kind='planar', mass=0.05, cor=0.5,
                                                clearance=1e-3)], [4, 5], [])
     q0 = np.linalg.lstsq(model.impactors[0].rows, [3e-3, 1e-3], rcond=None)[0]
     switch = BasisSwitch(system, basis, model, [[4, 5]])
-    pair = run_pair(model, Forcing(0), 1e-4, 1500, switch, q0=q0)
-    assert_same_runs(pair, min_sticks=5)
+    n_steps = 1500
+    (_, sa, ea), (pb, sb, eb) = run_pair(model, Forcing(0), 1e-4, n_steps, switch, q0=q0)
+    assert np.sum(ea['kind'] == STICK) >= 5
+    assert np.array_equal(ea['kind'], eb['kind']) and np.array_equal(ea['impactor'],
+                                                                      eb['impactor'])
+    a_v, a_t = amplification(model, Forcing(0), 1e-4, n_steps, q0)
+    budget = pb.n_config_changes * SWITCH_ROUNDING * np.finfo(float).eps
+    dv = np.abs(sa.velocity - sb.velocity).max() / np.abs(sa.velocity).max()
+    dt_ev = np.abs(ea['t'] - eb['t']).max()
+    with capsys.disabled():
+        print(f'\nplanar basis switch vs mass update: velocity {dv:.2e} '
+              f'(bound {a_v * budget:.2e}),'
+              f' event times {dt_ev:.2e} s (bound {a_t * budget:.2e} s); amplification '
+              f'{a_v:.3g}, {pb.n_config_changes} switches')
+    assert dv <= a_v * budget
+    assert dt_ev <= a_t * budget
+    assert a_v * budget <= 1e-6   # still far below a formulation error
 
 
 def test_complete_basis_equals_mass_update_on_cantilever_scene():

@@ -193,10 +193,18 @@ def test_rate_1_count_order_payload_and_timing(ros_context, mixed_log):
     print(f'rate 1: median inter-arrival jitter {jitter * 1e3:.3f} ms over {len(log_dt)} '
           f'intervals; publisher lateness median {stats.median_lateness_s * 1e3:.3f} ms, '
           f'max {stats.max_lateness_s * 1e3:.3f} ms')
-    assert jitter < 2e-3
-    # and no drift: the whole run takes the log's span (within 20 ms)
+    # Exact pacing is test_player_publishes_at_deadlines_with_clock_ticks (a fake clock).
+    # Here, over DDS with the machine shared, only what load cannot cause is asserted: a
+    # median jitter far below the 20 ms spacing (a player that ignored the schedule would
+    # be off by whole intervals), and no running ahead of the log (the player waits for
+    # each deadline; load only makes it late), nor behind it by more than 0.5 s (it drops
+    # no time: no drift). The measured numbers are printed (typically 0.1 ms jitter and a
+    # span within 5 ms).
+    assert jitter < 5e-3
     span = (entries[-1][0] - entries[0][0]) * 1e-9
-    assert arrivals[-1][1] - arrivals[0][1] == pytest.approx(span, abs=0.02)
+    wall = arrivals[-1][1] - arrivals[0][1]
+    print(f'rate 1: {span:.3f} s of log in {wall:.4f} s of wall time')
+    assert span - 0.02 <= wall <= span + 0.5
 
 
 @pytest.mark.ros
@@ -212,7 +220,11 @@ def test_rate_10_runs_ten_times_faster(ros_context, tmp_path):
     wall = arrivals[-1][1] - arrivals[0][1]
     speedup = 2.0 / wall
     print(f'rate 10: 2 s of log in {wall:.4f} s of wall time, speed-up {speedup:.2f}')
-    assert speedup == pytest.approx(10.0, rel=0.1)
+    # never faster than 10x (deadlines are waited for; 10 ms for a late delivery of the
+    # first message), and not so slow that the rate is ignored (rate 1 would take 2 s) or
+    # paced at another factor; load only lowers the speed-up (measured 9.9 when idle)
+    assert wall >= 0.2 - 0.01
+    assert speedup > 5.0
 
 
 @pytest.mark.ros
@@ -245,7 +257,10 @@ def test_topic_filter_remap_and_clock(ros_context, mixed_log):
     assert all(b >= a for a, b in zip(ns, ns[1:]))
     # 200 ticks per wall second at rate 4: one tick per 20 ms of log (late ticks are skipped)
     span_s = (impacts[-1][0] - entries[0][0]) * 1e-9
-    assert len(ns) == pytest.approx(span_s / 4 * 200 + 2, rel=0.25)
+    # never more ticks than the wall-clock schedule allows (late ticks are skipped, so load
+    # gives fewer, never more); a quarter of them at least, or /clock is not ticking
+    expected = span_s / 4 * 200 + 2
+    assert 0.25 * expected <= len(ns) <= expected + 1
     assert stats.clock_ticks == len(ns)
 
 

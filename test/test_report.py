@@ -6,6 +6,7 @@ report reads them the way it reads a rosbag2 log.
 """
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -345,3 +346,38 @@ def test_bad_file_subprocess_no_traceback(synthetic, tmp_path):
     assert proc.returncode == 2
     assert 'truncated' in proc.stderr and 'Traceback' not in proc.stderr
     assert proc.stdout == ''
+
+
+def test_existing_plot_or_csv_needs_overwrite(synthetic, tmp_path, capsys):
+    """An existing --plot/--csv file is refused (exit 2, file untouched) without --overwrite."""
+    png, csv_path = tmp_path / 'r.png', tmp_path / 'r.csv'
+    png.write_bytes(b'mine')
+    assert study(['report', str(synthetic[0]), '--plot', str(png), '--csv', str(csv_path)]) == 2
+    assert f'{png} exists; pass --overwrite' in capsys.readouterr().err
+    assert png.read_bytes() == b'mine' and not csv_path.exists()
+    assert study(['report', str(synthetic[0]), '--plot', str(png), '--csv', str(csv_path),
+                  '--overwrite']) == 0
+    assert png.read_bytes()[:4] == b'\x89PNG'
+
+
+def test_short_last_bin_is_a_count_not_a_rate_and_silent_axes_are_named(tmp_path, capsys):
+    """50 impacts/s for 3.1 s: the text gives the full 1 s bins as rates (50 50 50) and the
+    last 0.1 s as a count (5 impacts), not as a 50/s bar that reads like a spike or a dip;
+    the plot names the axes without signal (x, z) instead of drawing them at a floor."""
+    path, png = tmp_path / 'bins.mcap', tmp_path / 'bins.png'
+    log = Log(path)
+    events = [(k * 1_000_000, '/accel/s1', 'sensor_msgs/msg/Imu',
+               _imu(k * 1_000_000, 0.0, math.sin(2 * math.pi * 25 * k / FS), 0.0))
+              for k in range(3100)]
+    events += [(k * 20_000_000 + 10_000_000, '/impacts', 'geometry_msgs/msg/WrenchStamped',
+                {'header': {'stamp': stamp(k * 20_000_000 + 10_000_000), 'frame_id': 'h/a'},
+                 'wrench': {'force': {'x': 1e-3}}}) for k in range(155)]
+    events.sort(key=lambda e: e[0])
+    for t_ns, topic, rtype, msg in events:
+        log.write(topic, rtype, msg, t_ns)
+    log.close()
+    assert study(['report', str(path), '--plot', str(png)]) == 0
+    out = capsys.readouterr().out
+    assert 'impacts/s per full 1 s bin: 50 50 50\n' in out
+    assert re.search(r'last 0\.09\d* s \(partial bin\): 5 impact\(s\)', out)
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'

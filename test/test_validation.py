@@ -29,3 +29,34 @@ def test_validate_quick_writes_every_section(tmp_path, capsys):
 def test_validate_rejects_bad_workers(capsys):
     assert main(['validate', '--quick', '--workers', '0']) == 2
     assert '--workers' in capsys.readouterr().err
+
+
+def test_validate_quick_never_writes_the_full_document_and_refuses_to_overwrite(
+        tmp_path, capsys, monkeypatch):
+    """--quick writes validation-quick.md by default, never docs/validation.md; an existing
+    document or plot is only replaced with --overwrite (refused before any run)."""
+    monkeypatch.chdir(tmp_path)
+    docs = tmp_path / 'docs'
+    docs.mkdir()
+    (docs / 'validation.md').write_text('full document')
+    calls = []
+    import impact_damper_sim.studies.validation as validation
+
+    def fake(out, **kw):
+        calls.append(out)
+        return {'path': out, 'plots': {'frf': 'x/frf.png'}, 'n_points': 0, 'wall_time_s': 0.0,
+                'failures': []}
+    monkeypatch.setattr(validation, 'validate', fake)
+    assert main(['validate', '--quick']) == 0
+    assert calls == ['validation-quick.md']
+    assert (docs / 'validation.md').read_text() == 'full document'
+    capsys.readouterr()
+    assert main(['validate', '--quick', '--out', 'docs/validation.md']) == 2
+    assert 'docs/validation.md exists; pass --overwrite' in capsys.readouterr().err
+    assert len(calls) == 1   # refused before running anything
+    (tmp_path / 'validation-quick').mkdir()
+    (tmp_path / 'validation-quick' / 'frf.png').write_bytes(b'png')
+    assert main(['validate', '--quick']) == 2
+    assert 'validation-quick/frf.png' in capsys.readouterr().err
+    assert main(['validate', '--quick', '--overwrite']) == 0
+    assert calls == ['validation-quick.md', 'validation-quick.md']

@@ -9,7 +9,10 @@ import csv
 import os
 import sys
 
-from .study import EXIT_USAGE, _error, _g, _print_json, _table
+from ..divergence import StudyDiverged
+
+from .study import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists, _error,
+                    _g, _print_json, _table, refuse_existing)
 
 _SHORTHANDS = ('duration', 'method', 'dt', 'window')
 
@@ -29,14 +32,19 @@ def run_study(args):
     Returns
     -------
     int
-        0 if every point (or at least one) succeeded, 1 if all failed, 2 for bad input.
+        0 if every point (or at least one) succeeded, 1 if all failed, 2 for bad input, 3 if
+        a point's run diverged (its one-line reason on stderr; the other points are kept).
     """
     try:
+        refuse_existing([args.csv, args.plot], args.overwrite)   # before the runs, not after
         result = {'frf': _frf, 'sweep': _sweep, 'stability': _stability,
                   'convergence': _convergence}[args.command](args)
-    except (_Usage, ValueError) as exc:   # UnitError is a ValueError
+    except (_Usage, ValueError, OutputExists) as exc:   # UnitError, TooLarge: ValueErrors
         _error(str(exc))
         return EXIT_USAGE
+    except StudyDiverged as exc:
+        _error(str(exc))
+        return EXIT_DIVERGED
     module = _module(args.command)
     try:
         if args.csv:
@@ -55,6 +63,8 @@ def run_study(args):
         labels = ', '.join(f'{k}={v}' for k, v in f['labels'].items())
         print(f'study: warning: point failed ({labels}): {f["error"]}', file=sys.stderr)
     n_points = len(result['points'])
+    if any(f.get('diverged') for f in result['failures']):
+        return EXIT_DIVERGED
     return 1 if n_points and len(result['failures']) == n_points else 0
 
 
@@ -70,8 +80,17 @@ def run_validate(args):
         _error(f'--workers must be >= 1, got {args.workers}')
         return EXIT_USAGE
     from ..studies.validation import validate
+    out = args.out or (QUICK_VALIDATION_OUT if args.quick else 'docs/validation.md')
+    plot_dir = os.path.splitext(out)[0]
+    plots = ([os.path.join(plot_dir, f) for f in sorted(os.listdir(plot_dir))
+              if f.endswith('.png')] if os.path.isdir(plot_dir) else [])
     try:
-        r = validate(args.out, quick=args.quick, workers=args.workers, seed=args.seed,
+        refuse_existing([out] + plots, args.overwrite)
+    except OutputExists as exc:
+        _error(str(exc))
+        return EXIT_USAGE
+    try:
+        r = validate(out, quick=args.quick, workers=args.workers, seed=args.seed,
                      progress=args.progress)
     except OSError as exc:
         _error(f'cannot write output: {exc}')
@@ -240,13 +259,21 @@ def _print_sweep(r):
     print(f"sweep of {r['scene']} ({r['source']}); worst case over the sensors; red = "
           'reduction without/with impactors')
     print(_table(header, rows))
+    diverged = sorted({row['without_diverged_at_s'] for row in r['rows']
+                       if row.get('without_diverged_at_s') is not None})
+    if diverged:
+        print(f"without impactors the run diverged (at t = {_g(diverged[0], 4)} s first): the "
+              "structure is unbounded without them, so 'red' is n/a (unbounded)")
     if r['best']:
-        unit = 'm' if r['objective'] == 'displacement' else 'm_s2'
-        field = f"worst_{r['objective']}_{unit}"
+        from ..analysis import G0
+        disp = r['objective'] == 'displacement'
+        field = f"worst_{r['objective']}_{'m' if disp else 'm_s2'}"
+        scale = 1.0 if disp else 1.0 / G0   # in the table's units: m, or g
         others = [k for k in keys if k != r['best_over']]
         print(f"\nbest {r['best_over']} (least worst-case {r['objective']} over the phases):")
-        print(_table(others + [r['best_over'], field],
-                     [[b[k] for k in others] + [b[r['best_over']], _g(b[field], 4)]
+        print(_table(others + [r['best_over'],
+                               f"worst {r['objective']} ({'m' if disp else 'g'})"],
+                     [[b[k] for k in others] + [b[r['best_over']], _g(b[field] * scale, 4)]
                       for b in r['best']]))
     print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
 
@@ -297,7 +324,9 @@ def _print_stability(r):
         rows = [[row['kcc'], _g(row['kcc_N_m']),
                  scene_value(row['weight'], 'scene_weight') if row['impactors'] else '-',
                  scene_value(row['clearance'], 'scene_clearance') if row['impactors'] else '-',
-                 row['verdict'], _g(row['rms_radial_m'], 4), _g(row['growth_ratio'], 4),
+                 (f"unstable (diverged at {_g(row['diverged_at_s'], 3)} s)"
+                  if row.get('diverged_at_s') is not None else row['verdict']),
+                 _g(row['rms_radial_m'], 4), _g(row['growth_ratio'], 4),
                  _g(row['growth_rate_1_s'], 3), _g(row['impacts_per_second'], 4)]
                 + ([row['verdict_half_dt'], row['verdict_other_method'],
                     'yes' if row['verified'] else 'NO'] if verify else [])
@@ -314,8 +343,12 @@ def _print_stability(r):
                   'unchanged')
     if r['onset']:
         o = r['onset']
+        from ..studies.display import axis_unit
+        unit, factor = axis_unit(o['kcc_key'], [row['kcc'] for row in r['rows']])
+        given = (f" = {_g(o['onset_kcc_N_m'] / factor, 7)} {unit}"
+                 if unit and unit != 'N/m' else '')   # also in the unit of --kcc
         print(f"linear onset without impactors: {o['kcc_key']} = {_g(o['onset_kcc_N_m'], 7)} "
-              f"N/m (whirl {_g(o['whirl_frequency_hz'], 6)} Hz, {o['evaluations']} "
+              f"N/m{given} (whirl {_g(o['whirl_frequency_hz'], 6)} Hz, {o['evaluations']} "
               'eigenvalue evaluations)')
     print(f"{len(r['points'])} runs in {_g(r['wall_time_s'], 3)} s")
 

@@ -11,24 +11,27 @@
                       [--best-over KEY] [--objective acceleration|displacement] [study options]
     study stability SCENE --kcc-key KEY [--kcc V1,V2,...] [--weight-key KEY --weights ...]
                           [--clearance-key KEY --clearances ...] [--onset] [study options]
-    study validate [--out docs/validation.md] [--quick] [--workers N]
+    study validate [--out docs/validation.md] [--quick] [--workers N] [--overwrite]
     study convergence SCENE [--methods M1,M2] [--dts DT1,DT2] [--modes N1,N2] [--ref-dt S]
                             [--ref-modes N] [study options]
-    study report FILE.mcap [--json] [--plot PATH.png] [--csv PATH]
+    study report FILE.mcap [--json] [--plot PATH.png] [--csv PATH] [--overwrite]
     study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]
 
 study options: [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S] [--window S]
-[--json] [--csv PATH] [--plot PATH.png] [--workers N] [--executor process|serial|dask]
-[--dask-address ADDR] [--seed N] [--progress | --no-progress]
+[--json] [--csv PATH] [--plot PATH.png] [--overwrite] [--workers N]
+[--executor process|serial|dask] [--dask-address ADDR] [--seed N] [--progress | --no-progress]
 
 SCENE is a ready-made scene name (``config/scenes/<name>.yaml``) or a path to a YAML file.
 ``--duration``, ``--method``, ``--dt`` and ``--window`` are shorthands for
 ``--set simulation.<key>=VALUE``, so they accept units (``--dt '50 us'``) and are checked
-like scene values. Bad input prints one message per problem to stderr and exits with 2.
+like scene values. Bad input prints one message per problem to stderr and exits with 2; so
+does a run whose samples would not fit in memory (refused up front, with the estimate). A run
+that diverges (non-finite or absurd state, unresolved chatter) ends in one line on stderr,
+what diverged, when, and which setting to change, and exits with 3.
 
 The studies (``frf``, ``sweep``, ``stability``; :mod:`impact_damper_sim.studies`) run their
 points in parallel; a point that fails is reported on stderr and the others are kept (exit
-status 0 if any point succeeded, 1 if none did).
+status 0 if any point succeeded, 1 if none did, 3 if a point diverged).
 
 Importing this module is cheap: NumPy, SciPy, Numba, Dask and Matplotlib are imported by the
 subcommands that need them.
@@ -42,6 +45,12 @@ import sys
 import time
 
 EXIT_USAGE = 2
+#: Default document of ``study validate --quick`` (the full one is docs/validation.md).
+QUICK_VALIDATION_OUT = 'validation-quick.md'
+#: A run diverged (same value as :data:`impact_damper_sim.divergence.EXIT_DIVERGED`).
+EXIT_DIVERGED = 3
+#: Largest scene file read (bytes): scenes are a few kB; anything larger is not one.
+MAX_SCENE_BYTES = 1 << 20
 _METHODS_HELP = 'exact, newmark, newmark_step_end or direct'
 
 
@@ -93,6 +102,8 @@ def _parser():
                         help='also plot spectra or waterfalls, impact rate and stuck state')
     report.add_argument('--csv', metavar='PATH',
                         help='also write the summary as CSV (section,name,quantity,value,unit)')
+    report.add_argument('--overwrite', action='store_true',
+                        help='replace existing --plot/--csv files (default: refuse)')
     _study_parsers(sub, scene_args)
     from ..recording.cli import add_recover_parser
     add_recover_parser(sub)
@@ -109,6 +120,8 @@ def _study_parsers(sub, scene_args):
             p.add_argument(f'--{key}', metavar=meta, help=text)
         p.add_argument('--csv', metavar='PATH', help='also write the table as CSV')
         p.add_argument('--plot', metavar='PATH.png', help='also write a plot (PNG)')
+        p.add_argument('--overwrite', action='store_true',
+                       help='replace existing --csv/--plot files (default: refuse)')
         p.add_argument('--workers', type=int, metavar='N',
                        help='parallel workers (default: CPU count)')
         p.add_argument('--executor', choices=('process', 'serial', 'dask'), default='process',
@@ -204,7 +217,8 @@ def _study_parsers(sub, scene_args):
                       metavar='M1,M2', help='methods to cross (default: all four)')
     conv.add_argument('--dts', default='', metavar='DT1,DT2',
                       help="time steps, each dividing the largest, e.g. '100 us,50 us' "
-                           '(default: the scene dt x 2, 1, 1/2, 1/4)')
+                           '(default: the scene dt x 2, 1, 1/2, 1/4; x 1 to 1/8 when a '
+                           "sensor's low-pass would reach Nyquist at twice dt)")
     conv.add_argument('--modes', default='', metavar='N1,N2',
                       help="retained mode counts (default: the scene's and twice it)")
     conv.add_argument('--ref-dt', metavar='S', help='step of the reference (default: smallest/2)')
@@ -221,10 +235,13 @@ def _study_parsers(sub, scene_args):
                     '4.3.2 HPOTP sweep, Table 4.4.1 RBS stability, Table 4.4.2 HPOTP onset) '
                     'in parallel and write a markdown document with the paper columns next to '
                     'ours, plots next to it (OUT without .md, e.g. docs/validation/*.png).')
-    val.add_argument('--out', default='docs/validation.md', metavar='PATH.md',
-                     help='markdown file (default docs/validation.md)')
+    val.add_argument('--out', metavar='PATH.md',
+                     help='markdown file (default docs/validation.md; with --quick, '
+                          f'{QUICK_VALIDATION_OUT}, never the full document)')
     val.add_argument('--quick', action='store_true',
                      help='small subset, short runs, no HPOTP runs (well under a minute)')
+    val.add_argument('--overwrite', action='store_true',
+                     help='replace an existing document and its plots (default: refuse)')
     val.add_argument('--workers', type=int, metavar='N',
                      help='parallel workers (default: CPU count; 1 runs serially in-process)')
     val.add_argument('--seed', type=int, default=0, help='study seed (default 0)')
@@ -243,14 +260,18 @@ def main(argv=None):
     Returns
     -------
     int
-        Exit status: 0 on success, 2 for bad input (message on stderr).
+        Exit status: 0 on success, 1 when every study point failed, 2 for bad input
+        (message on stderr), 3 when a run diverged.
     """
     try:
         args = _parser().parse_args(argv)
     except SystemExit as exc:   # argparse has printed usage and the problem
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
+    from ..divergence import Divergence, TooLarge
     from ..scene.schema import SceneError
     try:
+        if getattr(args, 'scene', None) is not None:
+            _check_scene_file(args.scene)
         if args.command == 'keys':
             return _keys(args)
         if args.command == 'modes':
@@ -263,17 +284,76 @@ def main(argv=None):
             return run_validate(args)
         if args.command == 'report':
             from ..studies.report import run_report
+            refuse_existing([args.plot, args.csv], args.overwrite)
             return run_report(args)
         if args.command == 'recover':
             from ..recording.cli import run_recover
             return run_recover(args)
         return _simulate(args)
-    except SceneError as exc:
+    except (SceneError, TooLarge, OutputExists) as exc:
         _error(str(exc))
         return EXIT_USAGE
+    except Divergence as exc:
+        _error(str(exc))
+        return EXIT_DIVERGED
     except BrokenPipeError:   # e.g. `study keys | head`
         sys.stderr.close()
         return 0
+
+
+class OutputExists(Exception):
+    """An output file exists and ``--overwrite`` was not given (exit 2)."""
+
+
+def refuse_existing(paths, overwrite):
+    """Refuse, before any work, to replace existing output files without ``--overwrite``.
+
+    Parameters
+    ----------
+    paths : iterable of str or None
+        Output paths (None: not requested).
+    overwrite : bool
+        ``--overwrite`` was given.
+
+    Raises
+    ------
+    OutputExists
+        Naming the existing files.
+    """
+    import os
+    existing = [p for p in paths if p and os.path.exists(p)]
+    if existing and not overwrite:
+        raise OutputExists(f"{', '.join(existing)} exist{'s' if len(existing) == 1 else ''}; "
+                           'pass --overwrite to replace '
+                           f"{'it' if len(existing) == 1 else 'them'}")
+
+
+def _check_scene_file(scene):
+    """Refuse a SCENE path that is not a scene file without echoing its contents.
+
+    A path (with a directory separator or a YAML suffix) must name a ``.yaml``/``.yml`` file
+    of at most :data:`MAX_SCENE_BYTES` of UTF-8 text; bare names are left to the loader.
+    """
+    import os
+
+    from ..scene.schema import SceneError
+    if not ('/' in scene or os.sep in scene or scene.endswith(('.yaml', '.yml'))):
+        return
+    if not os.path.isfile(scene):
+        return   # the loader says that it does not exist
+    if not scene.endswith(('.yaml', '.yml')):
+        raise SceneError(f'{scene}: not a scene file (a scene is a .yaml or .yml file)')
+    size = os.path.getsize(scene)
+    if size > MAX_SCENE_BYTES:
+        raise SceneError(f'{scene}: not a scene file ({size} bytes; scenes are under '
+                         f'{MAX_SCENE_BYTES} bytes)')
+    try:
+        with open(scene, 'rb') as fh:
+            fh.read().decode('utf-8')
+    except UnicodeDecodeError:
+        raise SceneError(f'{scene}: not a scene file (not UTF-8 text)') from None
+    except OSError as exc:
+        raise SceneError(f'{scene}: cannot read scene file: {exc.strerror}') from None
 
 
 def _error(message):
@@ -409,21 +489,41 @@ def run(scene):
     ------
     SceneError
         A sensor's ``lowpass`` at or above the Nyquist frequency of ``simulation.dt``.
+    TooLarge
+        Before running, if ``duration / dt`` samples would not fit in memory.
+    Divergence
+        If the run diverges; its ``setting`` names the scene keys to change.
     """
     from ..analysis import summarize
+    from ..divergence import Divergence, TooLarge, check_allocation, scene_advice
     from ..filters import scene_lowpass
+    from ..scene.schema import SceneError
     from ..integrate.events import EVENT_KINDS
     cfg = scene.scene['simulation']
     method, dt = cfg['method'], cfg['dt']
     scene_lowpass(scene, dt)   # reject a cutoff at or above Nyquist before running
-    # JIT compilation or cache loading is not simulation time: warm up on one step first
-    scene.make_simulation(method, dt).advance(1)
-    sim = scene.make_simulation(method, dt)
-    _, qd = sim.integrator.state()
-    v0 = sim.integrator.model.sensors @ qd
-    start = time.perf_counter()
-    samples = sim.advance_to(cfg['duration'])
-    wall = time.perf_counter() - start
+    try:   # refuse up front what would not fit in memory
+        check_allocation(round(cfg['duration'] / dt), len(scene.model.sensor_names))
+    except TooLarge as exc:
+        raise TooLarge(exc.n_steps, exc.n_bytes, exc.limit,
+                       context=f"simulation.dt = {dt:g} s over simulation.duration = "
+                               f"{cfg['duration']:g} s") from None
+    try:
+        # JIT compilation or cache loading is not simulation time: warm up on one step first
+        try:
+            warm = scene.make_simulation(method, dt)
+        except ValueError as exc:   # e.g. a defective state matrix at an extreme setting
+            raise SceneError(f'cannot build the {method} integrator of this scene: {exc}; '
+                             f'{scene_advice(scene)}') from None
+        warm.advance(1)
+        sim = scene.make_simulation(method, dt)
+        _, qd = sim.integrator.state()
+        v0 = sim.integrator.model.sensors @ qd
+        start = time.perf_counter()
+        samples = sim.advance_to(cfg['duration'])
+        wall = time.perf_counter() - start
+    except Divergence as exc:
+        raise exc.with_setting(scene_advice(scene, exc)) from None
     events = sim.take_events()
     # accelerations: mean per sample period, through each sensor's low-pass (if it has one)
     acc = scene_lowpass(scene, dt).apply(sim.mean_acceleration(samples, v0))

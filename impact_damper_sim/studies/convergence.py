@@ -152,6 +152,13 @@ def make_points(scene, methods, dts, modes, overrides, params, ref_dt, ref_modes
     return points
 
 
+def _available_modes(scene):
+    """Modes of the condensed system of a built scene (the most a basis can retain)."""
+    condensation = getattr(scene.basis, 'condensation', None)
+    master = getattr(condensation, 'master', None)
+    return int(master.size) if master is not None else int(scene.basis.n_modes)
+
+
 def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, ref_dt=None,
                 ref_modes=None, n_impacts=20, isolation=2e-3, seed=0, executor='process',
                 workers=None, dask_address=None, progress=None):
@@ -165,9 +172,11 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
         Methods to cross (see :data:`METHODS`).
     dts : sequence of float, optional
         Time steps (s); each must divide the largest. Default: the scene's ``simulation.dt``
-        times 2, 1, 1/2 and 1/4.
+        times 2, 1, 1/2 and 1/4 (1, 1/2, 1/4, 1/8 when twice the step would put Nyquist at
+        or below a sensor's low-pass).
     modes : sequence of int, optional
-        Retained mode counts (dimensionless); default the scene's count and twice it.
+        Retained mode counts (dimensionless); default the scene's count and twice it (at
+        most the condensed system's mode count: the SDOF has one).
     overrides : sequence of str
         Scene overrides (``simulation.duration``, ``simulation.window``, ...).
     ref_dt : float, optional
@@ -199,16 +208,29 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
         raise ValueError(f"unknown method(s) {', '.join(unknown)}; expected {METHODS}")
-    dts = sorted({float(d) for d in (dts or [cfg['dt'] * f for f in (2, 1, 0.5, 0.25)])},
-                 reverse=True)
+    cutoffs = [s['lowpass'] for s in base.scene['sensors'] if s.get('lowpass')]
+    if not dts:
+        # the scene dt x 2, 1, 1/2, 1/4; x 2 only where the sensors' low-pass stays below
+        # Nyquist (the RMS acceleration is filtered at the coarsest step)
+        factors = [2, 1, 0.5, 0.25]
+        if cutoffs and max(cutoffs) >= 0.5 / (2 * cfg['dt']):
+            factors = [1, 0.5, 0.25, 0.125]
+        dts = [cfg['dt'] * f for f in factors]
+    dts = sorted({float(d) for d in dts}, reverse=True)
     if any(not d > 0 for d in dts):
         raise ValueError('time steps must be > 0 s')
+    if cutoffs and max(cutoffs) >= 0.5 / dts[0]:
+        raise ValueError(f'the largest step {dts[0]:g} s puts Nyquist ({0.5 / dts[0]:g} Hz) at '
+                         f'or below the sensor low-pass {max(cutoffs):g} Hz; use smaller '
+                         '--dts')
     coarse = dts[0]
     for d in dts:
         if abs(coarse / d - round(coarse / d)) > 1e-9 * coarse / d:
             raise ValueError(f'dt = {d:g} s does not divide the largest step {coarse:g} s')
     n0 = int(base.basis.n_modes)
-    modes = sorted({int(m) for m in (modes or [n0, 2 * n0])})
+    n_max = _available_modes(base)
+    # default: the scene's count and twice it, as far as the condensed system has modes
+    modes = sorted({int(m) for m in (modes or [n0, min(2 * n0, n_max)])})
     if any(m < 1 for m in modes):
         raise ValueError('mode counts must be >= 1')
     ref_modes = int(ref_modes or modes[-1])
@@ -216,6 +238,8 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
     if abs(coarse / ref_dt - round(coarse / ref_dt)) > 1e-9 * coarse / ref_dt:
         raise ValueError(f'ref_dt = {ref_dt:g} s does not divide the largest step {coarse:g} s')
     duration = round(cfg['duration'] / coarse) * coarse
+    from .measure import check_memory
+    check_memory(base, duration, min(ref_dt, dts[-1]))
     params = {'coarse_dt': coarse, 'window': cfg['window'], 'duration': duration}
     start = time.perf_counter()
     points = make_points(scene, list(methods), dts, modes, overrides, params, ref_dt, ref_modes,
@@ -224,6 +248,9 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
                          progress=progress)
     wall = time.perf_counter() - start
     ref = results[0]
+    if ref.diverged:
+        from ..divergence import StudyDiverged
+        raise StudyDiverged(f'the reference run diverged: {ref.error}')
     if not ref.ok:
         raise ValueError(f'the reference run failed: {ref.error}')
     rv = ref.value
@@ -332,10 +359,16 @@ def plot(result, path):
                 continue
             ax.scatter([r['cpu_per_simulated_s'] for r in rows],
                        [max(r[key], 1e-16) for r in rows], marker=marker, label=method)
+            # per-method label offsets: methods that agree (newmark and direct on a
+            # complete basis) put their points on top of each other, not their labels
+            offset = {'exact': (3, 2), 'newmark': (3, 2), 'newmark_step_end': (3, 2),
+                      'direct': (-3, -8)}[method]
             for r in rows:
                 ax.annotate(f"{r['dt_s'] * 1e6:g}us/{r['modes']}",
                             (r['cpu_per_simulated_s'], max(r[key], 1e-16)), fontsize=6,
-                            xytext=(3, 2), textcoords='offset points')
+                            xytext=offset, textcoords='offset points',
+                            ha='right' if offset[0] < 0 else 'left',
+                            color=f'C{list(markers).index(method)}')
         front = pareto(result['rows'], key)
         if front:
             ax.step([r['cpu_per_simulated_s'] for r in front], [max(r[key], 1e-16)

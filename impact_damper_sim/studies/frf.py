@@ -179,6 +179,8 @@ def frf(scene, values, unit='ratio', overrides=(), *, tol=0.005, max_duration=No
     from ..scene.build import load
     from ..scene.schema import SceneError
     base = load(scene, list(overrides))
+    from .measure import check_memory
+    check_memory(base, max(base.scene['simulation']['duration'], max_duration or 0.0))
     if not base.scene['forcing']:
         raise SceneError("scene key 'forcing': the scene has no forcing to sweep", base.source)
     points = make_points(scene, values, unit, overrides, n_forcing=len(base.scene['forcing']),
@@ -235,7 +237,8 @@ def point_record(r):
 
 def failure(r):
     """JSON-ready record of a failed point."""
-    return {'labels': r.point.labels, 'overrides': list(r.point.overrides), 'error': r.error}
+    return {'labels': r.point.labels, 'overrides': list(r.point.overrides), 'error': r.error,
+            'diverged': r.diverged}
 
 
 def plot(result, path):
@@ -254,12 +257,20 @@ def plot(result, path):
     col = _COLUMN[result['unit']]
     fig, ax = plt.subplots(figsize=(7, 4.5))
     xs = [r[col] for r in result['rows']]
+    unsettled = False
     for s in result['sensors']:
         for case, style in (('without', '--'), ('with', '-o')):
             ys = [r[f'{s}_{case}_m'] for r in result['rows']]
             if any(y is not None for y in ys):
                 ax.plot(xs, [float('nan') if y is None else y for y in ys], style, ms=3,
                         label=f'{s}, {case} impactors')
+        # points whose amplitude had not settled: the value is the last window's peak
+        bad = [(x, r[f'{s}_with_m']) for x, r in zip(xs, result['rows'])
+               if not r['settled'] and r[f'{s}_with_m'] is not None]
+        if bad:
+            ax.plot(*zip(*bad), 'o', ms=9, mfc='none', mec='r', mew=1.2,
+                    label=None if unsettled else 'not settled (last window peak)')
+            unsettled = True
     ax.set_xlabel('frequency ratio r' if result['unit'] == 'ratio' else 'frequency (Hz)')
     ax.set_ylabel('steady amplitude (m)')
     ax.set_title(f"frequency response: {result['scene']}")

@@ -102,3 +102,29 @@ def finite_or_none(x):
     """Return ``float(x)``, or None for NaN and infinities (strict JSON)."""
     x = float(x)
     return x if np.isfinite(x) else None
+
+
+def check_memory(scene, duration=None, dt=None):
+    """Refuse up front a study whose runs would not fit in memory.
+
+    Parameters
+    ----------
+    scene : SceneModel
+        The study's base scene.
+    duration, dt : float, optional
+        Longest run (s) and smallest step (s); default the scene's ``simulation`` values.
+
+    Raises
+    ------
+    TooLarge
+        With the estimate (a ``ValueError``: ``study`` exits 2).
+    """
+    from ..divergence import TooLarge, check_allocation
+    cfg = scene.scene['simulation']
+    duration = cfg['duration'] if duration is None else duration
+    dt = cfg['dt'] if dt is None else dt
+    try:
+        check_allocation(round(duration / dt), len(scene.model.sensor_names))
+    except TooLarge as exc:
+        raise TooLarge(exc.n_steps, exc.n_bytes, exc.limit,
+                       context=f'each run: dt = {dt:g} s over {duration:g} s') from None

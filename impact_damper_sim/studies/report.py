@@ -730,8 +730,11 @@ def plot(report, series, path):
             freq, amp = arrays['waterfall_freq_hz'], arrays['waterfall_amp_g']
             rpm = arrays['waterfall_speed_rad_s'] * 30 / math.pi
             order = np.argsort(rpm, kind='stable')
-            mesh = ax.pcolormesh(freq, rpm[order], 20 * np.log10(amp[order] + 1e-12),
-                                 shading='nearest', cmap='viridis')
+            db = 20 * np.log10(amp[order] + 1e-12)
+            top = float(np.nanmax(db)) if db.size else 0.0
+            # 80 dB of range: below it, near-silent slices (standstill) would take the scale
+            mesh = ax.pcolormesh(freq, rpm[order], db, shading='nearest', cmap='viridis',
+                                 vmin=top - 80.0, vmax=top)
             ax.plot(rpm[order] / 60, rpm[order], 'w--', lw=0.8, label='1x')
             fig.colorbar(mesh, ax=ax, label='amplitude (dB re 1 g)')
             ax.set_xlim(freq[0], freq[-1])
@@ -739,9 +742,20 @@ def plot(report, series, path):
             ax.set_title(f"waterfall {s['topic']}")
             ax.legend(fontsize=7, loc='upper left')
         else:
+            psd = arrays['psd_g2_hz'][:, 1:]
+            top = float(psd.max()) if psd.size else 0.0
+            floor = top * 1e-10   # 100 dB below the largest: where plotting stops
+            quiet = []
             for i, axis in enumerate('xyz'):
-                ax.semilogy(arrays['freq_hz'][1:], arrays['psd_g2_hz'][i, 1:] + 1e-30,
-                            label=axis)
+                if not psd[i].max() > floor:   # an axis that does not move: named, not drawn
+                    quiet.append(axis)
+                    continue
+                ax.semilogy(arrays['freq_hz'][1:], np.maximum(psd[i], floor), label=axis)
+            if top > 0:
+                ax.set_ylim(floor, top * 3)
+            if quiet:
+                ax.text(0.99, 0.02, f"{', '.join(quiet)}: no signal (not drawn)",
+                        ha='right', va='bottom', fontsize=7, transform=ax.transAxes)
             ax.axvline(s['spectrum']['dominant_hz']['total'], color='k', ls=':',
                        label=f"{s['spectrum']['dominant_hz']['total']:.4g} Hz")
             ax.set_ylabel('PSD (g$^2$/Hz)')
@@ -754,25 +768,47 @@ def plot(report, series, path):
         ax = axes.pop(0)
         for imp in report['impacts']:
             a = series['impacts'][imp['topic']]
-            ax.step(a['start_s'], np.nan_to_num(a['rate_hz']), where='post', label=imp['topic'])
+            starts, widths = np.asarray(a['start_s']), np.asarray(a['width_s'])
+            rate = np.nan_to_num(np.asarray(a['rate_hz'], dtype=float))
+            full = widths >= BIN_S - 1e-9
+            if full.any():
+                edges = np.append(starts[full], starts[full][-1] + BIN_S)
+                line = ax.stairs(rate[full], edges, label=imp['topic'], lw=1.5,
+                                 baseline=None)
+                color = line.get_edgecolor()
+            else:
+                color = None
+            # a short last bin is a noisy rate estimate: drawn faint, its width as it is
+            for s0, w, r in zip(starts[~full], widths[~full], rate[~full]):
+                if w > 0:
+                    ax.stairs([r], [s0, s0 + w], color=color, alpha=0.5, ls=':',
+                              baseline=None,
+                              label=f'{imp["topic"]} last {w:.2g} s (partial bin)')
         ax.set_xlabel('time (s)')
         ax.set_ylabel('impacts/s')
+        ax.set_ylim(bottom=0)
         ax.set_title(f'impact rate ({BIN_S:g} s bins)')
         ax.legend(fontsize=7)
         ax.grid(True, alpha=0.3)
     if report['impactor_state']:
         ax, level = axes.pop(0), 0
         origin = series['origin_ns']
-        for st in report['impactor_state']:
-            for name, (t, stuck) in series['states'][st['topic']].items():
-                frac = st['impactors'][name]['stuck_fraction']
-                label = f"{name} ({frac:.2f})" if frac is not None else name
-                ax.step((t - origin) * 1e-9, stuck * 0.8 + level, where='post', label=label)
-                level += 1
+        ticks, names = [], []
+        lanes = [(st, name, ts) for st in report['impactor_state']
+                 for name, ts in series['states'][st['topic']].items()]
+        colors = plt.get_cmap('tab20' if len(lanes) > 10 else 'tab10')
+        for k, (st, name, (t, stuck)) in enumerate(lanes):
+            frac = st['impactors'][name]['stuck_fraction']
+            ax.step((t - origin) * 1e-9, stuck * 0.8 + level, where='post',
+                    color=colors(k % colors.N))
+            # each lane labelled on the axis itself: no legend colours to match up
+            ticks.append(level + 0.4)
+            names.append(f'{name} ({100 * frac:.2g} %)' if frac is not None else name)
+            level += 1
         ax.set_xlabel('time (s)')
-        ax.set_yticks([])
-        ax.set_title('stuck state (high = stuck; stuck fraction in the legend)')
-        ax.legend(fontsize=7)
+        ax.set_yticks(ticks, names, fontsize=7)
+        ax.set_ylim(-0.2, max(level, 1))
+        ax.set_title('stuck state (high = stuck; time stuck in brackets)')
     for ax in axes:   # a log with nothing to plot
         ax.text(0.5, 0.5, 'no sensor, impact or impactor-state topics', ha='center',
                 transform=ax.transAxes)
@@ -861,9 +897,13 @@ def print_report(r):
         per = ', '.join(f'{k} {v}' for k, v in imp['per_impactor'].items())
         print(f"\nimpacts {imp['topic']}: {imp['count']}, mean {_g(imp['mean_rate_hz'])}/s, "
               f"peak {_g(imp['peak_rate_hz'])}/s" + (f' ({per})' if per else ''))
-        print('  impacts/s per second: '
-              + ' '.join(_g(b['rate_hz'], 4) for b in imp['bins'][:60])
-              + (' ...' if len(imp['bins']) > 60 else ''))
+        full = [b for b in imp['bins'] if b['width_s'] >= imp['bin_s'] - 1e-9]
+        part = [b for b in imp['bins'] if b['width_s'] < imp['bin_s'] - 1e-9]
+        print(f"  impacts/s per full {_g(imp['bin_s'])} s bin: "
+              + (' '.join(_g(b['rate_hz'], 4) for b in full[:60]) or 'none')
+              + (' ...' if len(full) > 60 else ''))
+        for b in part:   # a short last bin is not comparable: its count, not a rate
+            print(f"  last {_g(b['width_s'], 3)} s (partial bin): {b['count']} impact(s)")
     for st in r['impactor_state']:
         print(f"\nstuck fraction ({st['topic']}, time-weighted):")
         print(_table(['impactor', 'stuck fraction', 'stuck (s)', 'observed (s)', 'stick events'],

@@ -88,6 +88,11 @@ class PointResult:
         """bool: The task succeeded."""
         return self.error is None
 
+    @property
+    def diverged(self):
+        """bool: The task failed because its run diverged (``Divergence``)."""
+        return self.error is not None and self.error.startswith('Divergence:')
+
 
 def point_seed(base_seed, key):
     """Return a seed derived from a base seed and a point's identity.
@@ -113,14 +118,32 @@ def point_seed(base_seed, key):
 
 
 def _execute(point):
-    """Run one point on a worker; never raises (the error becomes the result)."""
+    """Run one point on a worker; never raises (the error becomes the result).
+
+    A :class:`~impact_damper_sim.divergence.Divergence` gets the point scene's advice
+    (which setting to change) and its message starts with ``Divergence:``.
+    """
+    from ..divergence import Divergence
     start = time.perf_counter()
     try:
         value = point.task(point)
         error = None
+    except Divergence as exc:
+        value, error = None, _message(_advised(exc, point))
     except Exception as exc:   # a failing point must not take the study down
         value, error = None, _message(exc)
     return value, error, time.perf_counter() - start
+
+
+def _advised(exc, point):
+    if exc.setting:
+        return exc
+    from ..divergence import scene_advice
+    try:
+        from .measure import load_point
+        return exc.with_setting(scene_advice(load_point(point), exc))
+    except Exception:   # advice only
+        return exc
 
 
 def _message(exc):

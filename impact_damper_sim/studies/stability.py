@@ -47,6 +47,7 @@ def verdict(point):
     """
     import numpy as np
 
+    from ..divergence import Divergence
     from .measure import finite_or_none, load_point, lookup, start, window_impact_rates
     p = point.params
     scene = load_point(point)
@@ -67,8 +68,17 @@ def verdict(point):
             raise ValueError('no retained mode moves the chosen sensors; cannot perturb them')
         q0 *= amp / at_sensors
     sim = start(scene, q0=q0)
-    samples = sim.advance_to(cfg['duration'])
     window = cfg['window']
+    try:
+        samples = sim.advance_to(cfg['duration'])
+    except Divergence as exc:   # grew past what floating point carries: unstable
+        rates = window_impact_rates(sim.take_events(), sim.impactor_names, sim.t - window,
+                                    sim.t)
+        return {'stable': False, 'rms_radial_m': None, 'previous_rms_radial_m': None,
+                'growth_ratio': None, 'growth_rate_1_s': None, 'diverged_at_s': exc.t,
+                'divergence': exc.what, 'impacts_per_second': sum(rates.values()),
+                'impactor_rates_per_second': rates,
+                'resolved': {k: lookup(scene.scene, k) for k in p.get('keys', ())}}
     t = samples.t
     r2 = np.sum(samples.displacement[:, idx] ** 2, axis=1)
     last = t > t[-1] - window
@@ -84,7 +94,7 @@ def verdict(point):
     return {'stable': not unstable, 'rms_radial_m': finite_or_none(r1),
             'previous_rms_radial_m': finite_or_none(r0), 'growth_ratio': finite_or_none(ratio),
             'growth_rate_1_s': finite_or_none(math.log(ratio) / window)
-            if ratio > 0 and math.isfinite(ratio) else None,
+            if ratio > 0 and math.isfinite(ratio) else None, 'diverged_at_s': None,
             'impacts_per_second': sum(rates.values()), 'impactor_rates_per_second': rates,
             'resolved': {k: lookup(scene.scene, k) for k in p.get('keys', ())}}
 
@@ -249,6 +259,15 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
         raise ValueError('weights and clearances need their scene keys '
                          '(--weight-key, --clearance-key)')
     base = load(scene, list(overrides))
+    from .measure import check_memory
+    check_memory(base)
+    from .measure import lookup
+    if kccs and lookup(base.scene, kcc_key) is None:
+        couplings = base.scene['structure'].get('cross_couplings') or []
+        raise ValueError(f'--kcc-key {kcc_key}: no such key in scene {base.name} (it has '
+                         f'{len(couplings)} structure.cross_couplings entr'
+                         f"{'y' if len(couplings) == 1 else 'ies'}; a stability map needs "
+                         'a cross-coupled stiffness, e.g. scene rbs_kcc)')
     start = time.perf_counter()
     found = None
     if find_onset:
@@ -285,6 +304,7 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
                      'rms_radial_m': v['rms_radial_m'] if r.ok else None,
                      'growth_ratio': v['growth_ratio'] if r.ok else None,
                      'growth_rate_1_s': v['growth_rate_1_s'] if r.ok else None,
+                     'diverged_at_s': v.get('diverged_at_s') if r.ok else None,
                      'impacts_per_second': v['impacts_per_second'] if r.ok else None,
                      'error': r.error})
         if checks:
@@ -383,26 +403,48 @@ def plot(result, path):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    import numpy as np
+
+    from .display import axis_unit
+    unit, factor = axis_unit(result['kcc_key'], [row['kcc'] for row in result['rows']])
+    unit, factor = (unit, factor) if unit else ('N/m', 1.0)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     groups = {}
     for row in result['rows']:
-        if row['kcc_N_m'] is not None and row['rms_radial_m'] is not None:
+        if row['kcc_N_m'] is not None and row['verdict'] != 'error':
             groups.setdefault((row['impactors'], row['weight'], row['clearance']), []).append(row)
+    finite = [row['rms_radial_m'] for rows in groups.values() for row in rows
+              if row['rms_radial_m'] is not None]
+    # diverged runs (and absurd amplitudes) sit on a band at the top, not at 1e43 m
+    top = max(finite) if finite else 1.0
+    cap = min(top, 1.0) * 3.0
+    diverged_label = True
     for (imp, w, c), rows in groups.items():
         label = 'no impactors' if not imp else (
             f"W={w if w is not None else result.get('scene_weight')}, "
             f"D={c if c is not None else result.get('scene_clearance')}")
-        line, = ax.plot([r['kcc_N_m'] for r in rows], [r['rms_radial_m'] for r in rows], '-',
-                        label=label)
-        for r in rows:
-            ax.plot(r['kcc_N_m'], r['rms_radial_m'], 'o' if r['verdict'] == 'stable' else 'x',
-                    color=line.get_color())
+        xs = [r['kcc_N_m'] / factor for r in rows]
+        ys = [min(r['rms_radial_m'], cap) if r['rms_radial_m'] is not None else np.nan
+              for r in rows]
+        line, = ax.plot(xs, ys, '-', label=label)
+        for x, y, r in zip(xs, ys, rows):
+            if r['rms_radial_m'] is None or r['rms_radial_m'] > cap:
+                ax.plot(x, cap, '^', color=line.get_color(), ms=8,
+                        label=f'diverged, or above {cap:.2g} m (off scale)'
+                        if diverged_label else None)
+                diverged_label = False
+            else:
+                ax.plot(x, y, 'o' if r['verdict'] == 'stable' else 'x',
+                        color=line.get_color())
     if result['onset']:
-        ax.axvline(result['onset']['onset_kcc_N_m'], color='k', ls=':', label='linear onset')
+        ax.axvline(result['onset']['onset_kcc_N_m'] / factor, color='k', ls=':',
+                   label='linear onset')
     ax.set_yscale('log')
-    ax.set_xlabel('Kcc (N/m)')
+    if finite:
+        ax.set_ylim(top=cap * 1.5)
+    ax.set_xlabel(f'Kcc ({unit})')
     ax.set_ylabel('RMS radial amplitude, last window (m)')
-    ax.set_title(f"stability: {result['scene']} (o stable, x unstable)")
+    ax.set_title(f"stability: {result['scene']} (o stable, x unstable, ^ diverged)")
     ax.grid(True, alpha=0.3)
     if groups or result['onset']:
         ax.legend(fontsize=7)

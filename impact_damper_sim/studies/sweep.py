@@ -67,19 +67,30 @@ def peaks(point):
         ``peak_acceleration_m_s2`` (largest mean acceleration per sample period, impacts
         included, through the sensor's ``lowpass`` if it has one) and ``rms_displacement_m``; the worst case over the sensors
         (``worst_displacement_m``, ``worst_acceleration_m_s2``, with the sensor names) and
-        ``impacts_per_second`` per impactor. ``resolved``: the ``keys``' SI values.
+        ``impacts_per_second`` per impactor. ``resolved``: the ``keys``' SI values. With
+        ``params['divergence_is_result']`` (the no-impactor references), a run that diverges
+        returns ``phases`` None, ``diverged_at_s`` (s) and ``divergence`` (what).
     """
     import numpy as np
 
     from ..analysis import refined_peak
     from ..filters import scene_lowpass
     from .measure import load_point, lookup, start, window_impact_rates
+    from ..divergence import Divergence
     scene = load_point(point)
     cfg = scene.scene['simulation']
     sim = start(scene)
     lowpass = scene_lowpass(scene, sim.dt)   # checks the cutoffs before the run
     v0 = sim.integrator.model.sensors @ sim.integrator.state()[1]
-    samples = sim.advance_to(cfg['duration'])
+    try:
+        samples = sim.advance_to(cfg['duration'])
+    except Divergence as exc:
+        if not point.params.get('divergence_is_result'):
+            raise
+        # a reference without impactors that grows without bound (a linearly unstable
+        # structure) is a result: the reduction the impactors give is unbounded
+        return {'phases': None, 'diverged_at_s': exc.t, 'divergence': exc.what,
+                'resolved': {k: lookup(scene.scene, k) for k in point.params.get('keys', ())}}
     acc = lowpass.apply(sim.mean_acceleration(samples, v0))
     events = sim.take_events()
     t, x = samples.t, samples.displacement
@@ -144,7 +155,7 @@ def make_points(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, has_impacto
             refs.setdefault(tuple(ref.items()), ref)
     for ref in refs.values():
         ov = list(overrides) + [f'{k}={v}' for k, v in ref.items()] + ['impactors=[]']
-        ref_params = dict(params, keys=list(ref))
+        ref_params = dict(params, keys=list(ref), divergence_is_result=True)
         points.append(Point(peaks, scene, tuple(ov), point_seed(seed, '\n'.join([scene] + ov)),
                             ref_params, {'grid': ref, 'reference': True}))
     return points
@@ -197,6 +208,8 @@ def sweep(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, best_over=None,
     if len(set(names)) != len(names):
         raise ValueError(f'phase names must differ, got {names}')
     base = load(scene, list(overrides))
+    from .measure import check_memory
+    check_memory(base)
     points = make_points(scene, grid, overrides, phases=phases,
                          has_impactors=bool(base.scene['impactors']), seed=seed)
     start = time.perf_counter()
@@ -227,9 +240,11 @@ def tabulate(results, keys, phase_names):
         for k in keys:
             row[f'{k}_si'] = r.value['resolved'].get(k) if r.ok else None
         ref = refs.get(tuple(sorted((k, v) for k, v in grid.items() if not is_impactor_key(k))))
+        ref_ok = ref is not None and ref.ok
+        row['without_diverged_at_s'] = ref.value.get('diverged_at_s') if ref_ok else None
         for name in phase_names:
             ph = r.value['phases'][name] if r.ok else None
-            rph = ref.value['phases'][name] if ref is not None and ref.ok else None
+            rph = ref.value['phases'][name] if ref_ok and ref.value['phases'] else None
             for what, unit in (('displacement', 'm'), ('acceleration', 'm_s2')):
                 col = f'worst_{what}_{unit}'
                 val = ph[col] if ph else None
@@ -287,26 +302,34 @@ def plot(result, path):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from .display import axis_unit
     obj = result['objective']
-    unit = 'm' if obj == 'displacement' else 'm_s2'
+    # the table's units: displacement in m, acceleration in g
+    field, ylabel = (('m', 'm') if obj == 'displacement' else ('g', 'g'))
     keys = [g['key'] for g in result['grid']]
     xkey = result['best_over'] or keys[0]
     others = [k for k in keys if k != xkey]
+    given = next(g['values'] for g in result['grid'] if g['key'] == xkey)
+    xunit, xfactor = axis_unit(xkey, given)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     groups = {}
     for row in result['rows']:
         groups.setdefault(tuple(row[k] for k in others), []).append(row)
+    numeric = True
     for group, rows in groups.items():
         xs = [row[f'{xkey}_si'] for row in rows]
         if any(x is None or not isinstance(x, (int, float)) for x in xs):
-            xs = list(range(len(rows)))
+            xs, numeric = list(range(len(rows))), False
+        else:
+            xs = [x / xfactor for x in xs]
         label = ', '.join(f'{k}={v}' for k, v in zip(others, group)) or 'with impactors'
         for phase, style in zip([p['name'] for p in result['phases']], ('-o', '--s', ':^')):
-            ys = [row[f'{phase}_worst_{obj}_{unit}'] for row in rows]
+            ys = [row[f'{phase}_worst_{obj}_{field}'] for row in rows]
             ax.plot(xs, [float('nan') if y is None else y for y in ys], style, ms=4,
                     label=f'{label} ({phase})')
-    ax.set_xlabel(f'{xkey} (SI)')
-    ax.set_ylabel(f"worst {obj} ({'m' if unit == 'm' else 'm/s^2'})")
+    ax.set_xlabel(f'{xkey} ({xunit})' if numeric and xunit else
+                  xkey if numeric else f'{xkey} (point index)')
+    ax.set_ylabel(f'worst {obj} over the sensors ({ylabel})')
     ax.set_title(f"sweep: {result['scene']}")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)

@@ -178,7 +178,7 @@ def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_a
                 ub[j, f] += a * p
                 p *= omegas[h]
     for k in range(n2):
-        grow = np.exp(max(lam[k].real, 0.0) * T)
+        grow = np.exp(lam[k].real * T) if lam[k].real > 0.0 else 1.0  # exp is the cost here
         b = grow * (cabs(yh[k]) + T * max(cabs(w0[k] + ws[k] * tau), cabs(w0[k] + ws[k] * Th)))
         for h in range(nh):
             b += cabs(part_plus[h, k]) + cabs(part_minus[h, k])
@@ -291,7 +291,7 @@ def excursion_bounds_py(yh, lam, w0, ws, part_plus, part_minus, omegas, T, out):
     since the transient and particular parts of ``y`` may cancel.
     """
     for k in range(lam.size):
-        grow = np.exp(max(lam[k].real, 0.0) * T)
+        grow = np.exp(lam[k].real * T) if lam[k].real > 0.0 else 1.0  # exp is the cost here
         held = T * max(cabs(w0[k]), cabs(w0[k] + ws[k] * T))
         b = grow * (cabs(yh[k]) * min(cabs(lam[k]) * T, 2.0) + held)
         for h in range(omegas.size):

@@ -93,25 +93,67 @@ ledger_node_count = njit(cache=True)(ledger_node_count_py)
 
 
 def ledger_nodes_py(lam, omegas, h, s_nodes, w_nodes, E, P1, P2, EH):
-    """Nodes ``s`` (s), weights (s) and flow factors of :func:`ledger_panel`'s rule over a
-    whole step ``h``: ``E = exp(lam s)``, ``P1 = s phi1(lam s)``, ``P2 = s^2 phi2(lam s)`` and
-    ``EH = exp(i omegas s)``, so that a whole step's quadrature needs no exponentials."""
-    n_nodes = s_nodes.size
-    width = h / (n_nodes // 4)
-    for p in range(n_nodes // 4):
+    """Nodes ``s`` (s), weights (s) and flow factors of :func:`ledger_panel`'s rule over
+    ``[0, h]`` (s): ``E = exp(lam s)``, ``P1 = s phi1(lam s)``, ``P2 = s^2 phi2(lam s)`` and
+    ``EH = exp(i omegas s)``, so that the quadrature itself needs no exponentials.
+
+    The nodes of a panel lie symmetrically about its middle (``mid -/+ a1``, ``mid -/+ a2``),
+    so four exponentials per coordinate serve every node: ``exp(lam mid)`` advanced panel by
+    panel with ``exp(lam width)``, times ``exp(+/-lam a)``.
+    """
+    n_panels = s_nodes.size // 4
+    width = h / n_panels
+    a_in = 0.5 * width * _GL4_X[2]
+    a_out = 0.5 * width * _GL4_X[3]
+    for p in range(n_panels):
         mid = (p + 0.5) * width
         for g in range(4):
             i = 4 * p + g
-            s = mid + 0.5 * width * _GL4_X[g]
-            s_nodes[i] = s
+            s_nodes[i] = mid + 0.5 * width * _GL4_X[g]
             w_nodes[i] = 0.5 * width * _GL4_W[g]
-            for k in range(lam.size):
-                f1, f2 = phis(lam[k] * s)
-                E[i, k] = np.exp(lam[k] * s)
-                P1[i, k] = s * f1
-                P2[i, k] = s * s * f2
-            for hh in range(omegas.size):
-                EH[i, hh] = np.exp(1j * omegas[hh] * s)
+    for k in range(lam.size):
+        lk = lam[k]
+        e_mid = np.exp(lk * (0.5 * width))
+        e_step = np.exp(lk * width) if n_panels > 1 else 1.0 + 0j
+        e_in = np.exp(lk * a_in)
+        e_out = np.exp(lk * a_out)
+        # exp(-lam a) = conj(e) / |e|^2: a division in real arithmetic
+        e_in_inv = np.conj(e_in) * (1.0 / (e_in.real * e_in.real + e_in.imag * e_in.imag))
+        e_out_inv = np.conj(e_out) * (1.0 / (e_out.real * e_out.real + e_out.imag * e_out.imag))
+        mod2 = lk.real * lk.real + lk.imag * lk.imag
+        inv = np.conj(lk) * (1.0 / mod2) if mod2 > 0.0 else 0j
+        for p in range(n_panels):
+            for g in range(4):
+                i = 4 * p + g
+                if g == 0:
+                    e = e_mid * e_out_inv
+                elif g == 1:
+                    e = e_mid * e_in_inv
+                elif g == 2:
+                    e = e_mid * e_in
+                else:
+                    e = e_mid * e_out
+                s = s_nodes[i]
+                z = lk * s
+                az = cabs(z)
+                E[i, k] = e
+                # (e - 1)/lam and (e - 1 - z)/lam^2 lose eps/|z| and 2 eps/|z|^2 (relative) to
+                # cancellation: short series below the switch points keep both under 3e-13,
+                # far below the rule's 1e-10 (the propagator itself keeps its exact phis)
+                if az >= 1e-3:
+                    P1[i, k] = (e - 1.0) * inv
+                else:
+                    P1[i, k] = s * (1.0 + z * (0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0
+                                                                          + z / 120.0))))
+                if az >= 0.05:
+                    P2[i, k] = (e - 1.0 - z) * inv * inv
+                else:
+                    P2[i, k] = s * s * (0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z * (
+                        1.0 / 120.0 + z * (1.0 / 720.0 + z * (1.0 / 5040.0 + z / 40320.0))))))
+            e_mid = e_mid * e_step
+    for i in range(s_nodes.size):
+        for hh in range(omegas.size):
+            EH[i, hh] = np.exp(1j * omegas[hh] * s_nodes[i])
 
 
 ledger_nodes = njit(cache=True)(ledger_nodes_py)

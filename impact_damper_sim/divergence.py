@@ -1,0 +1,294 @@
+"""Blow-up detection: a run that diverges ends in one typed error, never in inf/NaN results.
+
+A run *diverges* when its state leaves what floating point and the physics can carry: a
+non-finite modal state or sensor sample, a sensor displacement beyond
+:data:`MAX_DISPLACEMENT` (no structure this package models moves a kilometre; beyond it the
+energies overflow long before the state does), or an engine failure that only such states
+cause (unresolved chatter, a floating-point error). :class:`Divergence` says what diverged,
+when, and which setting to change; :func:`scene_advice` finds that setting in a scene.
+
+Also here: :func:`check_allocation`, which refuses up front a run whose sample arrays would
+not fit in memory (:class:`TooLarge`, with the estimate).
+
+Pure NumPy, no rclpy: :class:`~impact_damper_sim.simulation.Simulation` checks every chunk
+it advances, the ``study`` command turns :class:`Divergence` into exit status
+:data:`EXIT_DIVERGED`, and a node reports ``str(exc)`` in its diagnostics.
+"""
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+#: Exit status of ``study`` when a run diverged.
+EXIT_DIVERGED = 3
+
+#: Sensor displacement beyond which a run has diverged (m).
+MAX_DISPLACEMENT = 1.0e3
+
+#: Largest total size of the sample arrays of one advance (bytes): 4 GiB, or half the
+#: physical memory if that is less.
+MAX_SAMPLE_BYTES = 4 * 2 ** 30
+
+#: Engine messages that only a diverging state produces (``RuntimeError`` text).
+_ENGINE_BLOW_UPS = ('chatter not resolved', 'non-finite')
+
+
+class Divergence(RuntimeError):
+    """A run diverged: what, when, and which setting to change.
+
+    Parameters
+    ----------
+    what : str
+        What diverged, e.g. ``"sensor 'primary' displacement 1.4e+295 m (bound 1000 m)"``.
+    t : float
+        Simulated time at which it was detected (s): the end of the first sample period
+        that shows it, or the engine's time for an engine failure.
+    setting : str, optional
+        Which setting to change (scene keys), e.g. from :func:`scene_advice`.
+
+    Attributes
+    ----------
+    what, t, setting
+        As given.
+    code : int
+        :data:`EXIT_DIVERGED`.
+    """
+
+    code = EXIT_DIVERGED
+
+    def __init__(self, what, t, setting=None):
+        self.what = str(what)
+        self.t = float(t)
+        self.setting = setting
+        super().__init__(self.message())
+
+    def message(self):
+        """Return the one-line message: ``diverged at t = ... s: what; change ...``."""
+        text = f'diverged at t = {self.t:.6g} s: {self.what}'
+        return f'{text}; {self.setting}' if self.setting else text
+
+    def __str__(self):
+        return self.message()
+
+    def __reduce__(self):   # picklable across process pools, with its fields
+        return (Divergence, (self.what, self.t, self.setting))
+
+    def with_setting(self, setting):
+        """Return a copy whose advice is ``setting`` (str)."""
+        return Divergence(self.what, self.t, setting)
+
+
+class StudyDiverged(RuntimeError):
+    """A study cannot go on because a run it depends on diverged (e.g. its reference).
+
+    The message is the run's one-line :class:`Divergence` text; ``code`` is
+    :data:`EXIT_DIVERGED`.
+    """
+
+    code = EXIT_DIVERGED
+
+
+class TooLarge(ValueError):
+    """A run refused up front: its sample arrays would not fit in memory.
+
+    Parameters
+    ----------
+    n_steps : int
+        Samples asked for (dimensionless).
+    n_bytes : int
+        Estimated size of their arrays (bytes).
+    limit : int
+        The limit (bytes).
+    context : str, optional
+        What asked for them, e.g. ``'simulation.dt = 1e-09 s over ...'``.
+    """
+
+    def __init__(self, n_steps, n_bytes, limit, context=None):
+        self.n_steps, self.n_bytes, self.limit = int(n_steps), int(n_bytes), int(limit)
+        lead = f'{context}: ' if context else ''
+        super().__init__(
+            f'{lead}{self.n_steps:.4g} samples would need about {_gib(self.n_bytes)} of memory '
+            f'(limit {_gib(self.limit)}): raise simulation.dt (--dt) or shorten '
+            'simulation.duration (--duration)')
+
+
+def _gib(n_bytes):
+    return f'{n_bytes / 2 ** 30:.3g} GiB'
+
+
+def sample_bytes(n_steps, n_outputs):
+    """Size of the sample arrays of ``n_steps`` samples of ``n_outputs`` sensors (bytes).
+
+    Time plus displacement, velocity and acceleration per sensor, float64, and as much again
+    for the mean acceleration and filtering done on them afterwards.
+    """
+    return 2 * 8 * int(n_steps) * (1 + 3 * int(n_outputs))
+
+
+def memory_limit():
+    """The allocation limit: :data:`MAX_SAMPLE_BYTES` or half the physical memory (bytes)."""
+    try:
+        physical = os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
+    except (AttributeError, ValueError, OSError):
+        physical = 0
+    return min(MAX_SAMPLE_BYTES, physical // 2) if physical > 0 else MAX_SAMPLE_BYTES
+
+
+def check_allocation(n_steps, n_outputs, limit=None):
+    """Refuse a run whose samples would not fit in memory.
+
+    Parameters
+    ----------
+    n_steps : int
+        Samples (dimensionless).
+    n_outputs : int
+        Sensor outputs per sample (dimensionless).
+    limit : int, optional
+        Bytes; default :func:`memory_limit`.
+
+    Raises
+    ------
+    TooLarge
+        With the estimate.
+    """
+    limit = memory_limit() if limit is None else int(limit)
+    need = sample_bytes(n_steps, n_outputs)
+    if need > limit:
+        raise TooLarge(n_steps, need, limit)
+
+
+def check_state(q, qd, t):
+    """Raise :class:`Divergence` if the modal state is not finite.
+
+    Parameters
+    ----------
+    q, qd : ndarray
+        Modal coordinates (m sqrt(kg)) and their velocities (m sqrt(kg)/s).
+    t : float
+        Time of the state (s).
+    """
+    for name, v in (('modal coordinates', q), ('modal velocities', qd)):
+        v = np.asarray(v)
+        if not np.all(np.isfinite(v)):
+            bad = np.flatnonzero(~np.isfinite(v.ravel()))
+            raise Divergence(f'{name} not finite (mode {int(bad[0]) + 1} of {v.size})', t)
+
+
+def check_samples(samples, names=(), max_displacement=MAX_DISPLACEMENT):
+    """Raise :class:`Divergence` at the first sample that is not finite or too large.
+
+    Parameters
+    ----------
+    samples : Samples
+        Sensor samples (``t`` in s; displacement m; velocity m/s; acceleration m/s^2).
+    names : sequence of str
+        Sensor names, in column order (for the message).
+    max_displacement : float
+        Largest acceptable ``|displacement|`` (m).
+    """
+    if samples.t.size == 0:
+        return
+    bad_rows = None
+    for field in ('displacement', 'velocity', 'acceleration'):
+        values = getattr(samples, field)
+        bad = ~np.isfinite(values)
+        if field == 'displacement':
+            with np.errstate(invalid='ignore'):
+                bad |= np.abs(values) > max_displacement
+        rows = np.flatnonzero(bad.any(axis=1)) if bad.ndim == 2 else np.flatnonzero(bad)
+        if rows.size and (bad_rows is None or rows[0] < bad_rows[0]):
+            bad_rows = (int(rows[0]), field, bad)
+    if bad_rows is None:
+        return
+    k, field, bad = bad_rows
+    col = int(np.flatnonzero(bad[k])[0]) if bad.ndim == 2 else 0
+    value = float(np.asarray(getattr(samples, field))[k].ravel()[col])
+    name = names[col] if col < len(names) else f'#{col}'
+    unit = {'displacement': 'm', 'velocity': 'm/s', 'acceleration': 'm/s^2'}[field]
+    if math.isfinite(value):
+        what = (f'sensor {name!r} displacement {value:.3g} m exceeds {max_displacement:g} m')
+    else:
+        what = f'sensor {name!r} {field} is {value} {unit}'
+    raise Divergence(what, float(samples.t[k]))
+
+
+def from_engine_error(exc, t):
+    """Return the :class:`Divergence` an engine error stands for, or None.
+
+    ``FloatingPointError`` and the engine's ``RuntimeError`` for unresolved chatter or a
+    non-finite state only happen on a diverging state.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The engine's error.
+    t : float
+        Simulated time when it was raised (s).
+    """
+    if isinstance(exc, Divergence):
+        return exc
+    text = str(exc).strip()
+    if isinstance(exc, FloatingPointError) or (
+            isinstance(exc, RuntimeError) and any(k in text for k in _ENGINE_BLOW_UPS)):
+        return Divergence(f'the integrator stopped: {text or type(exc).__name__}', t)
+    return None
+
+
+def scene_advice(scene, cause=None):
+    """Which settings to change when ``scene`` diverges (one line).
+
+    Parameters
+    ----------
+    scene : SceneModel
+        The built scene (its ``scene`` dict, SI units, and modal matrices are read).
+    cause : Divergence, optional
+        The divergence (chatter gets its own advice).
+
+    Returns
+    -------
+    str
+        E.g. ``"change forcing.0.amplitude (1e+300 N)"``; the linearly unstable case names
+        the cross-coupled stiffness and its growth rate.
+    """
+    cfg = scene.scene
+    hints = []
+    couplings = (cfg.get('structure') or {}).get('cross_couplings') or []
+    if couplings:
+        growth = _linear_growth(scene)
+        if growth is not None and growth > 0:
+            keys = ', '.join(f'structure.cross_couplings.{i}.kcc ({c["kcc"]:.4g} N/m)'
+                             for i, c in enumerate(couplings))
+            # the cause, whatever else the scene has
+            return (f'the structure is linearly unstable (growth rate {growth:.3g} 1/s): '
+                    f'lower {keys}')
+    forcing = cfg.get('forcing') or []
+    if forcing:
+        j = max(range(len(forcing)), key=lambda i: forcing[i]['amplitude'])
+        hints.append(f'forcing.{j}.amplitude ({forcing[j]["amplitude"]:.4g} N)')
+    rotor = cfg.get('rotor') or {}
+    if rotor.get('unbalance'):
+        mult = rotor.get('multiplier', 1.0)
+        hints.append(f'rotor.multiplier ({mult:.4g}) or rotor.unbalance[].amount')
+    if cause is not None and 'chatter' in cause.what and cfg.get('impactors'):
+        hints.append('impactors[].cor or simulation.dt (bounce-down chatter)')
+    if not hints:
+        hints.append('the stiffness and damping values (structure.*) and simulation.dt')
+    return 'change ' + ', '.join(hints)
+
+
+def _linear_growth(scene):
+    """Largest real part of the scene's linear eigenvalues without impactors (1/s)."""
+    try:
+        from .modal.stability import least_damped_eigenvalue
+        return float(least_damped_eigenvalue(scene.basis.stiffness_matrix(),
+                                             scene.basis.damping_matrix()).real)
+    except Exception:   # advice only: a failure here must not hide the divergence
+        return None
+
+
+__all__ = ['Divergence', 'EXIT_DIVERGED', 'MAX_DISPLACEMENT', 'MAX_SAMPLE_BYTES', 'StudyDiverged',
+           'TooLarge',
+           'check_allocation', 'check_samples', 'check_state', 'from_engine_error',
+           'memory_limit', 'sample_bytes', 'scene_advice']
