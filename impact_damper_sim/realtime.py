@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from .divergence import Divergence, scene_advice
 from .scene.schema import SceneError
 
 _TRANSLATIONS = ('ux', 'uy', 'uz')
@@ -422,6 +423,9 @@ class LiveSimulation:
         n_steps = int(n_samples) * self.decimation
         try:
             samples = self.sim.advance(n_steps)
+        except Divergence as exc:   # the core's blow-up check: what, when, what to change
+            self.failure = str(exc.with_setting(scene_advice(self.scene, exc)))
+            return None
         except (FloatingPointError, RuntimeError) as exc:
             self.failure = f'{type(exc).__name__}: {exc}'
             return None

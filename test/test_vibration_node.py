@@ -203,6 +203,8 @@ def test_numerical_blow_up_is_reported_and_the_node_stays_up(ros_context):
         node.live.sim.integrator._yh[:] = np.nan   # what an overflow leaves behind
         run_for(node, 0.1)
         assert node.live.failure is not None
+        # the core's blow-up check names what diverged and when (impact_damper_sim.divergence)
+        assert node.live.failure.startswith('diverged at t = '), node.live.failure
         t_failed = node.live.t
         run_for(node, 0.1)
         assert node.live.t == t_failed   # stepping stopped
