@@ -1,10 +1,12 @@
 # Two commands do all the set-up on a fresh machine with Python 3.11+ and make:
-#   make run    create .venv, install pinned deps (incl. ROS 2 Jazzy wheels), run vibration_node
-#   make test   same set-up, then the test suite
+#   make run    create .venv, install the pinned runtime (incl. ROS 2 Jazzy wheels), run
+#               vibration_node
+#   make test   the same, plus the optional extras and test tooling, then the test suite
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+DEV    := $(VENV)/.installed-dev
 # ament_index_python finds the message packages (and ours) under the venv prefix.
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 # Numba's on-disk cache, shared by every run from this checkout.
@@ -16,6 +18,7 @@ PYTEST_ARGS ?=
 
 .PHONY: run test test-slow bench constraints clean validation convergence
 
+# runtime only (requirements.txt); the test tooling comes with $(DEV)
 $(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade 'pip>=23.2'
@@ -23,23 +26,27 @@ $(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
 	$(PY) -m pip install --quiet --no-deps --config-settings editable_mode=compat -e .
 	touch $@
 
+$(DEV): $(STAMP) requirements-dev.txt
+	$(PY) -m pip install --quiet -r requirements-dev.txt -c constraints.txt
+	touch $@
+
 # the main job: the live node (Ctrl-C stops it)
 run: $(STAMP)
 	$(VENV)/bin/vibration_node --ros-args --params-file config/vibration_node.yaml \
 	    -p scene:=$(SCENE) $(NODE_ARGS)
 
-test: $(STAMP)
+test: $(DEV)
 	$(PY) -m pytest $(PYTEST_ARGS)
 
-test-slow: $(STAMP)
+test-slow: $(DEV)
 	$(PY) -m pytest -m slow $(PYTEST_ARGS)
 
 # the paper's results next to ours (docs/validation.md and docs/validation/*.png; minutes)
-validation: $(STAMP)
+validation: $(DEV)
 	$(VENV)/bin/study validate --out docs/validation.md --overwrite
 
 # speed/accuracy trade: docs/convergence.md, docs/convergence/*.{csv,json,png} (about 10 min)
-convergence: $(STAMP)
+convergence: $(DEV)
 	$(PY) -m impact_damper_sim.studies.convergence docs/convergence.md
 
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
@@ -47,12 +54,18 @@ BENCHES := bench/sdof_methods.py bench/ivp_baseline.py bench/modal_vs_direct.py 
            bench/realtime_offline.py bench/long_run.py bench/node_realtime.py \
            bench/node_startup.py bench/impact_cost.py
 
-bench: $(STAMP)
+bench: $(DEV)
 	for b in $(BENCHES); do $(PY) $$b || exit 1; done
 
-constraints: $(STAMP)
-	( echo '# Full pinned environment (pip freeze of a fresh `make` venv, Python 3.11). Regenerate with `make constraints`.'; \
-	  $(PY) -m pip freeze --all --exclude-editable ) > constraints.txt
+# pip freeze less the names that exist only as egg-info inside the ROS wheels (not on PyPI)
+constraints: $(DEV)
+	( echo '# Full pinned environment (pip freeze of a fresh `make test` venv, Python 3.11, less the'; \
+	  echo '# egg-info names inside the ROS wheels). Regenerate with `make constraints`.'; \
+	  $(PY) -m pip freeze --all --exclude-editable | $(PY) -c "import sys, importlib.metadata as m; \
+	  eggs = {d.metadata['Name'].lower().replace('_', '-') for d in m.distributions() \
+	          if str(getattr(d, '_path', '')).endswith('.egg-info')}; \
+	  sys.stdout.writelines(l for l in sys.stdin \
+	                        if l.split('==')[0].lower().replace('_', '-') not in eggs | {'pip'})" ) > constraints.txt
 
 clean:
 	rm -rf $(VENV) build install log

@@ -25,10 +25,14 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/launch', sorted(str(p.relative_to(here)) for p in
+                                                     (here / 'launch').glob('*.launch.py'))),
         *_config_files(),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyyaml'],
-    extras_require={'test': ['pytest']},
+    # plots: study --plot and the validation/convergence figures; dask: parallel sweeps
+    extras_require={'test': ['pytest'], 'plots': ['matplotlib'],
+                    'dask': ['dask[distributed]']},
     zip_safe=False,
     maintainer='impact_damper_sim developers',
     maintainer_email='dev@impact-damper-sim.invalid',

@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from .divergence import Divergence, scene_advice
 from .scene.schema import SceneError
 
 _TRANSLATIONS = ('ux', 'uy', 'uz')
@@ -31,6 +32,43 @@ _ROTATIONS = ('rx', 'ry', 'rz')
 #: Default anti-alias cutoff of a sensor without a scene ``lowpass``, times the output rate
 #: (0.4 keeps a 4th-order Butterworth ~ -30 dB at the output Nyquist frequency).
 DEFAULT_LOWPASS_FRACTION = 0.4
+
+
+#: Output rate of a scene whose sensors state no ``lowpass`` (Hz).
+FALLBACK_SAMPLE_RATE = 2000.0
+#: Output rate over the highest anti-alias cutoff that :func:`default_sample_rate` keeps at
+#: least (dimensionless): the cutoff sits below the output Nyquist frequency with margin
+#: (vibration analysers use 2.56).
+SAMPLE_RATE_OVER_CUTOFF = 2.5
+
+
+def default_sample_rate(scene_model):
+    """The output sample rate a scene implies (Hz), used when none is requested.
+
+    The lowest submultiple of the scene's integrator rate ``1/simulation.dt`` that is at least
+    :data:`SAMPLE_RATE_OVER_CUTOFF` x the highest ``lowpass`` of the scene's sensors, so the
+    integrator keeps the scene's step; :data:`FALLBACK_SAMPLE_RATE` when no sensor states a
+    low-pass. HPOTP (800 Hz low-pass, 0.1 ms): 2000 Hz; RBS (5 kHz, 50 us): 20 kHz.
+
+    Parameters
+    ----------
+    scene_model : SceneModel
+        Built scene.
+
+    Returns
+    -------
+    float
+        Sample rate (Hz).
+    """
+    cutoffs = [s['lowpass'] for s in scene_model.scene['sensors'] if s['lowpass'] is not None]
+    if not cutoffs:
+        return FALLBACK_SAMPLE_RATE
+    need = SAMPLE_RATE_OVER_CUTOFF * max(cutoffs)
+    f_step = 1.0 / float(scene_model.scene['simulation']['dt'])
+    if f_step < need * (1 - 1e-12):
+        return need   # the integrator step shrinks to a submultiple of the output period
+    k = max(1, math.floor(f_step / need * (1 + 1e-12)))
+    return f_step / k
 
 
 class CommandError(ValueError):
@@ -177,9 +215,10 @@ class LiveSimulation:
     ----------
     scene_model : SceneModel
         Built scene; its rotor, if any, must be commanded (see :func:`live_scene`).
-    sample_rate : float
-        Output sample rate (Hz), > 2 x every anti-alias cutoff. The integrator step is the
-        largest step not above the scene's ``simulation.dt`` that divides the output period.
+    sample_rate : float, optional
+        Output sample rate (Hz), > 2 x every anti-alias cutoff; default
+        :func:`default_sample_rate`. The integrator step is the largest step not above the
+        scene's ``simulation.dt`` that divides the output period.
     initial_target : float, optional
         Rotor speed commanded at t = 0 (rad/s).
     max_speed : float, optional
@@ -200,11 +239,12 @@ class LiveSimulation:
         live stream does not report it).
     """
 
-    def __init__(self, scene_model, *, sample_rate=2000.0, initial_target=None,
+    def __init__(self, scene_model, *, sample_rate=None, initial_target=None,
                  max_speed=None, max_unbalance=100.0, noise_std=0.0, seed=0,
                  dampers_enabled=True, method=None, ledger=False):
         from .filters import StreamingLowpass
-        sample_rate = float(sample_rate)
+        sample_rate = (default_sample_rate(scene_model) if sample_rate is None
+                       else float(sample_rate))
         if not (math.isfinite(sample_rate) and sample_rate > 0):
             raise SceneError(f"parameter 'sample_rate': must be a finite rate > 0 Hz, "
                              f'got {sample_rate}')
@@ -383,6 +423,9 @@ class LiveSimulation:
         n_steps = int(n_samples) * self.decimation
         try:
             samples = self.sim.advance(n_steps)
+        except Divergence as exc:   # the core's blow-up check: what, when, what to change
+            self.failure = str(exc.with_setting(scene_advice(self.scene, exc)))
+            return None
         except (FloatingPointError, RuntimeError) as exc:
             self.failure = f'{type(exc).__name__}: {exc}'
             return None
@@ -472,6 +515,12 @@ class Pacer:
         self._wall0 = self._clock()
         self._sim0 = float(t_sim)
 
+    def wall_at(self, t_sim):
+        """Wall time (s) at which sim time ``t_sim`` (s) is due; -inf as fast as possible."""
+        if self.real_time_factor == 0:
+            return -math.inf
+        return self._wall0 + (t_sim - self._sim0) / self.real_time_factor
+
     def target(self, t_sim):
         """Sim time to reach now (s), given the current sim time ``t_sim`` (s); inf if 0.
 
@@ -497,5 +546,6 @@ class Pacer:
         return target, lag
 
 
-__all__ = ['Accelerometer', 'Batch', 'CommandError', 'LiveSimulation', 'Pacer',
-           'accelerometers', 'live_scene']
+__all__ = ['Accelerometer', 'Batch', 'CommandError', 'FALLBACK_SAMPLE_RATE', 'LiveSimulation',
+           'Pacer', 'SAMPLE_RATE_OVER_CUTOFF', 'accelerometers', 'default_sample_rate',
+           'live_scene']

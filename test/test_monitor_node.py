@@ -293,3 +293,34 @@ def test_main_runs_and_stops_on_sigint(tmp_path):
     assert 'impacts:' in output
     assert process.returncode == 0, output
     assert 'Traceback' not in output
+
+
+def test_malformed_parameter_request_is_refused_and_the_monitor_stays_up(ros_context):
+    """A SetParameters with ParameterValue type 200 (any process on the domain can send
+    one) gets a refusal; the executor keeps spinning."""
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+    from rcl_interfaces.msg import ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from impact_damper_sim.ros.monitor import VibrationMonitor
+    monitor = VibrationMonitor(context=ros_context)
+    client_node = Node('fuzzer', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(monitor)
+    ex.add_node(client_node)
+    try:
+        client = client_node.create_client(SetParameters, '/monitor/set_parameters')
+        assert client.wait_for_service(timeout_sec=10.0)
+        for kind in (200, 255, 0):
+            future = client.call_async(SetParameters.Request(parameters=[ParameterMsg(
+                name='window', value=ParameterValue(type=kind, double_value=1.0))]))
+            end = time.monotonic() + 5.0
+            while not future.done() and time.monotonic() < end:
+                ex.spin_once(timeout_sec=0.01)   # would raise if the callback raised
+            assert future.done() and not future.result().results[0].successful
+        assert monitor.get_parameter('window').value == 2.0
+    finally:
+        client_node.destroy_node()
+        monitor.destroy_node()

@@ -8,8 +8,8 @@ Two groups of checks:
   ``share/<pkg>/``, the ament index marker, every Python module, and a working ``study --help``.
 * Static checks (no build) of ``package.xml``, ``setup.cfg``, ``setup.py`` and the package layout.
 
-colcon comes from ``requirements.txt`` (``colcon-common-extensions``). If it is missing from the
-environment running pytest, the build tests fail rather than skip.
+colcon comes from ``requirements-dev.txt`` (``colcon-common-extensions``). If it is missing
+from the environment running pytest, the build tests fail rather than skip.
 """
 import ast
 import configparser
@@ -36,7 +36,9 @@ _SKIP_SUFFIXES = ('.egg-info', '.pyc', '.mcap')
 _CONFIG_PROBE = Path('config') / '_build_probe' / 'nested' / 'probe.txt'
 
 REQUIRED_EXEC_DEPENDS = {
-    'rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'diagnostic_msgs', 'rosgraph_msgs',
+    'rclpy', 'std_msgs', 'std_srvs', 'sensor_msgs', 'geometry_msgs', 'diagnostic_msgs',
+    'rosgraph_msgs', 'rcl_interfaces', 'builtin_interfaces', 'ament_index_python',
+    'python3-yaml', 'python3-matplotlib', 'launch', 'launch_ros',
     'python3-numpy', 'python3-scipy',
     'python3-numba',  # rosdistro has no pip key for numba; see the comment in package.xml
     'mcap-ros2-support',
@@ -112,9 +114,9 @@ def built(tmp_path_factory):
     colcon = venv_bin / 'colcon'
     if not (colcon.is_file() and os.access(colcon, os.X_OK)):
         pytest.fail(
-            f'colcon not found at {colcon}. It comes from requirements.txt '
+            f'colcon not found at {colcon}. It comes from requirements-dev.txt '
             f'(colcon-common-extensions, with ros-jazzy-ament-package): run `make test`, or '
-            f'`{sys.executable} -m pip install -r requirements.txt -c constraints.txt`.',
+            f'`{sys.executable} -m pip install -r requirements-dev.txt -c constraints.txt`.',
             pytrace=False,
         )
 
@@ -191,6 +193,9 @@ def test_config_package_xml_and_ament_index_installed(built):
     assert not differ, f'installed config files differ from the source: {differ}'
 
     assert (share / PKG / 'package.xml').is_file(), f'share/{PKG}/package.xml is missing'
+    for launch_file in (src / 'launch').glob('*.launch.py'):
+        installed = share / PKG / 'launch' / launch_file.name
+        assert installed.is_file(), f'{launch_file.name} not installed under share/{PKG}/launch'
     marker = share / 'ament_index' / 'resource_index' / 'packages' / PKG
     assert marker.is_file(), (
         f'ament index marker {marker.relative_to(built["prefix"])} is missing: '
@@ -347,3 +352,77 @@ def test_every_subpackage_has_init():
     assert not missing, (
         f'directories with Python code but no __init__.py (find_packages drops them): {missing}'
     )
+
+
+# --------------------------------------------------------------------------- launch file
+# The `launch` packages are not on PyPI, so the launch file cannot run here: these checks
+# parse it and hold every name it uses against what the package declares.
+
+def _launch_calls(name):
+    tree = ast.parse((ROOT / 'launch' / 'vibration.launch.py').read_text())
+    return [n for n in ast.walk(tree) if isinstance(n, ast.Call)
+            and getattr(n.func, 'id', getattr(n.func, 'attr', None)) == name]
+
+
+def _kw(call, key):
+    return next((k.value for k in call.keywords if k.arg == key), None)
+
+
+def test_launch_file_parses_and_defines_the_entry_point():
+    tree = ast.parse((ROOT / 'launch' / 'vibration.launch.py').read_text())
+    names = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
+    assert 'generate_launch_description' in names
+
+
+def test_launch_file_executables_and_parameters_exist():
+    pytest.importorskip('rclpy')
+    from impact_damper_sim.ros.parameters import PARAMETERS
+    scripts = {ep.split('=')[0].strip() for ep in ast.literal_eval(
+        next(k.value for k in _setup_call().keywords if k.arg == 'entry_points'))[
+            'console_scripts']}
+    nodes = _launch_calls('Node')
+    assert len(nodes) == 2
+    executables = {_kw(n, 'executable').value for n in nodes}
+    assert executables == {'vibration_node', 'monitor'} and executables <= scripts
+    assert all(_kw(n, 'package').id == 'PACKAGE' for n in nodes)
+    vib = next(n for n in nodes if _kw(n, 'executable').value == 'vibration_node')
+    dicts = [d for d in _kw(vib, 'parameters').elts if isinstance(d, ast.Dict)]
+    keys = {k.value for d in dicts for k in d.keys}
+    assert keys and keys <= set(PARAMETERS), keys - set(PARAMETERS)
+    declared = {c.args[0].value for c in _launch_calls('DeclareLaunchArgument')}
+    used = {c.args[0].value for c in _launch_calls('LaunchConfiguration')}
+    assert declared == used == {'scene', 'namespace', 'params_file', 'record',
+                                'real_time_factor', 'monitor'}
+    # the default params file is the one the package installs
+    assert (ROOT / 'config' / 'vibration_node.yaml').is_file()
+
+
+def _requirement_names(path):
+    names = []
+    for line in (ROOT / path).read_text().splitlines():
+        line = line.split('#')[0].strip()
+        if line and not line.startswith('-'):
+            names.append(line.split('[')[0].split('=')[0].split('<')[0].split('>')[0].lower())
+    return names
+
+
+def test_runtime_requirements_hold_no_tooling_and_the_used_message_packages():
+    runtime = set(_requirement_names('requirements.txt'))
+    assert not runtime & {'pytest', 'pytest-cov', 'coverage', 'colcon-common-extensions',
+                          'ros-jazzy-ament-package', 'matplotlib', 'dask', 'setuptools',
+                          'ros-jazzy-common-interfaces'}
+    assert {'ros-jazzy-std-msgs', 'ros-jazzy-std-srvs', 'ros-jazzy-sensor-msgs',
+            'ros-jazzy-geometry-msgs', 'ros-jazzy-diagnostic-msgs'} <= runtime
+    dev = (ROOT / 'requirements-dev.txt').read_text()
+    assert '-r requirements.txt' in dev
+    assert {'pytest', 'colcon-common-extensions', 'matplotlib', 'dask'} <= set(
+        _requirement_names('requirements-dev.txt'))
+
+
+def test_constraints_pin_no_egg_info_names_of_the_ros_wheels():
+    pinned = {line.split('==')[0] for line in (ROOT / 'constraints.txt').read_text().split()
+              if '==' in line}
+    # these exist only as egg-info inside ros-* wheels; PyPI has no such distributions
+    assert not pinned & {'rclpy', 'std_msgs', 'sensor_msgs', 'rcl_interfaces',
+                         'builtin_interfaces', 'rosidl_parser', 'rosgraph_msgs'}
+    assert 'ros-jazzy-rclpy' in pinned

@@ -96,7 +96,11 @@ def test_unbalance_command_scales_a_linear_scene_exactly(ros_context):
 def test_dampers_enabled_switches_impacts(ros_context):
     node = make_node(ros_context, 'sdof')
     published = []
-    node._impact_pub.publish = published.append   # count what would go on the wire
+    from rclpy.serialization import deserialize_message
+    node._impact_pub.has_subscribers = lambda: True
+    node._impact_pub.publish_raw = (   # what would go on the wire
+        lambda data, ns=None, wire=True: published.append(deserialize_message(data,
+                                                                               WrenchStamped)))
     try:
         run_for(node, 1.0)
         on = len(published)
@@ -199,6 +203,8 @@ def test_numerical_blow_up_is_reported_and_the_node_stays_up(ros_context):
         node.live.sim.integrator._yh[:] = np.nan   # what an overflow leaves behind
         run_for(node, 0.1)
         assert node.live.failure is not None
+        # the core's blow-up check names what diverged and when (impact_damper_sim.divergence)
+        assert node.live.failure.startswith('diverged at t = '), node.live.failure
         t_failed = node.live.t
         run_for(node, 0.1)
         assert node.live.t == t_failed   # stepping stopped
@@ -397,3 +403,327 @@ def test_recording_keeps_real_time(ros_context, tmp_path):
         assert d['record_messages_written'] > 10000
     finally:
         sim.destroy_node()
+
+
+SHIPPED_SCENES = sorted(p.stem for p in (
+    __import__('pathlib').Path(__file__).resolve().parents[1] / 'config' / 'scenes').glob(
+        '*.yaml'))
+
+
+@pytest.mark.parametrize('scene', SHIPPED_SCENES)
+def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
+    """Default parameters only: the sample rate follows the scene's sensors' low-pass."""
+    from impact_damper_sim.realtime import SAMPLE_RATE_OVER_CUTOFF
+    node = make_node(ros_context, scene)
+    try:
+        live = node.live
+        for acc in live.accelerometers:
+            assert live.sample_rate >= SAMPLE_RATE_OVER_CUTOFF * acc.lowpass_hz * (1 - 1e-12)
+        # the scene's integrator step is kept (the rate is a submultiple of 1/dt)
+        assert live.dt == pytest.approx(float(node.scene.scene['simulation']['dt']),
+                                        rel=1e-12)
+        run_for(node, 0.05)
+        assert node.live.failure is None
+        assert node.stats_total['samples'] == round(0.05 * live.sample_rate)
+        assert all(out.count == node.stats_total['samples'] for out in node._accel_pubs)
+    finally:
+        node.destroy_node()
+
+
+def test_default_sample_rates_of_the_shipped_scenes(ros_context):
+    from impact_damper_sim.realtime import default_sample_rate
+    from impact_damper_sim.scene.build import load
+    assert default_sample_rate(load('hpotp')) == 2000.0   # 800 Hz low-pass, 0.1 ms
+    assert default_sample_rate(load('rbs')) == 20000.0    # 5 kHz low-pass, 50 us
+
+
+def test_imu_packer_bytes_round_trip(ros_context):
+    """The vectorised CDR is byte for byte what rclpy serializes, and reads back exactly."""
+    from rclpy.serialization import deserialize_message, serialize_message
+
+    from impact_damper_sim.ros.wire import ImuPacker
+    rng = np.random.default_rng(3)
+    for frame in ('', 'a', 'ab', 'abc', 'hpotp_casing_bottom', 'x' * 37):
+        template = Imu()
+        template.header.frame_id = frame
+        template.orientation_covariance[0] = -1.0
+        template.linear_acceleration_covariance = [0.25, 0, 0, 0, 0.25, 0, 0, 0, 0.25]
+        packer = ImuPacker(template)
+        t_ns = np.array([0, 1, 999_999_999, 1_000_000_000, 12_345_678_901_234])
+        lin, ang = rng.normal(0, 1e3, (5, 3)), rng.normal(0, 1, (5, 3))
+        for data, ns, la, av in zip(packer.pack(t_ns, lin, ang), t_ns, lin, ang):
+            msg = deserialize_message(data, Imu)
+            assert msg.header.frame_id == frame
+            assert msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == ns
+            assert [msg.linear_acceleration.x, msg.linear_acceleration.y,
+                    msg.linear_acceleration.z] == la.tolist()
+            assert [msg.angular_velocity.x, msg.angular_velocity.y,
+                    msg.angular_velocity.z] == av.tolist()
+            assert msg.orientation_covariance[0] == -1.0
+            assert list(msg.linear_acceleration_covariance) == list(
+                template.linear_acceleration_covariance)
+            # equal up to the alignment padding after frame_id (rclpy leaves it undefined)
+            assert len(serialize_message(msg)) == len(data)
+            assert deserialize_message(serialize_message(msg), Imu) == msg
+
+
+def test_published_and_recorded_bytes_are_the_same(ros_context, tmp_path):
+    """Serialized once: the recorder gets the very bytes that went on the wire."""
+    node = make_node(ros_context, 'sdof')
+    sent = []
+    pub = node._accel_pubs[0]
+    real = pub.pub.publish
+    pub.pub.publish = lambda data: (sent.append(data), real(data))
+    pub.has_subscribers = lambda: True
+    recorded = []
+    node._record = lambda topic, type_name, qos, data, ns=None: recorded.append((topic, data))
+    pub._record = node._record
+    try:
+        run_for(node, 0.02)
+        on_topic = [d for topic, d in recorded if topic == pub.topic]
+        assert len(sent) == 40 and on_topic == sent
+        assert all(type(d) is bytes for d in sent)
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('arg, name', [
+    ('sample_rate:=1e308', 'sample_rate'), ('sample_rate:=50.0', 'sample_rate'),
+    ('tick_period:=0.0', 'tick_period'), ('real_time_factor:=nan', 'real_time_factor'),
+    ('real_time_factor:=.inf', 'real_time_factor'), ('noise_seed:=-1', 'noise_seed'),
+    ('max_lag:=100.0', 'max_lag'), ('scene:=5', 'scene'), ('method:=bogus', 'method'),
+    ('max_unbalance:=10000.0001', 'max_unbalance'), ('overrides:=5', 'overrides'),
+    ('record_overwrite:=3', 'record_overwrite')])
+def test_start_up_parameter_errors_are_one_line_exit_2(ros_context, capsys, arg, name):
+    assert main(['--ros-args', '-p', 'scene:=sdof', '-p', arg]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count('\n') == 0 and 'Traceback' not in err, err
+    assert err.startswith(f"vibration_node: parameter '{name}': "), err
+    assert ' in [' in err or 'one of' in err or ' is not a' in err, err
+
+
+def test_an_int_given_for_a_double_parameter_is_taken(ros_context):
+    node = VibrationNode(context=ros_context, start_stepping=False, cli_args=[
+        '--ros-args', '-p', 'scene:=sdof', '-p', 'real_time_factor:=2'])
+    try:
+        assert node.get_parameter('real_time_factor').value == 2.0
+        assert node.pacer.real_time_factor == 2.0
+    finally:
+        node.destroy_node()
+
+
+def test_runtime_parameter_checks_are_strict(ros_context):
+    node = make_node(ros_context, 'sdof')
+    try:
+        for name, value in [('real_time_factor', 1000.0001), ('real_time_factor', math.nan),
+                            ('noise_std', 1000.0000001), ('noise_std', -0.0 - 1e-300),
+                            ('noise_seed', 2**31), ('dampers_enabled', 1),
+                            ('real_time_factor', 2), ('tick_period', 0.02)]:
+            result = node.set_parameters([Parameter(name, value=value)])[0]
+            assert not result.successful and result.reason, (name, value)
+        assert node.set_parameters([Parameter('real_time_factor', value=1000.0)])[0].successful
+        assert node.pacer.real_time_factor == 1000.0
+    finally:
+        node.destroy_node()
+
+
+def _call(ex, client, request, timeout=5.0):
+    assert client.wait_for_service(timeout_sec=timeout)
+    future = client.call_async(request)
+    end = time.monotonic() + timeout
+    while not future.done() and time.monotonic() < end:
+        ex.spin_once(timeout_sec=0.01)
+    assert future.done(), 'no answer'
+    return future.result()
+
+
+def test_fuzzed_service_requests_never_stop_the_node(ros_context, tmp_path):
+    """Every service of the node, over the wire, with malformed and random requests."""
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+    from rcl_interfaces.msg import ParameterType, ParameterValue
+    from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes,
+                                    ListParameters, SetParameters, SetParametersAtomically)
+    from std_srvs.srv import SetBool
+
+    import os
+    ns = f'/fuzz_{os.getpid()}'   # another node on this domain must not answer for ours
+    node = VibrationNode(context=ros_context, namespace=ns, start_stepping=False,
+                         clock=FakeClock(), parameter_overrides=[
+                             Parameter('scene', value='sdof'),
+                             Parameter('record_overwrite', value=True)])
+    node._params['record'] = str(tmp_path / 'fuzz.mcap')
+    fuzzer = Node('fuzzer', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    ex.add_node(fuzzer)
+    rng = np.random.default_rng(11)
+    names = ['', '\x00', 'real_time_factor', 'noise_std', 'noise_seed', 'dampers_enabled',
+             'scene', 'sample_rate', 'no_such', 'a' * 300, 'use_sim_time', '/x.y']
+
+    def value():
+        v = ParameterValue(type=int(rng.choice([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 200, 255])))
+        v.bool_value = bool(rng.integers(2))
+        v.integer_value = int(rng.choice([-1, 0, 7, 2**63 - 1, -2**63]))
+        v.double_value = float(rng.choice([math.nan, math.inf, -1.0, 0.5, 1e308, 1000.0001]))
+        v.string_value = str(rng.choice(['', 'rbs', '\x00', 'é' * 10]))
+        v.double_array_value = [1.0, math.nan]
+        v.string_array_value = ['a', '']
+        return v
+
+    def params(k):
+        return [ParameterMsg(name=str(rng.choice(names)), value=value()) for _ in range(k)]
+
+    base = f'{ns}/vibration_node/'
+    clients = {kind: fuzzer.create_client(kind, base + srv) for kind, srv in [
+        (SetParameters, 'set_parameters'), (SetParametersAtomically, 'set_parameters_atomically'),
+        (GetParameters, 'get_parameters'), (DescribeParameters, 'describe_parameters'),
+        (GetParameterTypes, 'get_parameter_types'), (ListParameters, 'list_parameters'),
+        (SetBool, 'record')]}
+    try:
+        bad = SetParameters.Request(parameters=[ParameterMsg(
+            name='real_time_factor', value=ParameterValue(type=200, double_value=2.0))])
+        res = _call(ex, clients[SetParameters], bad)
+        assert len(res.results) == 1 and not res.results[0].successful
+        assert res.results[0].reason
+        for empty in ('', '\x00'):
+            res = _call(ex, clients[SetParameters], SetParameters.Request(parameters=[
+                ParameterMsg(name=empty, value=ParameterValue(
+                    type=ParameterType.PARAMETER_DOUBLE, double_value=1.0))]))
+            assert not res.results[0].successful, repr(empty)
+        for k in range(60):
+            kind = list(clients)[k % len(clients)]
+            if kind is SetParameters:
+                request = SetParameters.Request(parameters=params(int(rng.integers(0, 4))))
+            elif kind is SetParametersAtomically:
+                request = SetParametersAtomically.Request(
+                    parameters=params(int(rng.integers(0, 4))))
+            elif kind in (GetParameters, DescribeParameters, GetParameterTypes):
+                request = kind.Request(names=[str(rng.choice(names)) for _ in range(3)])
+            elif kind is ListParameters:
+                request = ListParameters.Request(prefixes=[str(rng.choice(names))],
+                                                 depth=int(rng.integers(0, 2**63 - 1)))
+            else:
+                request = SetBool.Request(data=bool(rng.integers(2)))
+            response = _call(ex, clients[kind], request)
+            assert isinstance(response, kind.Response)
+            run_for(node, 0.01)
+        rtf = node.get_parameter('real_time_factor').value
+        assert math.isfinite(rtf) and 0 <= rtf <= 1000
+        assert node.pacer.real_time_factor == rtf
+        assert node.get_parameter('scene').value == 'sdof'
+        assert node.live.failure is None
+        node.on_record_request(SetBool.Request(data=False), SetBool.Response())
+    finally:
+        fuzzer.destroy_node()
+        node.destroy_node()
+
+
+def test_fuzzed_messages_on_every_subscribed_topic(ros_context):
+    """Every topic the node subscribes to, with every kind of float, over the wire."""
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP)
+    sender = Node('sender', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    ex.add_node(sender)
+    subscribed = {name for name, _ in node.get_subscriber_names_and_types_by_node(
+        'vibration_node', '/')}
+    assert subscribed == {'/' + itf.SPEED_COMMAND, '/' + itf.UNBALANCE_COMMAND}
+    values = [math.nan, -math.nan, math.inf, -math.inf, -0.0, 0.0, 5e-324, -5e-324, 1.7e308,
+              -1.7e308, 1.0, 2.0**53]
+    try:
+        pubs = [sender.create_publisher(Float64, topic, itf.COMMAND_QOS) for topic in subscribed]
+        _spin(ex, 0.3)
+        for v in values:
+            for pub in pubs:
+                pub.publish(Float64(data=v))
+            _spin(ex, 0.02)
+        _spin(ex, 0.3)
+        assert node.live.profile.target == 2.0**53 or node.live.profile.target == 1.0 or \
+            node.live.profile.target <= node.live.max_speed
+        assert node.live.unbalance.multiplier in (1.0, 0.0, 5e-324)
+        run_for(node, 0.05)
+        assert node.live.failure is None
+    finally:
+        sender.destroy_node()
+        node.destroy_node()
+
+
+def test_console_script_survives_malformed_requests_and_stops_cleanly(ros_context, tmp_path):
+    """The real process: a SetParameters with ParameterValue type 200 is refused, the node
+    stays up, and Ctrl-C (SIGINT) while recording exits 0 with the file finished and no
+    'Failed to publish log message to rosout'."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from rcl_interfaces.msg import Parameter as ParameterMsg
+    from rcl_interfaces.msg import ParameterValue
+    from rcl_interfaces.srv import SetParameters
+    path = tmp_path / 'sigint.mcap'
+    env = dict(os.environ, ROS_DOMAIN_ID=str(ros_context.get_domain_id()))
+    ns = f'/sigint_{os.getpid()}'   # another node on this domain must not answer for ours
+    proc = subprocess.Popen(
+        [sys.executable, '-c', 'import sys; from impact_damper_sim.ros.vibration_node import '
+         'main; sys.exit(main())', '--ros-args', '-r', f'__ns:={ns}', '-p', 'scene:=sdof',
+         '-p', f'record:={path}'], env=env, stderr=subprocess.PIPE, text=True)
+    client_node = Node('fuzzer', context=ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(client_node)
+    try:
+        client = client_node.create_client(SetParameters, f'{ns}/vibration_node/set_parameters')
+        assert client.wait_for_service(timeout_sec=120.0)
+        bad = SetParameters.Request(parameters=[ParameterMsg(
+            name='real_time_factor', value=ParameterValue(type=200, double_value=2.0))])
+        res = _call(ex, client, bad)
+        assert not res.results[0].successful
+        _spin(ex, 0.5)
+        assert proc.poll() is None   # still up
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+        assert proc.returncode == 0, err
+        assert 'Failed to publish log message to rosout' not in err, err
+        assert 'Traceback' not in err, err
+        assert 'recorded' in err   # the shutdown message still reaches the console
+        from mcap.reader import make_reader
+        with open(path, 'rb') as f:
+            summary = make_reader(f).get_summary()
+        assert summary is not None and summary.statistics.message_count > 100
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        client_node.destroy_node()
+
+
+def test_rotor_joint_states_carry_angle_and_speed(ros_context):
+    """At a constant 2400 rad/s the shaft angle is 2400 t, wrapped to [0, 2 pi)."""
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP + [
+        'rotor.speed={kind: constant, speed: 2400 rad/s}'])
+    got = []
+    node._joint_pub.publish = lambda msg, ns=None: got.append(msg)
+    try:
+        run_for(node, 0.1)
+        assert len(got) >= 9
+        for msg in got:
+            t = _sec(msg.header.stamp)
+            assert msg.name == ['rotor'] and msg.velocity[0] == 2400.0
+            assert len(msg.effort) == 0
+            assert 0.0 <= msg.position[0] < 2 * math.pi
+            expected = math.fmod(2400.0 * t, 2 * math.pi)
+            diff = abs(msg.position[0] - expected)
+            assert min(diff, 2 * math.pi - diff) < 1e-6
+    finally:
+        node.destroy_node()
+
+
+def test_slow_start_up_says_what_it_is_doing():
+    """A cold Numba cache keeps the node busy for tens of seconds: it logs that it is."""
+    from impact_damper_sim.ros.vibration_node import _Busy
+    said = []
+    busy = _Busy(said.append, 'compiling', period=0.05)
+    time.sleep(0.3)
+    elapsed = busy.stop()
+    n = len(said)
+    time.sleep(0.15)
+    assert elapsed >= 0.3 and n >= 3 and len(said) == n   # and quiet once stopped
+    assert all(s.startswith('still compiling (') for s in said)

@@ -32,9 +32,23 @@ Encodings in ``common_interfaces`` types (no custom message package):
     ``velocity`` (m/s): its velocity relative to the housing; ``effort``: 1.0 while the
     impactor is stuck (rides its housing), 0.0 while free.
 
-``rotor/speed`` -- ``geometry_msgs/Vector3Stamped``, every publish tick
+``rotor/joint_states`` -- ``sensor_msgs/JointState``, every stepped chunk
+    The rotor as the continuous joint it is, read by any ROS tool without this page:
+    ``name`` ``['rotor']``; ``position`` (rad) the shaft angle, wrapped to [0, 2 pi);
+    ``velocity`` (rad/s) the applied speed; ``effort`` empty (not modelled).
+
+``rotor/speed`` -- ``geometry_msgs/Vector3Stamped``, every stepped chunk
     ``vector.x`` (rad/s) applied rotor speed; ``vector.y`` (rad/s^2) applied speed rate;
-    ``vector.z`` (dimensionless) applied unbalance multiplier X.
+    ``vector.z`` (dimensionless) applied unbalance multiplier X. Kept beside
+    ``rotor/joint_states`` because it carries what JointState cannot (the commanded rate and
+    the unbalance multiplier, which the rate limit and ``rotor/unbalance_command`` change), in
+    one stamped message that ``study report`` reads for its waterfall and that existing logs
+    hold.
+
+Why ``impacts`` is a ``WrenchStamped``: no common_interfaces type describes an impact, and a
+custom message package would not show up in every tool. The wrench's force is the impulse
+vector (its direction is the contact normal, as a force's is), so RViz and PlotJuggler draw
+it meaningfully; the torque slots carry the scalars of the impact law.
 
 ``rotor/speed_command``, ``rotor/unbalance_command`` -- ``std_msgs/Float64`` subscriptions
     Target speed (rad/s, applied under the scene's rate limit) and multiplier X (>= 0).
@@ -47,6 +61,7 @@ ACCEL_PREFIX = 'accel/'
 IMPACTS = 'impacts'
 IMPACTOR_STATE = 'impactor_state'
 ROTOR_SPEED = 'rotor/speed'
+ROTOR_JOINT_STATES = 'rotor/joint_states'
 SPEED_COMMAND = 'rotor/speed_command'
 UNBALANCE_COMMAND = 'rotor/unbalance_command'
 CLOCK = '/clock'
@@ -58,14 +73,16 @@ TYPES = {
     IMPACTS: 'geometry_msgs/msg/WrenchStamped',
     IMPACTOR_STATE: 'sensor_msgs/msg/JointState',
     ROTOR_SPEED: 'geometry_msgs/msg/Vector3Stamped',
+    ROTOR_JOINT_STATES: 'sensor_msgs/msg/JointState',
     SPEED_COMMAND: 'std_msgs/msg/Float64',
     UNBALANCE_COMMAND: 'std_msgs/msg/Float64',
     CLOCK: 'rosgraph_msgs/msg/Clock',
     DIAGNOSTICS: 'diagnostic_msgs/msg/DiagnosticArray',
 }
 
-#: Accelerometer samples: best effort and volatile like ``qos_profile_sensor_data``, with a
-#: depth that holds a whole publish burst (samples are published in bursts each tick).
+#: Accelerometer samples: best effort and volatile like ``qos_profile_sensor_data``; samples
+#: are published one by one at their own time, and the depth leaves a slow reader's
+#: executor 50 ms (at 2 kHz) before the writer overwrites.
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                         reliability=ReliabilityPolicy.BEST_EFFORT,
                         durability=DurabilityPolicy.VOLATILE)
@@ -86,7 +103,8 @@ COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
-#: /diagnostics as diagnostic_updater publishes it (system default: reliable, depth 10).
+#: /diagnostics: reliable, volatile, keep last 10 (diagnostic_updater publishes with the
+#: default QoS, keep last 10, reliable).
 DIAGNOSTICS_QOS = COMMAND_QOS
 
 G0 = 9.80665   # standard gravity (m/s^2), for reports in g
@@ -99,5 +117,5 @@ def accel_topic(sensor):
 
 __all__ = ['ACCEL_PREFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS', 'DIAGNOSTICS',
            'DIAGNOSTICS_QOS', 'EVENT_QOS', 'G0', 'IMPACTS', 'IMPACTOR_STATE', 'LATCHED_QOS',
-           'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES', 'UNBALANCE_COMMAND',
-           'accel_topic']
+           'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES',
+           'UNBALANCE_COMMAND', 'accel_topic']

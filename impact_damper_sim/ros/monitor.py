@@ -42,6 +42,7 @@ from geometry_msgs.msg import WrenchStamped
 import numpy as np
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
+import rclpy.executors
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -50,6 +51,7 @@ from sensor_msgs.msg import Imu, JointState
 from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
 from .interface import (ACCEL_PREFIX, accel_topic, DIAGNOSTICS, DIAGNOSTICS_QOS, EVENT_QOS,
                         IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS, TYPES)
+from .wire import guard_services
 
 #: Samples (or impacts) queued on one stream before the batch goes to the report thread
 #: ahead of the report, so that memory stays bounded for long report periods.
@@ -150,6 +152,9 @@ class VibrationMonitor(Node):
                                         daemon=True)
         self._worker.start()
         self._timer = self.create_timer(period, self._on_timer)
+        # no request may stop the node (a SetParameters with an unknown type raises in rclpy)
+        guard_services(self, lambda text: self.get_logger().warning(
+            text, throttle_duration_sec=1.0))
 
     @property
     def sensors(self):
@@ -404,7 +409,16 @@ def main(args=None):
     node = None
     try:
         node = VibrationMonitor()
-        rclpy.spin(node)
+        executor = rclpy.executors.SingleThreadedExecutor()
+        executor.add_node(node)
+        while rclpy.ok():
+            try:
+                executor.spin_once(timeout_sec=0.5)
+            except (KeyboardInterrupt, ExternalShutdownException):
+                raise
+            except Exception as exc:   # a malformed message or request must not stop it
+                node.get_logger().error(f'callback failed: {type(exc).__name__}: {exc}',
+                                        throttle_duration_sec=1.0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

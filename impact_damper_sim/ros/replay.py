@@ -766,7 +766,7 @@ def main(args=None):
         # spin in the background (graph and parameter services); play in this thread
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        spinner = threading.Thread(target=executor.spin, daemon=True)
+        spinner = threading.Thread(target=_spin_quietly, args=(executor,), daemon=True)
         spinner.start()
         if options.delay and node._stop.wait(options.delay):
             raise ExternalShutdownException()
@@ -794,6 +794,14 @@ def main(args=None):
         if spinner is not None:
             spinner.join(timeout=1.0)
     return status
+
+
+def _spin_quietly(executor):
+    """Spin until shutdown; Ctrl-C shuts the context down under the spin, which is no error."""
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
 
 
 if __name__ == '__main__':

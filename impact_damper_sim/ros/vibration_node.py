@@ -3,13 +3,14 @@
 A thin adapter over :class:`~impact_damper_sim.realtime.LiveSimulation`: it declares and
 validates the parameters, feeds commands to the core, paces it with
 :class:`~impact_damper_sim.realtime.Pacer` and publishes what it produces. The topics and
-their encodings are in :mod:`impact_damper_sim.ros.interface` and the README.
+their encodings are in :mod:`impact_damper_sim.ros.interface` and docs/node.md.
 
 Run it with ``ros2 run impact_damper_sim vibration_node`` (or the ``vibration_node`` console
 script), e.g. ``--ros-args -p scene:=rbs -r __ns:=/rbs``.
 """
 from __future__ import annotations
 
+import collections
 import math
 import sys
 import threading
@@ -17,14 +18,11 @@ import time
 
 import numpy as np
 import rclpy
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
-from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
-                                SetParametersResult)
-from rclpy.executors import ExternalShutdownException
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
@@ -34,91 +32,12 @@ from std_srvs.srv import SetBool
 from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
 from ..scene.schema import SceneError
 from . import interface as itf
+from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
+from .wire import ImuPacker, Outlet, StampedPacker, guard_services, stamp
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
-
-
-def _float_range(low, high):
-    return [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
-
-
-#: name: (default, description with unit, (low, high) or None, read_only)
-PARAMETERS = {
-    'scene': ('hpotp', 'scene name (config/scenes/<name>.yaml) or path to a scene file',
-              None, True),
-    'overrides': (Parameter.Type.STRING_ARRAY,
-                  "scene overrides 'key=value' (engineering units allowed, e.g. "
-                  "'impactors.0.clearance=2 mil')", None, True),
-    'method': ('', 'integration method: exact, newmark or newmark_step_end; empty = the '
-                   "scene's simulation.method", None, True),
-    'real_time_factor': (1.0, 'sim seconds per wall second; 0 = as fast as possible '
-                              '(dimensionless)', (0.0, 1000.0), False),
-    'sample_rate': (2000.0, 'accelerometer output sample rate (Hz); must exceed twice the '
-                            "anti-alias cutoff (scene sensors' lowpass, else 0.4 x rate)",
-                    (100.0, 100000.0), True),
-    'dampers_enabled': (True, 'impact dampers act (dynamic: compare with and without live)',
-                        None, False),
-    'noise_std': (0.0, 'white noise added to each acceleration sample, standard deviation '
-                       '(m/s^2)', (0.0, 1000.0), False),
-    'noise_seed': (0, 'seed of the noise generator; setting it restarts the noise sequence '
-                      '(dimensionless)', (0, 2**31 - 1), False),
-    'max_speed': (0.0, 'largest accepted speed command (rad/s); 0 = twice the scene speed',
-                  (0.0, 1.0e5), True),
-    'max_unbalance': (100.0, 'largest accepted unbalance multiplier X (dimensionless)',
-                      (0.0, 1.0e4), True),
-    'speed_rate_limit': (0.0, "rate limit of speed changes (rad/s^2); 0 = the scene's "
-                              '(ramp slope or max_rate)', (0.0, 1.0e6), True),
-    'publish_clock': (True, 'publish /clock (turn off on all but one node of a system)',
-                      None, True),
-    'tick_period': (0.01, 'period of the stepping loop (s): samples are published in '
-                           'bursts of about this length', (0.001, 0.1), True),
-    'state_period': (1.0, 'period of the impactor_state republish (s); it is also sent on '
-                          'every change', (0.01, 60.0), True),
-    'diagnostics_period': (1.0, 'period of /diagnostics (s)', (0.1, 60.0), True),
-    'max_lag': (0.25, 'largest schedule deficit kept before it is dropped and reported (s)',
-                (0.01, 10.0), True),
-    'record': ('', 'MCAP file to record every published topic and received command to, in '
-                   "rosbag2's layout; empty = not recording (start/stop at run time with the "
-                   '~/record service)', None, True),
-    'record_overwrite': (False, 'overwrite an existing record file (otherwise refused)', None,
-                         True),
-}
-
-
-def parameters_markdown():
-    """The README's parameter table (markdown str), generated from :data:`PARAMETERS`."""
-    rows = ['| parameter | type | default | range | dynamic | description |',
-            '|---|---|---|---|---|---|']
-    for name, (default, description, bounds, read_only) in PARAMETERS.items():
-        if isinstance(default, Parameter.Type):
-            kind, shown = 'string[]', '(none)'
-        elif isinstance(default, bool):
-            kind, shown = 'bool', str(default).lower()
-        else:
-            kind = {int: 'int', float: 'double', str: 'string'}[type(default)]
-            shown = f'`{default}`' if default != '' else "''"
-        span = f'{bounds[0]:g} .. {bounds[1]:g}' if bounds else ''
-        rows.append(f"| `{name}` | {kind} | {shown} | {span} | {'no' if read_only else 'yes'} "
-                    f'| {description} |')
-    return '\n'.join(rows)
-
-
-def _descriptor(name, description, bounds, read_only, default):
-    desc = ParameterDescriptor(name=name, description=description, read_only=read_only)
-    if bounds is not None:
-        if isinstance(default, bool) or not isinstance(default, (int, float)):
-            raise TypeError(name)
-        if isinstance(default, int):
-            desc.integer_range = [IntegerRange(from_value=int(bounds[0]),
-                                               to_value=int(bounds[1]), step=1)]
-        else:
-            desc.floating_point_range = _float_range(*bounds)
-    return desc
-
-
-def _type_name(msg_type):
-    """``pkg/msg/Type`` of a generated message class."""
-    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+RECORD_CHUNK_SIZE = 768 * 1024   # bytes, as rosbag2's MCAP storage
+_stamp = stamp
 
 
 class _HandoffLock:
@@ -149,33 +68,25 @@ class _HandoffLock:
             time.sleep(0.0005)
 
 
-class _Outlet:
-    """A publisher that serializes a message once and gives the same bytes to the recorder."""
+class _Busy:
+    """Logs, every ``period`` s until stopped, that a slow start-up step is still running."""
 
-    def __init__(self, node, msg_type, topic, qos):
-        self.pub = node.create_publisher(msg_type, topic, qos)
-        self.topic = self.pub.topic_name   # fully qualified; cached (a C call each time)
-        self.type_name = _type_name(msg_type)
-        self.qos = qos
-        self.count = 0   # messages published
-        self._node = node
+    def __init__(self, log, what, period=5.0):
+        self._done = threading.Event()
+        self._t0 = time.monotonic()
 
-    def publish(self, msg):
-        data = serialize_message(msg)
-        self.pub.publish(data)   # rclpy publishes serialized bytes as they are
-        self.count += 1
-        self._node._record(self.topic, self.type_name, self.qos, data)
+        def run():
+            while not self._done.wait(period):
+                log(f'still {what} ({time.monotonic() - self._t0:.0f} s)')
 
+        self._thread = threading.Thread(target=run, name='startup_notice', daemon=True)
+        self._thread.start()
 
-def _stamp(t):
-    ns = int(round(t * 1e9))
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-
-def _set_stamp(header, t):
-    """Set ``header.stamp`` to ``t`` (s) in place (cheaper than a new Time per message)."""
-    ns = int(round(t * 1e9))
-    header.stamp.sec, header.stamp.nanosec = divmod(ns, 1_000_000_000)
+    def stop(self):
+        """Stop the notices; return the elapsed time (s)."""
+        self._done.set()
+        self._thread.join()
+        return time.monotonic() - self._t0
 
 
 class VibrationNode(Node):
@@ -200,6 +111,9 @@ class VibrationNode(Node):
         The scene or a start-up parameter is invalid (the message names it).
     """
 
+    #: how early (wall s) an item may be published with the one due before it
+    EARLY = 7.5e-4
+
     def __init__(self, node_name='vibration_node', *, clock=time.monotonic,
                  start_stepping=True, **kwargs):
         super().__init__(node_name, **kwargs)
@@ -209,20 +123,29 @@ class VibrationNode(Node):
         self._lock = _HandoffLock()
         self._thread = None
         self._stop = threading.Event()
-        for name, (default, description, bounds, read_only) in PARAMETERS.items():
-            self.declare_parameter(name, default,
-                                   _descriptor(name, description, bounds, read_only, default))
-        p = {name: self.get_parameter_or(name, Parameter(name, value=None)).value
-             for name in PARAMETERS}
+        self._last_log = {}
+        self._pending = collections.deque()   # (sim ns, outlet, message or bytes, wire)
+        p, unknown = declare_all(self)
+        for name in unknown:
+            self.get_logger().warning(f'parameter {name!r} is not one of this node\'s; '
+                                      f"ignored (known: {', '.join(PARAMETERS)})")
         rate_limit = p['speed_rate_limit'] or None
-        scene, target = live_scene(p['scene'], p['overrides'] or (),
-                                   speed_rate_limit=rate_limit)
-        self.live = LiveSimulation(
-            scene, sample_rate=p['sample_rate'], initial_target=target,
-            max_speed=p['max_speed'] or None, max_unbalance=p['max_unbalance'],
-            noise_std=p['noise_std'], seed=p['noise_seed'],
-            dampers_enabled=p['dampers_enabled'], method=p['method'] or None)
-        self.live.step(0)   # load the compiled kernels now, not in the first paced tick
+        busy = _Busy(self.get_logger().info, 'loading the scene and the compiled kernels '
+                     '(a cold Numba cache compiles them once, 20-60 s)')
+        try:
+            scene, target = live_scene(p['scene'], p['overrides'] or (),
+                                       speed_rate_limit=rate_limit)
+            self.live = LiveSimulation(
+                scene, sample_rate=p['sample_rate'] or None, initial_target=target,
+                max_speed=p['max_speed'] or None, max_unbalance=p['max_unbalance'],
+                noise_std=p['noise_std'], seed=p['noise_seed'],
+                dampers_enabled=p['dampers_enabled'], method=p['method'] or None)
+            self.live.step(0)   # load the compiled kernels now, not in the first paced tick
+        finally:
+            loaded = busy.stop()
+        if loaded > 5.0:
+            self.get_logger().info(f'scene and kernels ready after {loaded:.0f} s (compiled '
+                                   'kernels are cached: the next start is quick)')
         self._params = p
         self.recorder = None
         self.record_error = None
@@ -240,13 +163,15 @@ class VibrationNode(Node):
         if p['record']:
             error = self.start_recording(p['record'], p['record_overwrite'])
             if error:
-                raise SceneError(f"parameter 'record': {error}")
+                raise ParameterError(f"parameter 'record': {error}")
         self._publish_state()
+        self._flush(math.inf)
         self.get_logger().info(
             f'scene {scene.name!r}: {scene.basis.n_modes} modes, '
             f'{len(scene.impactors)} impactors, integrator dt {self.live.dt:g} s, '
             f'{len(self.live.accelerometers)} accelerometers at {self.live.sample_rate:g} Hz, '
             f"real_time_factor {p['real_time_factor']:g}")
+        guard_services(self, lambda text: self._log('warning', text, 1.0, 'service'))
         if start_stepping:
             self.start()
 
@@ -255,19 +180,20 @@ class VibrationNode(Node):
         self._imu = []
         self._accel_pubs = []
         for acc in self.live.accelerometers:
-            self._accel_pubs.append(_Outlet(self, Imu, itf.accel_topic(acc.name),
-                                            itf.SENSOR_QOS))
+            self._accel_pubs.append(Outlet(self, Imu, itf.accel_topic(acc.name),
+                                           itf.SENSOR_QOS))
             msg = Imu()
             msg.header.frame_id = acc.frame_id
             msg.orientation_covariance[0] = -1.0   # orientation not measured (REP-145)
             self._imu.append(msg)
         self._set_noise_covariance()
-        self._impact_pub = _Outlet(self, WrenchStamped, itf.IMPACTS, itf.EVENT_QOS)
-        self._state_pub = _Outlet(self, JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
-        self._speed_pub = _Outlet(self, Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
-        self._clock_pub = (_Outlet(self, Clock, itf.CLOCK, itf.CLOCK_QOS)
+        self._impact_pub = Outlet(self, WrenchStamped, itf.IMPACTS, itf.EVENT_QOS)
+        self._state_pub = Outlet(self, JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
+        self._speed_pub = Outlet(self, Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
+        self._joint_pub = Outlet(self, JointState, itf.ROTOR_JOINT_STATES, itf.COMMAND_QOS)
+        self._clock_pub = (Outlet(self, Clock, itf.CLOCK, itf.CLOCK_QOS)
                            if p['publish_clock'] else None)
-        self._diag_pub = _Outlet(self, DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
+        self._diag_pub = Outlet(self, DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
         self._command_subs = [
             self.create_subscription(Float64, itf.SPEED_COMMAND, self.on_speed_command,
                                      itf.COMMAND_QOS),
@@ -285,11 +211,24 @@ class VibrationNode(Node):
         self._impactor_axes = [[axis_of[d] for d in dofs] for dofs in dofs_of]
         self._joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
                              for d in dofs]
-        self._impact_msg = WrenchStamped()   # reused: publishing serializes it at once
+        self._impact_packers = []
+        for frame in self._impactor_frames:
+            template = WrenchStamped()
+            template.header.frame_id = frame
+            try:
+                self._impact_packers.append(StampedPacker(template,
+                                                          ('wrench.force', 'wrench.torque')))
+            except RuntimeError as exc:   # another CDR layout: message by message
+                self.get_logger().warning(f'{exc}; falling back to serialize_message',
+                                          once=True)
+                self._impact_packers.append(None)
         self._tick_period = p['tick_period']
         self._diag_timer = self.create_timer(p['diagnostics_period'], self.publish_diagnostics)
         self._state_timer = self.create_timer(p['state_period'], self.publish_state)
-        self._max_work = 4.0 * p['tick_period']
+        # samples per stepped chunk, and how far (wall s) stepping runs ahead of publishing
+        self._chunk = max(1, int(round(p['tick_period'] * self.live.sample_rate)))
+        self._lookahead = p['tick_period']
+        self._t_published = self.live.t
 
     def _frame_of_node(self, node):
         for acc in self.live.accelerometers:
@@ -301,63 +240,93 @@ class VibrationNode(Node):
         var = self.live.noise_std ** 2
         for msg in self._imu:
             msg.linear_acceleration_covariance = [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var]
+        self._packers = [self._make_packer(msg) for msg in self._imu]
+
+    def _make_packer(self, msg):
+        try:
+            return ImuPacker(msg)
+        except RuntimeError as exc:   # another CDR layout: serialize message by message
+            self.get_logger().warning(f'{exc}; falling back to serialize_message', once=True)
+            return None
+
+    def _log(self, level, text, throttle=None, key=None):
+        """Log ``text`` at ``level`` (info, warning, error), at most once per ``throttle`` s
+        per ``key``; to stderr once the context is gone (there is no rosout then)."""
+        if throttle:
+            now = time.monotonic()
+            key = (level, key)
+            if now - self._last_log.get(key, -math.inf) < throttle:
+                return
+            self._last_log[key] = now
+        if not self.context.ok():
+            print(f'[{level.upper()}] [{self.get_name()}]: {text}', file=sys.stderr)
+            return
+        logger = self.get_logger()   # one call site per severity (rclpy requires it)
+        if level == 'info':
+            logger.info(text)
+        elif level == 'warning':
+            logger.warning(text)
+        else:
+            logger.error(text)
 
     # -- commands -------------------------------------------------------------------------
     def on_speed_command(self, msg):
         """Apply a ``rotor/speed_command`` (rad/s), or reject it with a throttled warning."""
-        self._command(self.live.command_speed, msg, 0)
+        return self._command(self.live.command_speed, msg, 0)
 
     def on_unbalance_command(self, msg):
         """Apply a ``rotor/unbalance_command`` (X >= 0), or reject it with a warning."""
-        self._command(self.live.command_unbalance, msg, 1)
+        return self._command(self.live.command_unbalance, msg, 1)
 
     def _command(self, apply, msg, which):
+        value = getattr(msg, 'data', msg)
         try:
             with self._lock:
                 if self.recorder is not None and isinstance(msg, Float64):
                     # every command received is recorded, the rejected ones too
                     self._record(self._command_subs[which].topic_name, 'std_msgs/msg/Float64',
                                  itf.COMMAND_QOS, serialize_message(msg))
-                apply(getattr(msg, 'data', msg))
+                apply(value)
         except CommandError as exc:
             self.rejected += 1
-            self.get_logger().warning(f'rejected: {exc}', throttle_duration_sec=1.0)
+            self._log('warning', f'rejected: {exc}', 1.0, 'command')
+            return False
+        except Exception as exc:   # no message may stop the node
+            self.rejected += 1
+            self._log('error', f'command {value!r} refused: {type(exc).__name__}: {exc}', 1.0,
+                      'command')
             return False
         self.stats.commands += 1
+        topic = (itf.SPEED_COMMAND, itf.UNBALANCE_COMMAND)[which]
+        self._log('info', f'{topic} {value:g} accepted at sim time {self.live.t:.3f} s', 1.0,
+                  topic)
         return True
 
     def _on_set_parameters(self, params):
         changes = {}
         for prm in params:
             name, value = prm.name, prm.value
-            if name == 'real_time_factor':
-                if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
-                    return SetParametersResult(successful=False, reason=(
-                        f'real_time_factor must be a finite float >= 0, got {value!r}'))
-            elif name == 'noise_std':
-                if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
-                    return SetParametersResult(successful=False, reason=(
-                        f'noise_std must be a finite float >= 0 m/s^2, got {value!r}'))
-            elif name == 'dampers_enabled':
-                if not isinstance(value, bool):
-                    return SetParametersResult(successful=False, reason=(
-                        f'dampers_enabled must be a bool, got {value!r}'))
-                if value and not self.scene.impactors:
-                    return SetParametersResult(successful=False, reason=(
-                        f'scene {self.scene.name!r} has no impactors'))
-            elif name == 'noise_seed':
-                if not isinstance(value, int):
-                    return SetParametersResult(successful=False, reason=(
-                        f'noise_seed must be an integer, got {value!r}'))
+            why = check(name, value)
+            if why:
+                return SetParametersResult(successful=False, reason=f'{name}: {why}')
+            if PARAMETERS[name][3]:
+                return SetParametersResult(successful=False,
+                                           reason=f'{name} is read-only (set at start)')
+            if name == 'dampers_enabled' and value and not self.scene.impactors:
+                return SetParametersResult(successful=False, reason=(
+                    f'scene {self.scene.name!r} has no impactors'))
             changes[name] = value
         # all valid: apply together
-        with self._lock:
-            self._apply(changes)
+        try:
+            with self._lock:
+                self._apply(changes)
+        except (CommandError, ValueError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
     def _apply(self, changes):
         if 'real_time_factor' in changes:
-            self.pacer.reset(changes['real_time_factor'], self.live.t)
+            self.pacer.reset(changes['real_time_factor'], self._published_t())
         if 'noise_std' in changes or 'noise_seed' in changes:
             self.live.set_noise(changes.get('noise_std', self.live.noise_std),
                                 changes.get('noise_seed'))
@@ -370,7 +339,7 @@ class VibrationNode(Node):
     def outlets(self):
         """list of _Outlet: Every publisher of the node (``topic``, ``type_name``, ``count``)."""
         return [*self._accel_pubs, self._impact_pub, self._state_pub, self._speed_pub,
-                self._diag_pub] + ([self._clock_pub] if self._clock_pub else [])
+                self._joint_pub, self._diag_pub] + ([self._clock_pub] if self._clock_pub else [])
 
     # -- recording ------------------------------------------------------------------------
     def start_recording(self, path, overwrite=False):
@@ -393,7 +362,11 @@ class VibrationNode(Node):
             if self.recorder is not None:
                 return f'already recording to {self.recorder.path}'
             try:
-                rec = AsyncRecorder(path, overwrite=overwrite, on_error=self._on_disk_error)
+                # rosbag2's chunk size: the summary keeps one index per chunk in memory until
+                # the file closes (64 KiB chunks grew RSS ~0.8 MB/min); a chunk is still
+                # closed at least every flush period, which bounds what a crash loses
+                rec = AsyncRecorder(path, overwrite=overwrite, on_error=self._on_disk_error,
+                                    chunk_size=RECORD_CHUNK_SIZE)
             except (OSError, ValueError) as exc:
                 return str(exc)
             rec.add_metadata('impact_damper_sim', self._run_metadata())
@@ -413,8 +386,8 @@ class VibrationNode(Node):
             rec, self.recorder = self.recorder, None
         if rec is not None:
             rec.close()
-            self.get_logger().info(f'recorded {rec.stats()["messages_written"]} messages to '
-                                   f'{rec.path}')
+            self._log('info', f'recorded {rec.stats()["messages_written"]} messages to '
+                              f'{rec.path}')
         return rec
 
     def on_record_request(self, request, response):
@@ -432,11 +405,13 @@ class VibrationNode(Node):
             response.message = rec.path if rec is not None else 'not recording'
         return response
 
-    def _record(self, topic, type_name, qos, data):
+    def _record(self, topic, type_name, qos, data, ns=None):
         rec = self.recorder
         if rec is not None:
-            # the log runs on sim time, as a recorder with use_sim_time on our /clock would
-            ns = int(round(self.live.t * 1e9))
+            # the log runs on sim time, as a recorder with use_sim_time on our /clock would:
+            # an item's own sim time (samples: their stamp), else now
+            if ns is None:
+                ns = int(round(self.live.t * 1e9))
             rec.write(topic, type_name, qos, data, ns, ns)
 
     def _on_disk_error(self, exc):
@@ -474,26 +449,69 @@ class VibrationNode(Node):
         self._thread.start()
 
     def stop(self):
-        """Stop the stepping thread and wait for it (idempotent)."""
+        """Stop the stepping thread and wait for it (idempotent).
+
+        What was already stepped (at most one chunk ahead of the clock) is published and
+        recorded now, so the counters, the topics and the log agree.
+        """
         self._stop.set()
         if self._thread is not None:
             self._thread.join()
             self._thread = None
+        if self.context.ok():
+            self._flush(math.inf)
 
     def _run(self):
-        next_tick = self._wall()
-        while not self._stop.is_set() and self.context.ok():
+        """The stepping thread: compute one chunk ahead, publish each item at its time.
+
+        Samples are published one by one when the wall clock reaches their sim time (through
+        the pacer), not in bursts per chunk, so a keep-last-5 ``qos_profile_sensor_data``
+        subscriber keeps up. Physics runs one chunk (``tick_period`` of sim time) ahead.
+        """
+        cycles = 0
+        while not self._stop.is_set():
+            cycles += 1
+            if cycles % 64 == 0 and not self.context.ok():   # a C call: not every cycle
+                break
             try:
-                self.tick()
+                delay = self._cycle()
             except Exception as exc:   # a bug must not kill the node silently
                 with self._lock:
                     self.live.failure = f'{type(exc).__name__}: {exc}'
-            next_tick += self._tick_period
-            delay = next_tick - self._wall()
-            if delay > 0:
+                delay = self._tick_period
+            if delay > 0.05:
                 self._stop.wait(delay)
-            else:
-                next_tick = self._wall()
+            elif delay > 0:
+                time.sleep(delay)   # cheaper than Event.wait at a few kHz
+
+    def _cycle(self):
+        """Publish what is due, step a chunk when the buffer runs short; return a wait (s)."""
+        live = self.live
+        now = self._wall()
+        rtf = self.pacer.real_time_factor
+        # up to ~1.5 sample periods early (at most 0.75 ms): one wake-up sends 1 or 2 samples
+        # per accelerometer, which halves the wake-ups at 2 kHz and keeps bursts far below
+        # a keep-last-5 reader's depth
+        self._flush(now + (min(self.EARLY, 1.5 * self._period / rtf) if rtf > 0 else 0.0))
+        if live.failure is not None:
+            self._report_failure()
+            return self._tick_period
+        target, lag = self.pacer.target(self._published_t())
+        self.stats.lag = max(self.stats.lag, lag)
+        if live.t < target + self._lookahead * self.pacer.real_time_factor - 1e-12 \
+                or math.isinf(target):
+            if live.t < target - self._chunk * self._period:
+                self.stats.overruns += 1   # a whole chunk behind schedule: late
+            self._step(self._chunk)
+            self._lock.hand_over()
+            return 0.0
+        if self._pending:
+            return self.pacer.wall_at(self._pending[0][0] * 1e-9) - self._wall()
+        return min(self._tick_period, self.pacer.wall_at(live.t) - self._wall())
+
+    def _published_t(self):
+        """Sim time up to which items have been published (s)."""
+        return self._t_published
 
     def destroy_node(self):
         """Stop stepping, finish any recording, then destroy the node."""
@@ -502,10 +520,9 @@ class VibrationNode(Node):
         return super().destroy_node()
 
     def tick(self):
-        """Step up to the paced sim time and publish (the stepping timer's callback).
+        """Step up to the paced sim time and publish it all now (tests drive this by hand).
 
-        Work per call is bounded (``4 x tick_period`` of wall time) so that subscriptions,
-        timers and ``/clock`` keep being served; a deficit shows up as lag.
+        With ``real_time_factor`` 0 one chunk is stepped per call.
         """
         live = self.live
         if live.failure is not None:
@@ -513,76 +530,141 @@ class VibrationNode(Node):
             return
         target, lag = self.pacer.target(live.t)
         self.stats.lag = max(self.stats.lag, lag)
-        start = self._wall()
-        chunk = max(1, int(round(0.01 * live.sample_rate)))   # ~10 ms of samples per step
         while True:
-            n = (chunk if math.isinf(target)
+            n = (self._chunk if math.isinf(target)
                  else int(math.floor((target - live.t) / self._period + 1e-9)))
-            if n <= 0:
+            if n <= 0 or not self._step(min(n, self._chunk)):
                 break
-            with self._lock:
-                batch = live.step(min(n, chunk))
-                if batch is None:
-                    self._report_failure()
-                    return
-                self._publish_batch(batch)
-                self._publish_time()
-            self._lock.hand_over()
-            if self._wall() - start > self._max_work:
-                self.stats.overruns += 1
+            if math.isinf(target):
                 break
+        self._flush(math.inf)
 
-    def _publish_batch(self, batch):
-        # plain Python numbers once per batch: the per-message loop is the node's hot path
-        stamps = [divmod(ns, 1_000_000_000) for ns in np.rint(batch.t * 1e9).astype(np.int64)
-                  .tolist()]
-        for a, (pub, msg) in enumerate(zip(self._accel_pubs, self._imu)):
-            stamp, la, av = msg.header.stamp, msg.linear_acceleration, msg.angular_velocity
-            for (sec, nsec), lin, ang in zip(stamps, batch.linear_acceleration[:, a, :].tolist(),
-                                             batch.angular_velocity[:, a, :].tolist()):
-                stamp.sec, stamp.nanosec = sec, nsec
-                la.x, la.y, la.z = lin
-                av.x, av.y, av.z = ang
-                pub.publish(msg)
-        self.stats.samples += batch.t.size
-        self.stats_total['samples'] += batch.t.size
-        peak = float(np.max(np.abs(batch.linear_acceleration))) if batch.t.size else 0.0
-        self.stats.peak = max(self.stats.peak, peak)
+    def _step(self, n):
+        """Step ``n`` samples and queue what they produce; False once the simulation failed."""
+        with self._lock:
+            batch = self.live.step(n)
+            if batch is None:
+                self._report_failure()
+                return False
+            self._queue_batch(batch)
+            self._queue_time()
+        return True
+
+    def _flush(self, now):
+        """Publish every queued item whose wall time (through the pacer) is ``now`` or earlier."""
+        pending = self._pending
+        if not pending:
+            return
+        wall_at = self.pacer.wall_at if math.isfinite(now) else None
+        with self._lock:
+            while pending:
+                ns, outlet, item, wire = pending[0]
+                if wall_at is not None and wall_at(ns * 1e-9) > now:
+                    break
+                pending.popleft()
+                if isinstance(item, bytes):
+                    outlet.publish_raw(item, ns, wire)
+                else:
+                    outlet.publish(item, ns)
+                self._t_published = ns * 1e-9
+
+    def _queue_batch(self, batch):
+        # the per-sample work is one NumPy pass per accelerometer (ImuPacker), no Python
+        # message objects; samples are interleaved across accelerometers in time order
+        t_ns = np.rint(batch.t * 1e9).astype(np.int64)
+        k = t_ns.size
+        columns = []
+        for a, (pub, msg, packer) in enumerate(zip(self._accel_pubs, self._imu, self._packers)):
+            lin, ang = batch.linear_acceleration[:, a, :], batch.angular_velocity[:, a, :]
+            wire = pub.has_subscribers()
+            if packer is not None:
+                data = packer.pack(t_ns, lin, ang)
+            else:
+                data = []
+                for ns, la, av in zip(t_ns.tolist(), lin.tolist(), ang.tolist()):
+                    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+                    (msg.linear_acceleration.x, msg.linear_acceleration.y,
+                     msg.linear_acceleration.z) = la
+                    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = av
+                    data.append(serialize_message(msg))
+            columns.append((pub, data, wire))
         ev = batch.events
         impacts = ev[ev['kind'] == _IMPACT]
-        for e in impacts:
-            self._publish_impact(e)
+        impact_items = self._impact_items(impacts)
+        j = 0
+        pending = self._pending
+        for i, ns in enumerate(t_ns.tolist()):
+            while j < len(impact_items) and impact_items[j][0] <= ns:
+                pending.append(impact_items[j])
+                j += 1
+            for pub, data, wire in columns:
+                pending.append((ns, pub, data[i], wire))
+        pending.extend(impact_items[j:])
+        self.stats.samples += k
+        self.stats_total['samples'] += k
+        peak = float(np.max(np.abs(batch.linear_acceleration))) if k else 0.0
+        self.stats.peak = max(self.stats.peak, peak)
         self.stats.impacts += impacts.size
         self.stats_total['impacts'] += impacts.size
         stuck = sum(self.live._stuck)
-        self.stats.stuck_time += stuck * batch.t.size * self._period
+        self.stats.stuck_time += stuck * k * self._period
         if batch.states_changed:
-            self._publish_state()
+            self._queue_state()
 
-    def _publish_impact(self, e):
-        j = int(e['impactor'])
-        msg = self._impact_msg
-        _set_stamp(msg.header, float(e['t']))
+    def _impact_items(self, impacts):
+        """Queue items (ns, outlet, bytes, wire) of a chunk's impacts, in time order."""
+        if impacts.size == 0:
+            return []
+        t_ns = np.rint(impacts['t'] * 1e9).astype(np.int64)
+        force = np.zeros((impacts.size, 3))
+        which = impacts['impactor'].astype(np.int64)
+        for j in np.unique(which).tolist():   # plane DOFs -> x, y, z of the frame
+            rows = which == j
+            for k, axis in enumerate(self._impactor_axes[j]):
+                force[rows, axis] = impacts['impulse'][rows] * impacts['normal'][rows, k]
+        torque = np.column_stack([np.abs(impacts['v_n']), np.abs(impacts['v_n_after']),
+                                  impacts['loss']])
+        items = []
+        wire = self._impact_pub.has_subscribers()
+        for j in np.unique(which).tolist():
+            rows = np.flatnonzero(which == j)
+            packer = self._impact_packers[j]
+            if packer is not None:
+                data = packer.pack(t_ns[rows], force[rows], torque[rows])
+            else:
+                data = [serialize_message(self._impact_message(j, t_ns[r], force[r], torque[r]))
+                        for r in rows]
+            items += [(ns, self._impact_pub, d, wire)
+                      for ns, d in zip(t_ns[rows].tolist(), data)]
+        if len(items) > 1:
+            items.sort(key=lambda item: item[0])
+        return items
+
+    def _impact_message(self, j, ns, force, torque):
+        msg = WrenchStamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 1_000_000_000)
         msg.header.frame_id = self._impactor_frames[j]
-        impulse = [0.0, 0.0, 0.0]
-        for k, axis in enumerate(self._impactor_axes[j]):   # plane DOFs -> x, y, z
-            impulse[axis] = float(e['impulse'] * e['normal'][k])
         f, tq = msg.wrench.force, msg.wrench.torque
-        f.x, f.y, f.z = impulse
-        tq.x, tq.y, tq.z = abs(float(e['v_n'])), abs(float(e['v_n_after'])), float(e['loss'])
-        self._impact_pub.publish(msg)
+        f.x, f.y, f.z = (float(v) for v in force)
+        tq.x, tq.y, tq.z = (float(v) for v in torque)
+        return msg
 
-    def _publish_time(self):
+    def _queue_time(self):
         t = self.live.t
-        stamp = _stamp(t)
+        ns = int(round(t * 1e9))
         if self._clock_pub is not None:
-            self._clock_pub.publish(Clock(clock=stamp))
+            self._pending.append((ns, self._clock_pub, Clock(clock=_stamp(t)), True))
         if self.live.has_rotor:
             speed, rate, x = self.live.rotor_state()
             msg = Vector3Stamped()
-            msg.header.stamp = stamp
+            msg.header.stamp = _stamp(t)
             msg.vector.x, msg.vector.y, msg.vector.z = speed, rate, x
-            self._speed_pub.publish(msg)
+            self._pending.append((ns, self._speed_pub, msg, True))
+            joint = JointState(name=['rotor'])
+            joint.header.stamp = msg.header.stamp
+            joint.position = [float(self.live.profile.angle(np.asarray(t))) % (2.0 * math.pi)]
+            joint.velocity = [speed]
+            self._pending.append((ns, self._joint_pub, joint, True))
 
     def publish_state(self):
         """Publish ``impactor_state`` now (the periodic timer's callback)."""
@@ -590,6 +672,13 @@ class VibrationNode(Node):
             self._publish_state()
 
     def _publish_state(self):
+        self._state_pub.publish(self._state_message(), int(round(self.live.t * 1e9)))
+
+    def _queue_state(self):
+        self._pending.append((int(round(self.live.t * 1e9)), self._state_pub,
+                              self._state_message(), True))
+
+    def _state_message(self):
         msg = JointState()
         msg.header.stamp = _stamp(self.live.t)
         msg.name = list(self._joint_names)
@@ -601,7 +690,7 @@ class VibrationNode(Node):
             vel += [float(x) for x in s['velocity']]
             eff += [(1.0 if s['stuck'] else 0.0) if enabled else -1.0] * d
         msg.position, msg.velocity, msg.effort = pos, vel, eff
-        self._state_pub.publish(msg)
+        return msg
 
     # -- health ---------------------------------------------------------------------------
     def _report_failure(self):
@@ -714,16 +803,29 @@ class _Stats:
 
 
 def main(args=None):
-    """Entry point: ``ros2 run impact_damper_sim vibration_node [--ros-args ...]``."""
+    """Entry point: ``ros2 run impact_damper_sim vibration_node [--ros-args ...]``.
+
+    Exit status 0 on Ctrl-C or shutdown, 2 (one line on stderr) when the scene or a start-up
+    parameter is invalid.
+    """
+    from rclpy.exceptions import ParameterException
     rclpy.init(args=args)
     node = None
     status = 0
     try:
         node = VibrationNode()
-        rclpy.spin(node)
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while rclpy.ok():
+            try:
+                executor.spin_once(timeout_sec=0.5)
+            except (KeyboardInterrupt, ExternalShutdownException):
+                raise
+            except Exception as exc:   # a malformed message or request must not stop us
+                node._log('error', f'callback failed: {type(exc).__name__}: {exc}', 1.0, 'spin')
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except SceneError as exc:
+    except (SceneError, ParameterException) as exc:
         print(f'vibration_node: {exc}', file=sys.stderr)
         status = 2
     finally:
@@ -731,6 +833,10 @@ def main(args=None):
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+# PARAMETERS and parameters_markdown are re-exported: they were defined here before
+__all__ = ['PARAMETERS', 'VibrationNode', 'main', 'parameters_markdown']
 
 
 if __name__ == '__main__':
