@@ -28,7 +28,7 @@ MIL = 25.4e-6                  # m
 LB_IN = LBF / 0.0254           # N/m per lb/in
 G0 = 9.80665
 
-# --- paper numbers (../shared/paper/impact-dampers-mdof.md) --------------------------------
+# --- paper numbers (docs/paper/impact-dampers-mdof.md) --------------------------------
 # Table 4.3.1 (W = 25 lb, D = 1.7 mil): X -> (disp mode, disp mils, disp reduct,
 #                                              acc mode, acc g, acc reduct)
 PAPER_4_3_1 = {1: (4, 0.7, 1.4, 4, 4.1, 1.4), 3: (4, 1.8, 1.9, 4, 11.0, 1.8),
@@ -278,7 +278,7 @@ def render(*, quick, s, frfs, hpotp, rbs_rows, onsets, plots, failures, wall, n_
          f'{datetime.date.today().isoformat()}: {mode} mode, {n_points} runs in '
          f'{wall:.0f} s wall time ({executor} executor'
          + (f', {workers} workers' if workers else '') + ').',
-         'Paper: `../shared/paper/impact-dampers-mdof.md`. The RBS and HPOTP models are '
+         'Paper: `docs/paper/impact-dampers-mdof.md`. The RBS and HPOTP models are '
          'reconstructions (the paper\'s geometry, HGM matrix and unbalance data are not '
          'public): see `docs/rbs-model.md` and `docs/hpotp-model.md`. Where ours differ from the '
          'paper the text says so; nothing below was tuned to this table.', '']
