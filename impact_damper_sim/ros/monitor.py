@@ -51,7 +51,7 @@ from sensor_msgs.msg import Imu, JointState
 from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
 from .interface import (ACCEL_PREFIX, accel_topic, DIAGNOSTICS, DIAGNOSTICS_QOS, EVENT_QOS,
                         IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS, TYPES)
-from .wire import guard_services
+from .wire import guard_services, spin_guarded
 
 #: Samples (or impacts) queued on one stream before the batch goes to the report thread
 #: ahead of the report, so that memory stays bounded for long report periods.
@@ -411,14 +411,8 @@ def main(args=None):
         node = VibrationMonitor()
         executor = rclpy.executors.SingleThreadedExecutor()
         executor.add_node(node)
-        while rclpy.ok():
-            try:
-                executor.spin_once(timeout_sec=0.5)
-            except (KeyboardInterrupt, ExternalShutdownException):
-                raise
-            except Exception as exc:   # a malformed message or request must not stop it
-                node.get_logger().error(f'callback failed: {type(exc).__name__}: {exc}',
-                                        throttle_duration_sec=1.0)
+        spin_guarded(executor, lambda exc: node.get_logger().error(
+            f'callback failed: {type(exc).__name__}: {exc}', throttle_duration_sec=1.0))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -33,7 +33,7 @@ from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
 from ..scene.schema import SceneError
 from . import interface as itf
 from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
-from .wire import ImuPacker, Outlet, StampedPacker, guard_services, stamp
+from .wire import ImuPacker, Outlet, StampedPacker, guard_services, spin_guarded, stamp
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
 RECORD_CHUNK_SIZE = 768 * 1024   # bytes, as rosbag2's MCAP storage
@@ -816,13 +816,8 @@ def main(args=None):
         node = VibrationNode()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        while rclpy.ok():
-            try:
-                executor.spin_once(timeout_sec=0.5)
-            except (KeyboardInterrupt, ExternalShutdownException):
-                raise
-            except Exception as exc:   # a malformed message or request must not stop us
-                node._log('error', f'callback failed: {type(exc).__name__}: {exc}', 1.0, 'spin')
+        spin_guarded(executor, lambda exc: node._log(
+            'error', f'callback failed: {type(exc).__name__}: {exc}', 1.0, 'spin'))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (SceneError, ParameterException) as exc:

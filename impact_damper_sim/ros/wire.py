@@ -212,3 +212,28 @@ def guard_services(node, log):
 
 __all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'set_stamp', 'stamp',
            'type_name']
+
+
+def spin_guarded(executor, report):
+    """Spin ``executor`` until shutdown; a callback that raises is reported, not fatal.
+
+    Any process on the domain can send a malformed message or request, so no exception from a
+    callback may stop the node; Ctrl-C and an external shutdown still end the loop (raised to
+    the caller).
+
+    Parameters
+    ----------
+    executor : rclpy.executors.Executor
+        With the node added.
+    report : callable
+        Called with the exception (e.g. a throttled error log).
+    """
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    while rclpy.ok():
+        try:
+            executor.spin_once(timeout_sec=0.5)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except Exception as exc:   # a malformed message or request must not stop the node
+            report(exc)
