@@ -576,21 +576,31 @@ def test_async_recorder_counts_drops_and_closes_twice(tmp_path):
 
 
 @pytest.mark.ros
-def test_async_write_cost_per_message(tmp_path):
-    """The stepping loop pays for a queue append, not for MCAP encoding: mean caller-side
-    cost of AsyncRecorder.write for sensor_msgs/Imu is below 20 us (measured ~3 us)."""
+def test_async_write_leaves_the_encoding_to_the_writer_thread(tmp_path, monkeypatch):
+    """The stepping loop pays for a queue append, not for MCAP encoding: every call of the
+    MCAP writer's ``write`` runs on the recorder's own thread, none on the caller's. (Its
+    caller-side cost, about 3 us per message, is a benchmark figure, not a test.)"""
+    import threading
     from rclpy.qos import qos_profile_sensor_data
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import Imu
+    from impact_damper_sim.recording import async_recorder
+    threads = []
+    original = async_recorder.Rosbag2McapWriter.write
+
+    def spy(self, *args, **kwargs):
+        threads.append(threading.get_ident())
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(async_recorder.Rosbag2McapWriter, 'write', spy)
     data = serialize_message(Imu())
-    n = 20000
+    n = 2000
     recorder = AsyncRecorder(tmp_path / 'perf.mcap', max_queue=n + 1)
-    start = time.perf_counter()
     for i in range(n):
         recorder.write('/accel/s1', 'sensor_msgs/msg/Imu', qos_profile_sensor_data, data,
                        T0 + i, T0 + i)
-    per_message_us = (time.perf_counter() - start) / n * 1e6
     stats = recorder.close()
     assert stats['messages_written'] == n and stats['messages_dropped'] == 0
-    print(f'\nAsyncRecorder.write: {per_message_us:.2f} us per message (caller side)')
-    assert per_message_us < 20
+    assert len(threads) == n
+    assert threading.get_ident() not in threads
+    assert set(threads) == {recorder._thread.ident}
