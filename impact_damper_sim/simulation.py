@@ -23,8 +23,9 @@ from .integrate.events import EVENT_KINDS, Samples
 METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
 
 #: Samples per divergence check: a blow-up is caught within this many samples of its start
-#: (a chunk costs a call of the engine, a state read and a finiteness test: about 0.4 ms, 1 % of
-#: 8192 steps of the exact engine on hpotp; 1024 cost 6 to 12 %).
+#: (a chunk costs a call of the engine, a state read and a finiteness test: 0.2 to 1 ms measured
+#: on sdof and hpotp, 6 to 12 % of the exact engine's time at 1024 samples, within run-to-run
+#: noise at 8192).
 CHECK_EVERY = 8192
 
 

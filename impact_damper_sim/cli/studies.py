@@ -243,16 +243,12 @@ def _sweep(args):
 
 def _check_grid_keys(scene, grid, overrides):
     """Refuse, before any run, a grid key the scene cannot take (exit 2, one line)."""
-    from ..scene.build import resolve_scene
-    from ..scene.schema import SceneError, apply_overrides, load_yaml, validate
-    from ..scene.spec import SCHEMA
-    path = resolve_scene(scene)
-    raw = load_yaml(path)
-    validate(SCHEMA, apply_overrides(raw, list(overrides)), source=str(path))  # its own error
+    from ..scene.build import validated
+    from ..scene.schema import SceneError
+    validated(scene, overrides)   # the scene and the other options: their own error
     for key, vals in grid:
         try:
-            validate(SCHEMA, apply_overrides(raw, list(overrides) + [f'{key}={vals[0]}']),
-                     source=str(path))
+            validated(scene, list(overrides) + [f'{key}={vals[0]}'])
         except SceneError as exc:
             first = str(exc).strip().splitlines()[-1].strip()
             raise _Usage(f'--grid {key}: does not apply to scene {scene!r} ({first})') from exc

@@ -105,6 +105,33 @@ def resolve_scene(scene_name_or_path):
                      'or give a path to a .yaml file')
 
 
+def validated(scene_name_or_path, overrides=()):
+    """Read, override and validate a scene file without building it.
+
+    Parameters
+    ----------
+    scene_name_or_path : str or os.PathLike
+        Scene name or path to a YAML file.
+    overrides : sequence of str, optional
+        ``'dotted.key=value'`` overrides, checked like the file's keys.
+
+    Returns
+    -------
+    scene : dict
+        The validated scene (SI units).
+    path : pathlib.Path
+        The file it came from.
+
+    Raises
+    ------
+    SceneError
+        For any problem, each line naming the scene key.
+    """
+    path = resolve_scene(scene_name_or_path)
+    raw = load_yaml(path)
+    return validate(SCHEMA, apply_overrides(raw, list(overrides)), source=str(path)), path
+
+
 def load(scene_name_or_path, overrides=()):
     """Load, override, validate and build a scene.
 
@@ -126,9 +153,7 @@ def load(scene_name_or_path, overrides=()):
     SceneError
         For any problem, each line naming the scene key.
     """
-    path = resolve_scene(scene_name_or_path)
-    raw = load_yaml(path)
-    scene = validate(SCHEMA, apply_overrides(raw, list(overrides)), source=str(path))
+    scene, path = validated(scene_name_or_path, overrides)
     return build(scene, source=str(path), overrides=overrides)
 
 

@@ -38,8 +38,9 @@ import numpy as np
 from numba import njit
 
 from .flow import (add_particular, cabs, derivative_bounds, excursion_bounds, input_derivs,
-                   more_derivs, point_eval, row_derivs, site_bounds, state_derivs)
-from .ledger import ledger_node_count, ledger_nodes, ledger_panel, ledger_step
+                   more_derivs, point_eval, row_derivs, site_bounds, site_reach,
+                   state_derivs)
+from .ledger import ledger_node_count, ledger_nodes, ledger_step
 from .poly import BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step
 from .scan import FN_PLANAR, FN_RELEASE, FN_WALL_NEG, FN_WALL_POS, fn_values, scan_multi
 
@@ -528,14 +529,8 @@ def quiet_window_py(T, yh, lam, W, part_plus, part_minus, omegas, u_grid, k0, k1
     for j in range(ni):
         site = imp_rep[j]
         n_rows = imp_dim[j]
-        total = 0.0
-        for r in range(n_rows):
-            acc = 0.0
-            for k in range(lam.size):
-                acc += house_abs[site, r, k] * exc[k]
-            total += acc * acc
-        if not out_of_reach(n_rows, np.sqrt(total), Xs[site], imp_z[j], imp_v[j], imp_limit[j],
-                            T):
+        reach = site_reach(house_abs[site], n_rows, exc)
+        if not out_of_reach(n_rows, reach, Xs[site], imp_z[j], imp_v[j], imp_limit[j], T):
             return False
     return True
 
@@ -764,10 +759,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     order_max = P + 4
     yh_tau = np.empty(n2, dtype=np.complex128)
     y_tau = np.empty(n2, dtype=np.complex128)
-    yh_l = np.empty(n2, dtype=np.complex128)  # the ledger's scratch: yh_tau may hold an event
     y_l = np.empty(n2, dtype=np.complex128)
-    yd_l = np.empty((order_max + 1, n2), dtype=np.complex128)
-    uder_l = np.empty((order_max + 1, nf))
     y_sw = np.empty(n2, dtype=np.complex128)
     x_sw = np.empty(2 * Cmat.shape[0])
     yd = np.empty((order_max + 1, n2), dtype=np.complex128)
@@ -896,23 +888,17 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                 circulatory, Bmat, y_l, ledger)
                     counters[CNT_LEDGER_EVALS] += nn
                 elif tau > 0.0:
-                    # a piece of a step: the same rule, its node factors made here
+                    # a piece of a step: the same rule, its node factors made here (a
+                    # piece is no longer than a step, so its nodes fit the table's count)
                     nn = ledger_node_count(lam, tau)
-                    if nn <= pn_s.size:
-                        ledger_nodes(lam, omegas, tau, pn_s[:nn], pn_w[:nn], pn_E[:nn],
-                                     pn_P1[:nn], pn_P2[:nn], pn_EH[:nn])
-                        ledger_step(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
-                                    t_cur, pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn],
-                                    pn_P2[:nn], pn_EH[:nn], tb_V[slot, :n], tb_V[slot, n:],
-                                    tb_qcols[slot], tb_qcounts[slot], tb_vcols[slot],
-                                    tb_vcounts[slot], Cmat, Kskew, circulatory, Bmat, y_l,
-                                    ledger)
-                        counters[CNT_LEDGER_EVALS] += nn
-                    else:
-                        counters[CNT_LEDGER_EVALS] += ledger_panel(
-                            yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
-                            t_cur, tau, tb_V[slot, :n], tb_V[slot, n:], Cmat, Kskew, Bmat, yh_l,
-                            y_l, uder_l, yd_l, ledger)
+                    ledger_nodes(lam, omegas, tau, pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn],
+                                 pn_P2[:nn], pn_EH[:nn])
+                    ledger_step(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
+                                pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn], pn_P2[:nn],
+                                pn_EH[:nn], tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
+                                tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat, Kskew,
+                                circulatory, Bmat, y_l, ledger)
+                    counters[CNT_LEDGER_EVALS] += nn
             if whole_step:
                 e_h = tb_eh[slot]
                 p1_h = tb_p1h[slot]

@@ -259,6 +259,12 @@ def site_bounds_py(abs_rows, n_rows, ybound, order, exc, Eb):
                 acc += abs_rows[r, k] * ybound[m, k]
             total += acc * acc
         Eb[m] = np.sqrt(total)
+    return site_reach(abs_rows, n_rows, exc)
+
+
+def site_reach_py(abs_rows, n_rows, exc):
+    """Largest excursion (m, 2-norm over the rows) of a housing site whose coordinates move by
+    at most ``exc`` (:func:`excursion_bounds`), with its rows' moduli ``abs_rows``."""
     reach = 0.0
     for r in range(n_rows):
         acc = 0.0
@@ -268,6 +274,7 @@ def site_bounds_py(abs_rows, n_rows, ybound, order, exc, Eb):
     return np.sqrt(reach)
 
 
+site_reach = njit(cache=True, inline='always')(site_reach_py)
 site_bounds = njit(cache=True)(site_bounds_py)
 
 
