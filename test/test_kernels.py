@@ -195,6 +195,29 @@ def test_ledger_step_equals_ledger_panel(rng):
         out = np.zeros(5)
         L.ledger_step(yh, w0, ws, pp, pm, omegas, amps, u0, us, t, s, w, E, P1, P2, EH, Vq, Vv,
                       *cols, *vcols, C, Kskew, bool(np.any(Kskew)), B, np.empty(n2, complex),
-                      out)
+                      np.full(2 * n + nf, np.nan), np.full(nh, np.nan, complex), out)
         np.testing.assert_allclose(out[2:], ref[2:], rtol=1e-12, atol=1e-12 * np.abs(ref).max())
         assert np.any(Kskew) == (out[4] != 0.0)
+
+
+def test_borrowed_view_is_the_callers_memory():
+    # borrow (kernels/borrow.py) drops only the reference counting: the view has the same
+    # data, shape and strides (here a non-contiguous view), writes through it land in the
+    # caller's array and nowhere else, and its NumPy twin is the identity.
+    from numba import njit
+    from impact_damper_sim.integrate.kernels.borrow import borrow, borrow_py
+
+    @njit
+    def fill(a):
+        b = borrow(a)
+        for i in range(b.shape[0]):
+            for j in range(b.shape[1]):
+                b[i, j] = 10.0 * i + j
+        return b.shape[0], b.shape[1], b.strides[0], b.strides[1]
+
+    base = np.zeros((4, 6))
+    view = base[:, ::2]
+    assert fill(view) == (4, 3) + view.strides
+    np.testing.assert_array_equal(view, 10.0 * np.arange(4)[:, None] + np.arange(3))
+    assert not np.any(base[:, 1::2])
+    assert borrow_py(view) is view

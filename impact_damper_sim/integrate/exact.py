@@ -253,6 +253,7 @@ class ExactPropagator(IntegratorBase):
         self._ledger = np.zeros(5)
         self._info = np.zeros(4, dtype=np.int64)
         self.counters = np.zeros(kernels.N_COUNTERS, dtype=np.int64)
+        self._work = None        # the kernel's work arrays, (sizes, tuple); see _work_arrays
         self._cap = int(event_capacity)
         self._events = []
         self._python_switches = 0
@@ -418,7 +419,8 @@ class ExactPropagator(IntegratorBase):
                 self._count_step[:ni], rule, self.stick_time, self.max_events_per_step,
                 self.taylor_order, self.ledger_on, model.C, model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
-                ev_after, ev_count, self._info, self.counters)
+                ev_after, ev_count, self._info, self.counters,
+                self._work_arrays(ni, model.C.shape[0], table))
             m = int(ev_count[0])
             if m:
                 chunk = np.zeros(m, dtype=EVENT_DTYPE)
@@ -451,6 +453,17 @@ class ExactPropagator(IntegratorBase):
                                f'{model.impactors[int(self._info[1])].name!r}')
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
+
+    def _work_arrays(self, ni, n, table):
+        """The kernel's work arrays, made again only when a size changes (the ledger's node
+        count grows with a new configuration). Kept here, so alive while the kernel borrows
+        them."""
+        nn_cap = table.s_nodes.shape[1] if self.ledger_on else 0
+        sizes = (self._yh.size, self.forcing.n_inputs, ni, self._omegas.size, n,
+                 self.taylor_order, nn_cap)
+        if self._work is None or self._work[0] != sizes:
+            self._work = (sizes, kernels.advance_work(*sizes))
+        return self._work[1]
 
     def _key_of_slot(self, key, slot):
         """The key of ``slot`` (table mode); the given key otherwise."""

@@ -41,6 +41,7 @@ from .flow import (add_particular, cabs, derivative_bounds, excursion_bounds, in
                    more_derivs, point_eval, row_derivs, site_bounds, site_reach,
                    state_derivs)
 from .ledger import ledger_node_count, ledger_nodes, ledger_step
+from .borrow import borrow, borrow_py  # noqa: F401  (borrow_py: the twin, for the tests)
 from .poly import BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step
 from .scan import FN_PLANAR, FN_RELEASE, FN_WALL_NEG, FN_WALL_POS, fn_values, scan_multi
 
@@ -729,6 +730,66 @@ def impact_py(j, fid, n_rows, t_cur, X, yh, kick, mob, lawmob, imp_mass, imp_cor
 impact = njit(cache=True)(impact_py)
 
 
+def advance_work(n2, nf, ni, nh, n, taylor_order, nn_cap):
+    """The work arrays of :func:`advance`, as the tuple its ``work`` argument takes.
+
+    Made once per integrator by the caller, which keeps them alive while the kernel runs
+    (the kernel borrows them, see :mod:`.borrow`). Sizes: ``n2`` complex state coordinates,
+    ``nf`` inputs, ``ni`` impactors, ``nh`` harmonics, ``n`` modal coordinates, the Taylor
+    order, and ``nn_cap`` ledger nodes per step (0 without the ledger).
+    """
+    order_max = taylor_order + 4
+    return (
+        np.empty(n2, dtype=np.complex128),  # yh_tau
+        np.empty(n2, dtype=np.complex128),  # y_tau
+        np.empty(n2, dtype=np.complex128),  # y_l
+        np.empty(n2, dtype=np.complex128),  # y_sw
+        np.empty(2 * n),  # x_sw
+        np.empty((order_max + 1, n2), dtype=np.complex128),  # yd
+        np.empty((order_max + 1, nf)),  # uder
+        np.zeros((ni + 1, order_max + 1, 2)),  # Xs
+        np.zeros((order_max + 1, 2)),  # X
+        np.zeros((ni + 1, order_max + 2)),  # Eb
+        np.zeros(ni + 1),  # reach
+        np.empty((order_max + 2, n2)),  # ybound
+        np.empty(nf),  # u_abs
+        np.empty(nf),  # us_abs
+        np.empty(n2),  # exc
+        np.empty(2 * ni + 1, dtype=np.int64),  # cand_j
+        np.empty(2 * ni + 1, dtype=np.int64),  # cand_fid
+        np.empty(2 * ni + 1),  # cand_s0
+        np.empty(2 * ni + 1),  # cand_shift
+        np.empty(2 * ni + 1, dtype=np.int64),  # cand_lv
+        np.empty((2 * ni + 1, 3)),  # cand_out
+        np.zeros(2 * ni + 1, dtype=np.bool_),  # active
+        np.empty(2 * ni + 1),  # shifts
+        np.empty(order_max + 2),  # coef
+        np.empty((2, order_max + 2)),  # rwork
+        np.empty(3 * (order_max + 2) + 6),  # pwork
+        np.empty(3),  # root_out
+        np.empty(2),  # scan_result
+        np.empty(4),  # search_result
+        np.empty((order_max + 2, nf)),  # ub
+        np.empty(order_max + 2),  # wu
+        np.empty(n2, dtype=np.complex128),  # w0
+        np.empty(n2, dtype=np.complex128),  # ws
+        np.empty(nf),  # u0
+        np.empty(nf),  # us
+        np.zeros((ni, 2)),  # release_n
+        np.empty(nf),  # u_max
+        np.empty(n2, dtype=np.complex128),  # w_max
+        np.empty(n2, dtype=np.complex128),  # w_zero
+        np.empty(nn_cap),  # pn_s
+        np.empty(nn_cap),  # pn_w
+        np.empty((nn_cap, n2), dtype=np.complex128),  # pn_E
+        np.empty((nn_cap, n2), dtype=np.complex128),  # pn_P1
+        np.empty((nn_cap, n2), dtype=np.complex128),  # pn_P2
+        np.empty((nn_cap, nh), dtype=np.complex128),  # pn_EH
+        np.empty(2 * n + nf),  # x_led
+        np.empty(nh, dtype=np.complex128),  # eh_led
+    )
+
+
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, slot_state,
                table_mode, tb_built, tb_lam, tb_lam_max, tb_V, tb_Vinv, tb_W, tb_pp, tb_pm,
                tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh, tb_p1h,
@@ -740,7 +801,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                ledger_on, Cmat, Kskew, Bmat, ledger,
                out_disp, out_vel, out_acc,
                ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, info,
-               counters):
+               counters, work):
     """Advance the model with its impactors over grid steps ``k_start .. n_steps-1``.
 
     Step ``k`` ends at ``t_base + (k + 1) h`` where sensor outputs are recorded; the current
@@ -751,60 +812,141 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     event time in the old slot; the caller builds the new configuration, converts ``yh``,
     sets ``slot_state`` and calls again.
     """
+    # every array is borrowed (no reference counting): the caller owns them for the call
+    t_state = borrow(t_state)
+    u_grid = borrow(u_grid)
+    omegas = borrow(omegas)
+    amps = borrow(amps)
+    yh = borrow(yh)
+    slot_state = borrow(slot_state)
+    tb_built = borrow(tb_built)
+    tb_lam = borrow(tb_lam)
+    tb_lam_max = borrow(tb_lam_max)
+    tb_V = borrow(tb_V)
+    tb_Vinv = borrow(tb_Vinv)
+    tb_W = borrow(tb_W)
+    tb_pp = borrow(tb_pp)
+    tb_pm = borrow(tb_pm)
+    tb_sq = borrow(tb_sq)
+    tb_sv = borrow(tb_sv)
+    tb_house = borrow(tb_house)
+    tb_house_abs = borrow(tb_house_abs)
+    tb_kick = borrow(tb_kick)
+    tb_mob = borrow(tb_mob)
+    tb_lawmob = borrow(tb_lawmob)
+    tb_relmap = borrow(tb_relmap)
+    tb_eh = borrow(tb_eh)
+    tb_p1h = borrow(tb_p1h)
+    tb_p2h = borrow(tb_p2h)
+    tb_nn = borrow(tb_nn)
+    tb_snodes = borrow(tb_snodes)
+    tb_wnodes = borrow(tb_wnodes)
+    tb_E = borrow(tb_E)
+    tb_P1 = borrow(tb_P1)
+    tb_P2 = borrow(tb_P2)
+    tb_EH = borrow(tb_EH)
+    tb_qcols = borrow(tb_qcols)
+    tb_qcounts = borrow(tb_qcounts)
+    tb_vcols = borrow(tb_vcols)
+    tb_vcounts = borrow(tb_vcounts)
+    imp_rep = borrow(imp_rep)
+    imp_group = borrow(imp_group)
+    group_radix = borrow(group_radix)
+    imp_dim = borrow(imp_dim)
+    imp_mass = borrow(imp_mass)
+    imp_cor = borrow(imp_cor)
+    imp_limit = borrow(imp_limit)
+    imp_z = borrow(imp_z)
+    imp_v = borrow(imp_v)
+    imp_stuck = borrow(imp_stuck)
+    imp_normal = borrow(imp_normal)
+    imp_last_t = borrow(imp_last_t)
+    imp_rel = borrow(imp_rel)
+    imp_grace = borrow(imp_grace)
+    count_step = borrow(count_step)
+    Cmat = borrow(Cmat)
+    Kskew = borrow(Kskew)
+    Bmat = borrow(Bmat)
+    ledger = borrow(ledger)
+    out_disp = borrow(out_disp)
+    out_vel = borrow(out_vel)
+    out_acc = borrow(out_acc)
+    ev_t = borrow(ev_t)
+    ev_imp = borrow(ev_imp)
+    ev_kind = borrow(ev_kind)
+    ev_n = borrow(ev_n)
+    ev_vn = borrow(ev_vn)
+    ev_J = borrow(ev_J)
+    ev_loss = borrow(ev_loss)
+    ev_after = borrow(ev_after)
+    ev_count = borrow(ev_count)
+    info = borrow(info)
+    counters = borrow(counters)
+    (yh_tau, y_tau, y_l, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
+     cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
+     pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
+     w_max, w_zero, pn_s, pn_w, pn_E, pn_P1, pn_P2, pn_EH, x_led, eh_led) = work
+    yh_tau = borrow(yh_tau)
+    y_tau = borrow(y_tau)
+    y_l = borrow(y_l)
+    y_sw = borrow(y_sw)
+    x_sw = borrow(x_sw)
+    yd = borrow(yd)
+    uder = borrow(uder)
+    Xs = borrow(Xs)
+    X = borrow(X)
+    Eb = borrow(Eb)
+    reach = borrow(reach)
+    ybound = borrow(ybound)
+    u_abs = borrow(u_abs)
+    us_abs = borrow(us_abs)
+    exc = borrow(exc)
+    cand_j = borrow(cand_j)
+    cand_fid = borrow(cand_fid)
+    cand_s0 = borrow(cand_s0)
+    cand_shift = borrow(cand_shift)
+    cand_lv = borrow(cand_lv)
+    cand_out = borrow(cand_out)
+    active = borrow(active)
+    shifts = borrow(shifts)
+    coef = borrow(coef)
+    rwork = borrow(rwork)
+    pwork = borrow(pwork)
+    root_out = borrow(root_out)
+    scan_result = borrow(scan_result)
+    search_result = borrow(search_result)
+    ub = borrow(ub)
+    wu = borrow(wu)
+    w0 = borrow(w0)
+    ws = borrow(ws)
+    u0 = borrow(u0)
+    us = borrow(us)
+    release_n = borrow(release_n)
+    u_max = borrow(u_max)
+    w_max = borrow(w_max)
+    w_zero = borrow(w_zero)
+    pn_s = borrow(pn_s)
+    pn_w = borrow(pn_w)
+    pn_E = borrow(pn_E)
+    pn_P1 = borrow(pn_P1)
+    pn_P2 = borrow(pn_P2)
+    pn_EH = borrow(pn_EH)
+    x_led = borrow(x_led)
+    eh_led = borrow(eh_led)
+    Xs[...] = 0
+    X[...] = 0
+    Eb[...] = 0
+    reach[...] = 0
+    active[...] = 0
+    release_n[...] = 0
     n2 = yh.size
     nf = u_grid.shape[1]
     ni = imp_dim.size
     nh = omegas.size
     P = taylor_order
     order_max = P + 4
-    yh_tau = np.empty(n2, dtype=np.complex128)
-    y_tau = np.empty(n2, dtype=np.complex128)
-    y_l = np.empty(n2, dtype=np.complex128)
-    y_sw = np.empty(n2, dtype=np.complex128)
-    x_sw = np.empty(2 * Cmat.shape[0])
-    yd = np.empty((order_max + 1, n2), dtype=np.complex128)
-    uder = np.empty((order_max + 1, nf))
-    Xs = np.zeros((ni + 1, order_max + 1, 2))
-    X = np.zeros((order_max + 1, 2))
-    Eb = np.zeros((ni + 1, order_max + 2))
-    reach = np.zeros(ni + 1)
-    ybound = np.empty((order_max + 2, n2))
-    u_abs = np.empty(nf)
-    us_abs = np.empty(nf)
-    exc = np.empty(n2)
-    cand_j = np.empty(2 * ni + 1, dtype=np.int64)
-    cand_fid = np.empty(2 * ni + 1, dtype=np.int64)
-    cand_s0 = np.empty(2 * ni + 1)
-    cand_shift = np.empty(2 * ni + 1)
-    cand_lv = np.empty(2 * ni + 1, dtype=np.int64)
-    cand_out = np.empty((2 * ni + 1, 3))
-    active = np.zeros(2 * ni + 1, dtype=np.bool_)
-    shifts = np.empty(2 * ni + 1)
-    coef = np.empty(order_max + 2)
-    rwork = np.empty((2, order_max + 2))
-    pwork = np.empty(3 * (order_max + 2) + 6)
-    root_out = np.empty(3)
-    scan_result = np.empty(2)
-    search_result = np.empty(4)
-    ub = np.empty((order_max + 2, nf))
-    wu = np.empty(order_max + 2)
-    w0 = np.empty(n2, dtype=np.complex128)
-    ws = np.empty(n2, dtype=np.complex128)
-    u0 = np.empty(nf)
-    us = np.empty(nf)
-    release_n = np.zeros((ni, 2))
     cap = ev_t.size
     quiet_until = -np.inf
-    u_max = np.empty(nf)
-    w_max = np.empty(n2, dtype=np.complex128)
-    w_zero = np.empty(n2, dtype=np.complex128)
-    nn_cap = tb_snodes.shape[1] if ledger_on else 0
-    pn_s = np.empty(nn_cap)
-    pn_w = np.empty(nn_cap)
-    pn_E = np.empty((nn_cap, n2), dtype=np.complex128)
-    pn_P1 = np.empty((nn_cap, n2), dtype=np.complex128)
-    pn_P2 = np.empty((nn_cap, n2), dtype=np.complex128)
-    pn_EH = np.empty((nn_cap, nh), dtype=np.complex128)
     circulatory = False
     for i in range(Kskew.shape[0]):
         for i2 in range(Kskew.shape[1]):
@@ -885,7 +1027,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                 tb_P1[slot, :nn], tb_P2[slot, :nn], tb_EH[slot, :nn],
                                 tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
                                 tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat, Kskew,
-                                circulatory, Bmat, y_l, ledger)
+                                circulatory, Bmat, y_l, x_led, eh_led, ledger)
                     counters[CNT_LEDGER_EVALS] += nn
                 elif tau > 0.0:
                     # a piece of a step: the same rule, its node factors made here (a
@@ -897,7 +1039,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                 pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn], pn_P2[:nn],
                                 pn_EH[:nn], tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
                                 tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat, Kskew,
-                                circulatory, Bmat, y_l, ledger)
+                                circulatory, Bmat, y_l, x_led, eh_led, ledger)
                     counters[CNT_LEDGER_EVALS] += nn
             if whole_step:
                 e_h = tb_eh[slot]

@@ -175,21 +175,22 @@ row_pattern = njit(cache=True)(row_pattern_py)
 
 def ledger_step_py(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, s_nodes,
                    w_nodes, E, P1, P2, EH, Vq, Vv, q_cols, q_counts, v_cols, v_counts, Cmat,
-                   Kskew, circulatory, Bmat, y_tau, ledger):
+                   Kskew, circulatory, Bmat, y_tau, real_work, eh_t, ledger):
     """:func:`ledger_panel` over a whole step with the node factors of :func:`ledger_nodes`.
 
     The same rule and nodes, so the same result to round-off, at a fraction of the cost: no
     exponentials, the sparsity of ``Vq``/``Vv`` (two entries per row for uncoupled modes)
-    and no circulatory term without a skew stiffness.
+    and no circulatory term without a skew stiffness. Work arrays (no allocation per call):
+    ``real_work`` at least ``2 n + nf`` floats, ``eh_t`` one complex per harmonic.
     """
     n = Vq.shape[0]
     n2 = yh.size
     nf = u0.size
     nh = omegas.size
-    q = np.zeros(n)
-    qd = np.empty(n)
-    u = np.empty(nf)
-    eh_t = np.empty(nh, dtype=np.complex128)
+    q = real_work[:n]
+    qd = real_work[n:2 * n]
+    u = real_work[2 * n:2 * n + nf]
+    q[:] = 0.0
     for hh in range(nh):
         eh_t[hh] = np.exp(1j * omegas[hh] * t_cur)
     p_damp = 0.0

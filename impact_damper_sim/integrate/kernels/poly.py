@@ -18,8 +18,11 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T):
     """
     if g0 <= 0.0:
         return 0.0
-    cuts = np.empty(3)
+    # the cut points, ascending: at most two roots of dp/ds inside, then T; scalars, not an
+    # array, since this runs once per impactor per search and must not allocate
     n_cut = 0
+    cut0 = T
+    cut1 = T
     a2 = -0.5 * g3max  # dp/ds = g1 + g2 s + a2 s^2
     if a2 != 0.0:
         disc = g2 * g2 - 4.0 * a2 * g1
@@ -30,21 +33,22 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T):
             if s1 > s2:
                 s1, s2 = s2, s1
             if 0.0 < s1 < T:
-                cuts[n_cut] = s1
-                n_cut += 1
+                cut0 = s1
+                n_cut = 1
             if 0.0 < s2 < T:
-                cuts[n_cut] = s2
+                if n_cut == 0:
+                    cut0 = s2
+                else:
+                    cut1 = s2
                 n_cut += 1
     elif g2 != 0.0:
         s1 = -g1 / g2
         if 0.0 < s1 < T:
-            cuts[n_cut] = s1
-            n_cut += 1
-    cuts[n_cut] = T
-    n_cut += 1
+            cut0 = s1
+            n_cut = 1
     lo = 0.0
-    for i in range(n_cut):
-        hi = cuts[i]
+    for i in range(n_cut + 1):
+        hi = cut0 if i == 0 else (cut1 if i == 1 else T)
         if g0 + hi * (g1 + hi * (0.5 * g2 - hi * g3max / 6.0)) <= 0.0:
             for _ in range(80):
                 mid = 0.5 * (lo + hi)
@@ -134,8 +138,17 @@ bernstein_range = njit(cache=True)(bernstein_range_py)
 
 
 def newton_bracket_py(a, n, lo, hi, tol):
-    """Root of ``p`` in ``[lo, hi]`` with ``p(lo) > 0 >= p(hi)``: Newton safeguarded by bisection."""
-    s = 0.5 * (lo + hi)
+    """Root of ``p`` in ``[lo, hi]`` with ``p(lo) > 0 >= p(hi)``: Newton safeguarded by bisection.
+
+    Starts from the chord's root and stops when the step or the bracket is below ``tol`` or
+    when ``|p|`` is below its rounding error (``4 n eps sum |a_m s^m|``): there the sign of
+    ``p`` is noise and further steps would only wander inside the noise band.
+    """
+    p_lo = horner(a, n, lo)
+    p_hi = horner(a, n, hi)
+    s = lo + (hi - lo) * (p_lo / (p_lo - p_hi)) if p_lo - p_hi > 0.0 else 0.5 * (lo + hi)
+    if not (lo < s < hi):
+        s = 0.5 * (lo + hi)
     for _ in range(100):
         p, d = horner_d(a, n, s)
         if p > 0.0:
@@ -150,6 +163,11 @@ def newton_bracket_py(a, n, lo, hi, tol):
             s_new = 0.5 * (lo + hi)
         if abs(s_new - s) <= tol or hi - lo <= tol:
             return s_new
+        size = abs(a[n])
+        for m in range(n - 1, -1, -1):
+            size = size * abs(s) + abs(a[m])
+        if abs(p) <= 4.0 * n * 2.220446049250313e-16 * size:
+            return s
         s = s_new
     return s
 
