@@ -101,21 +101,32 @@ def test_derivative_bounds_bound_the_true_derivatives(rng):
 
 def test_cubic_safe_step_is_safe_and_twin(rng):
     # The returned step s keeps p(t) = g0 + g1 t + g2 t^2/2 - G3 t^3/6 positive on [0, s), and
-    # is within 0.1 % of the first root when there is one.
+    # is within 0.1 % of the first root when there is one. With s_exact = T (a root below it
+    # is not bisected) the step is still safe, no longer than the exact one, and the same
+    # when there is no root.
+    n_coarse = 0
     for _ in range(500):
         g0 = rng.uniform(1e-6, 1.0)
         g1, g2 = rng.normal(size=2) * [3.0, 30.0]
         g3 = rng.uniform(0.0, 300.0)
         T = rng.uniform(0.01, 1.0)
-        s = PL.cubic_safe_step(g0, g1, g2, g3, T)
-        assert s == PL.cubic_safe_step_py(g0, g1, g2, g3, T)
-        t = np.linspace(0.0, s, 2001)[:-1]
-        p = g0 + g1 * t + 0.5 * g2 * t ** 2 - g3 * t ** 3 / 6
-        assert np.all(p > 0)
+        s = PL.cubic_safe_step(g0, g1, g2, g3, T, 0.0)
+        assert s == PL.cubic_safe_step_py(g0, g1, g2, g3, T, 0.0)
+        coarse = PL.cubic_safe_step(g0, g1, g2, g3, T, T)
+        assert coarse == PL.cubic_safe_step_py(g0, g1, g2, g3, T, T)
+        assert coarse <= s
+        n_coarse += coarse < s
+        for step in (s, coarse):
+            t = np.linspace(0.0, step, 2001)[:-1]
+            p = g0 + g1 * t + 0.5 * g2 * t ** 2 - g3 * t ** 3 / 6
+            assert np.all(p > 0)
         if s < T:
             roots = np.roots([-g3 / 6, 0.5 * g2, g1, g0])
             real = roots[(abs(roots.imag) < 1e-12) & (roots.real > 0)].real
             assert abs(s - real.min()) <= 1e-3 * real.min()
+        else:
+            assert coarse == T
+    assert n_coarse > 50
 
 
 RUN = r'''

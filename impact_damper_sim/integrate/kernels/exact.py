@@ -355,7 +355,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
                     result[3] = 1.0
                     return 0
             g3 = third_bound(fid, X, imp_z[j], imp_v[j], imp_limit[j], release_n[j], Eb[site], S)
-            s0 = cubic_safe_step(f0, f1, f2, g3, S)
+            s0 = cubic_safe_step(f0, f1, f2, g3, S, S_taylor)
             if s0 >= S:
                 continue
             cand_j[n_cand] = j

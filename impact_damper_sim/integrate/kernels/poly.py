@@ -8,13 +8,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-def cubic_safe_step_py(g0, g1, g2, g3max, T):
+def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
     """Largest ``s <= T`` with ``p(s) = g0 + g1 s + g2 s^2/2 - g3max s^3/6 > 0`` on ``[0, s)``.
 
     ``p`` is a lower bound of ``g`` when ``g3max`` bounds the third derivative of ``g``.
     Returns ``T`` when ``p`` stays positive over the whole interval. The search splits
     ``[0, T]`` at the roots of ``dp/ds`` so that every piece is monotone, then bisects in the
-    first piece that ends at or below zero, returning its last point known to be positive.
+    first piece that ends at or below zero, returning its last point known to be positive,
+    within 0.1 % of the root. A root that lies wholly below ``s_exact`` (s) is not bisected:
+    the start of its piece, also safe, is returned (the event search only needs to know that
+    such a function comes near zero; the bisection's chain of dependent operations was its
+    hottest loop).
     """
     if g0 <= 0.0:
         return 0.0
@@ -46,13 +50,17 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T):
         if 0.0 < s1 < T:
             cut0 = s1
             n_cut = 1
+    half_g2 = 0.5 * g2
+    sixth_g3 = g3max / 6.0
     lo = 0.0
     for i in range(n_cut + 1):
         hi = cut0 if i == 0 else (cut1 if i == 1 else T)
-        if g0 + hi * (g1 + hi * (0.5 * g2 - hi * g3max / 6.0)) <= 0.0:
+        if g0 + hi * (g1 + hi * (half_g2 - hi * sixth_g3)) <= 0.0:
+            if hi <= s_exact:
+                return lo
             for _ in range(80):
                 mid = 0.5 * (lo + hi)
-                if g0 + mid * (g1 + mid * (0.5 * g2 - mid * g3max / 6.0)) > 0.0:
+                if g0 + mid * (g1 + mid * (half_g2 - mid * sixth_g3)) > 0.0:
                     lo = mid
                 else:
                     hi = mid

@@ -196,7 +196,7 @@ def scan_multi_py(n_cand, cand_j, cand_fid, Th, t_cur, yh, lam, W, w0, ws, part_
                     return 0
             g3 = fn_third_bound(fid, X, imp_z[j], imp_v[j], tau, imp_limit[j], release_n[j],
                                 ybound, house_q[j], n_rows, T)
-            s = cubic_safe_step(f0, f1, f2, g3, T)
+            s = cubic_safe_step(f0, f1, f2, g3, T, 0.0)
             if s >= T:
                 active[c] = False  # no event before the current horizon
             elif s < s_min:
