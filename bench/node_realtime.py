@@ -59,6 +59,10 @@ from impact_damper_sim.ros.vibration_node import VibrationNode  # noqa: E402
 
 FULL_SPEED = 'rotor.speed={kind: constant, speed: 2400 rad/s}'
 
+#: DDS domains 101..230 (the tests use 1..100), offset by the process id: two benches or a
+#: test run on the same machine do not hear each other's nodes
+DOMAIN0 = 101 + (os.getpid() % 12) * 10
+
 #: the stock subscriber, run as a separate process: prints what it received as JSON
 SUBSCRIBER = r'''
 import json, sys, time
@@ -102,7 +106,7 @@ def bare_stepping_cpu(scene, overrides, dampers, seconds=5.0):
     return 100.0 * (time.process_time() - c0) / (live.t - t0)
 
 
-def run_case(scene, overrides, seconds, rtf, dampers=True, domain=61, record=None,
+def run_case(scene, overrides, seconds, rtf, dampers=True, domain=DOMAIN0, record=None,
              subscriber=False):
     """Run one case; return a dict of measured figures."""
     ctx = rclpy.Context()
@@ -187,7 +191,7 @@ def run_case(scene, overrides, seconds, rtf, dampers=True, domain=61, record=Non
         rclpy.try_shutdown(context=ctx)
 
 
-def command_latency(scene, overrides, domain=62):
+def command_latency(scene, overrides, domain=DOMAIN0 + 9):
     """Latency of a speed command to its first effect on ``rotor/speed`` (sim s, wall s)."""
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=domain)
@@ -259,7 +263,7 @@ def main(argv=None):
           f'  worst status')
     for i, (name, ovr, rtf, dampers, record, sub, bare) in enumerate(cases):
         with tempfile.TemporaryDirectory() as tmp:
-            d = run_case(args.scene, ovr, args.seconds, rtf, dampers, domain=61 + i,
+            d = run_case(args.scene, ovr, args.seconds, rtf, dampers, domain=DOMAIN0 + i,
                          record=os.path.join(tmp, 'bench.mcap') if record else None,
                          subscriber=sub)
         ratio = f'{d["cpu_percent"] / bare:9.2f}' if bare else f'{"":9s}'
@@ -279,7 +283,7 @@ def main(argv=None):
                   f'(< 0.1 ms apart), {d["in_bursts_over_5_percent"]:.1f} % of them in bursts '
                   f'over 5; 99th percentile gap {d["gap_p99_ms"]:.2f} ms')
     if not args.quick:
-        lat = command_latency(args.scene, full, domain=70)
+        lat = command_latency(args.scene, full, domain=DOMAIN0 + 9)
         if lat:
             sims = sorted(x[0] for x in lat)
             walls = sorted(x[1] for x in lat)

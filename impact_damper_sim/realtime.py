@@ -521,6 +521,13 @@ class Pacer:
             return -math.inf
         return self._wall0 + (t_sim - self._sim0) / self.real_time_factor
 
+    def sim_at(self, wall):
+        """Sim time (s) due at wall time ``wall`` (s), the inverse of :meth:`wall_at`; inf as
+        fast as possible (no deficit is dropped here)."""
+        if self.real_time_factor == 0:
+            return math.inf
+        return self._sim0 + (wall - self._wall0) * self.real_time_factor
+
     def target(self, t_sim):
         """Sim time to reach now (s), given the current sim time ``t_sim`` (s); inf if 0.
 

@@ -467,6 +467,67 @@ def test_imu_packer_bytes_round_trip(ros_context):
             assert deserialize_message(serialize_message(msg), Imu) == msg
 
 
+def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
+    """The stepping thread's wake-ups, driven on a fake clock: each sends at most 2 samples of
+    a 2 kHz accelerometer (a keep-last-5 reader is never overrun by the node), also after a
+    20 ms stall, whose backlog leaves 2 at a time every 0.5 ms (twice the sample rate) until
+    the stream is back on time; no sample is lost or reordered. A topic nobody reads costs no
+    wake-ups: its samples are counted (and recorded) as soon as they are stepped."""
+    from rclpy.serialization import deserialize_message
+    clock = FakeClock()
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP, clock=clock)
+    out = node._accel_pubs[0]
+    out.has_subscribers = lambda: True
+    sent = []
+
+    def publish(data):
+        stamp = deserialize_message(data, Imu).header.stamp
+        sent.append(stamp.sec * 10**9 + stamp.nanosec)
+
+    out.pub.publish = publish
+
+    def wake():
+        """One wake-up: the cycles run until one asks to sleep; (samples sent, sleep)."""
+        n0 = len(sent)
+        for _ in range(100):
+            delay = node._cycle()
+            if delay > 0:
+                return len(sent) - n0, delay
+        raise AssertionError('the stepping thread never sleeps')
+
+    try:
+        groups = []
+        while clock.now < 1000.2:   # 0.2 s on time
+            k, delay = wake()
+            groups.append(k)
+            clock.now += delay
+        assert max(groups) <= 2 and sum(groups) >= 390
+        assert len(groups) <= 0.55 * sum(groups)   # mostly pairs: ~1 wake-up per 1 ms
+        clock.now += 0.020   # the thread was descheduled for 20 ms: 40 samples are due
+        backlog = []
+        for _ in range(60):
+            k, delay = wake()
+            backlog.append((k, delay))
+            clock.now += delay
+        assert max(k for k, _ in backlog) <= 2
+        assert backlog[0] == (2, node.CATCH_UP)
+        caught_up = next(i for i, (_, d) in enumerate(backlog) if d != node.CATCH_UP)
+        assert 35 <= caught_up <= 45   # 40 due, 1 more every 0.5 ms, 2 sent per wake-up
+        # back on time: the last sample sent is due within 0.75 ms of the clock
+        assert node.pacer.wall_at(sent[-1] * 1e-9) <= clock.now + node.EARLY
+        assert np.all(np.diff(sent) == 500_000)   # every sample, in order, once
+        # nobody subscribed: a chunk's samples go at once, about one wake-up per chunk
+        out.has_subscribers = lambda: False
+        count0, wakes = out.count, 0
+        end = clock.now + 0.1
+        while clock.now < end:
+            clock.now += wake()[1]
+            wakes += 1
+        assert out.count - count0 >= 190 and wakes <= 25
+    finally:
+        node.destroy_node()
+
+
 def test_published_and_recorded_bytes_are_the_same(ros_context, tmp_path):
     """Serialized once: the recorder gets the very bytes that went on the wire."""
     node = make_node(ros_context, 'sdof')
@@ -700,7 +761,7 @@ def test_rotor_joint_states_carry_angle_and_speed(ros_context):
     node = make_node(ros_context, 'hpotp', LINEAR_HPOTP + [
         'rotor.speed={kind: constant, speed: 2400 rad/s}'])
     got = []
-    node._joint_pub.publish = lambda msg, ns=None: got.append(msg)
+    node._joint_pub.publish = lambda msg, ns=None, wire=True: got.append(msg)
     try:
         run_for(node, 0.1)
         assert len(got) >= 9

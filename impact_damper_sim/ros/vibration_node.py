@@ -113,6 +113,11 @@ class VibrationNode(Node):
 
     #: how early (wall s) an item may be published with the one due before it
     EARLY = 7.5e-4
+    #: most samples per accelerometer one wake-up sends (or 1 ms of them, if more): a wake-up
+    #: that comes late sends its backlog in such groups, not in one burst
+    BURST = 2
+    #: wall time (s) between the wake-ups that send a backlog (twice the sample rate or more)
+    CATCH_UP = 5e-4
 
     def __init__(self, node_name='vibration_node', *, clock=time.monotonic,
                  start_stepping=True, **kwargs):
@@ -489,10 +494,16 @@ class VibrationNode(Node):
         live = self.live
         now = self._wall()
         rtf = self.pacer.real_time_factor
-        # up to ~1.5 sample periods early (at most 0.75 ms): one wake-up sends 1 or 2 samples
-        # per accelerometer, which halves the wake-ups at 2 kHz and keeps bursts far below
-        # a keep-last-5 reader's depth
-        self._flush(now + (min(self.EARLY, 1.5 * self._period / rtf) if rtf > 0 else 0.0))
+        held = False
+        if rtf > 0:
+            # up to ~1.5 sample periods early (at most 0.75 ms): one wake-up sends 1 or 2
+            # samples per accelerometer, which halves the wake-ups at 2 kHz and keeps bursts
+            # far below a keep-last-5 reader's depth; a backlog (the thread was descheduled)
+            # is spread the same way instead of leaving in one burst
+            held = self._flush(now + min(self.EARLY, 1.5 * self._period / rtf),
+                               max(self.BURST, math.ceil(1e-3 * rtf / self._period - 1e-9)))
+        else:
+            self._flush(math.inf)
         if live.failure is not None:
             self._report_failure()
             return self._tick_period
@@ -500,11 +511,13 @@ class VibrationNode(Node):
         self.stats.lag = max(self.stats.lag, lag)
         if live.t < target + self._lookahead * self.pacer.real_time_factor - 1e-12 \
                 or math.isinf(target):
-            if live.t < target - self._chunk * self._period:
+            if live.t < target - self._chunk * self._period < math.inf:
                 self.stats.overruns += 1   # a whole chunk behind schedule: late
             self._step(self._chunk)
             self._lock.hand_over()
-            return 0.0
+            return self.CATCH_UP if held else 0.0   # a backlog waits, however late we are
+        if held:
+            return self.CATCH_UP
         if self._pending:
             return self.pacer.wall_at(self._pending[0][0] * 1e-9) - self._wall()
         return min(self._tick_period, self.pacer.wall_at(live.t) - self._wall())
@@ -550,23 +563,47 @@ class VibrationNode(Node):
             self._queue_time()
         return True
 
-    def _flush(self, now):
-        """Publish every queued item whose wall time (through the pacer) is ``now`` or earlier."""
+    def _flush(self, now, burst=None):
+        """Publish every queued item due by wall time ``now`` (through the pacer).
+
+        An item nobody receives (no subscriber when it was queued: it is only counted and
+        recorded, with its own stamp as log time) does not wait for its time, so a topic
+        nobody reads costs no wake-ups; items still leave in time order.
+
+        Parameters
+        ----------
+        now : float
+            Wall time (s); ``math.inf`` publishes everything queued.
+        burst : int, optional
+            Most samples sent per accelerometer (None: no limit).
+
+        Returns
+        -------
+        bool
+            True when due samples were held back by ``burst`` (a backlog to send next).
+        """
         pending = self._pending
         if not pending:
-            return
-        wall_at = self.pacer.wall_at if math.isfinite(now) else None
+            return False
         with self._lock:
+            horizon = self.pacer.sim_at(now) * 1e9   # ns (a float; inf for now = inf)
+            left = dict.fromkeys(self._accel_pubs, burst) if burst else None
             while pending:
                 ns, outlet, item, wire = pending[0]
-                if wall_at is not None and wall_at(ns * 1e-9) > now:
-                    break
+                if wire:
+                    if ns > horizon:
+                        break
+                    if left is not None and outlet in left:
+                        if not left[outlet]:
+                            return True
+                        left[outlet] -= 1
                 pending.popleft()
                 if isinstance(item, bytes):
                     outlet.publish_raw(item, ns, wire)
                 else:
-                    outlet.publish(item, ns)
-                self._t_published = ns * 1e-9
+                    outlet.publish(item, ns, wire)
+                self._t_published = min(ns, horizon) * 1e-9
+        return False
 
     def _queue_batch(self, batch):
         # the per-sample work is one NumPy pass per accelerometer (ImuPacker), no Python
@@ -650,21 +687,24 @@ class VibrationNode(Node):
         return msg
 
     def _queue_time(self):
+        # like the samples, a topic nobody subscribes to (volatile: no late joiner gets it)
+        # is not put on the wire and costs the stepping thread no wake-up
         t = self.live.t
         ns = int(round(t * 1e9))
         if self._clock_pub is not None:
-            self._pending.append((ns, self._clock_pub, Clock(clock=_stamp(t)), True))
+            self._pending.append((ns, self._clock_pub, Clock(clock=_stamp(t)),
+                                  self._clock_pub.has_subscribers()))
         if self.live.has_rotor:
             speed, rate, x = self.live.rotor_state()
             msg = Vector3Stamped()
             msg.header.stamp = _stamp(t)
             msg.vector.x, msg.vector.y, msg.vector.z = speed, rate, x
-            self._pending.append((ns, self._speed_pub, msg, True))
+            self._pending.append((ns, self._speed_pub, msg, self._speed_pub.has_subscribers()))
             joint = JointState(name=['rotor'])
             joint.header.stamp = msg.header.stamp
             joint.position = [float(self.live.profile.angle(np.asarray(t))) % (2.0 * math.pi)]
             joint.velocity = [speed]
-            self._pending.append((ns, self._joint_pub, joint, True))
+            self._pending.append((ns, self._joint_pub, joint, self._joint_pub.has_subscribers()))
 
     def publish_state(self):
         """Publish ``impactor_state`` now (the periodic timer's callback)."""

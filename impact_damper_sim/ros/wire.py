@@ -59,9 +59,10 @@ class Outlet:
         self.count = 0   # messages published
         self._record = node._record
 
-    def publish(self, msg, ns=None):
-        """Serialize ``msg`` once, publish and record the bytes (``ns``: log time, ns)."""
-        self.publish_raw(serialize_message(msg), ns)
+    def publish(self, msg, ns=None, wire=True):
+        """Serialize ``msg`` once, publish (if ``wire``) and record the bytes (``ns``: log
+        time, ns)."""
+        self.publish_raw(serialize_message(msg), ns, wire)
 
     def publish_raw(self, data, ns=None, wire=True):
         """Publish (if ``wire``) and record serialized bytes ``data`` (``ns``: log time)."""
