@@ -188,6 +188,33 @@ def test_row_derivs_row_bound_site_bounds_more_derivs_twins(rng):
     agree(part, yd, sy.scale(order))
 
 
+def test_search_bounds_are_the_two_bounds_in_one_pass(rng):
+    # search_bounds fuses derivative_bounds over [0, S] and excursion_bounds over S for the
+    # event search: it must give the same values, bit for bit (no tolerance), JIT and twin,
+    # with harmonics and an unstable mode (growth factor) among the coordinates.
+    for trial in range(10):
+        sy = System(rng)
+        lam = sy.lam.copy()
+        if trial % 2:
+            lam[0] = abs(lam[0].imag) * 1e-3 + 1j * lam[0].imag
+        S = rng.uniform(1e-5, 1e-2)
+        order = int(rng.integers(1, 7))
+        u_abs, us_abs = np.abs(sy.u0) + 1.0, np.abs(sy.us)
+        ybound = np.empty((order + 1, sy.n2))
+        exc = np.empty(sy.n2)
+        KF.derivative_bounds(sy.yh, lam, sy.W, sy.pp, sy.pm, sy.w0, sy.ws, 0.0, S, u_abs,
+                             us_abs, sy.omegas, sy.amps, order, np.empty((order + 1, sy.nf)),
+                             np.empty(order + 1), ybound)
+        KF.excursion_bounds(sy.yh, lam, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, S, exc)
+        for fn in (KF.search_bounds, KF.search_bounds_py):
+            fused, fused_exc = np.full_like(ybound, np.nan), np.full_like(exc, np.nan)
+            fn(sy.yh, lam, sy.W, sy.pp, sy.pm, sy.w0, sy.ws, S, u_abs, us_abs, sy.omegas,
+               sy.amps, order, np.empty((order + 1, sy.nf)), np.empty(order + 1), fused,
+               fused_exc)
+            np.testing.assert_array_equal(fused, ybound)
+            np.testing.assert_array_equal(fused_exc, exc)
+
+
 def test_excursion_bounds_twins(rng):
     for _ in range(10):
         sy = System(rng)

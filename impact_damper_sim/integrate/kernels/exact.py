@@ -37,9 +37,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .flow import (add_particular, cabs, derivative_bounds, excursion_bounds, input_derivs,
-                   more_derivs, point_eval, row_derivs, site_bounds, site_reach,
-                   state_derivs)
+from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
+                   point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
 from .ledger import ledger_node_count, ledger_nodes, ledger_step
 from .borrow import borrow, borrow_py  # noqa: F401  (borrow_py: the twin, for the tests)
 from .poly import BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step
@@ -311,9 +310,8 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
     for f in range(nf):
         u_abs[f] = max(abs(u0[f]), abs(u0[f] + us[f] * S))
         us_abs[f] = abs(us[f])
-    derivative_bounds(yh, lam, W, part_plus, part_minus, w0, ws, 0.0, S, u_abs, us_abs,
-                      omegas, amps, order_b, ub, wu, ybound)
-    excursion_bounds(yh, lam, w0, ws, part_plus, part_minus, omegas, S, exc)
+    search_bounds(yh, lam, W, part_plus, part_minus, w0, ws, S, u_abs, us_abs, omegas, amps,
+                  order_b, ub, wu, ybound, exc)
     for j in range(ni):
         if imp_rep[j] == j:
             row_derivs(house[j], imp_dim[j], yd, order_pt, Xs[j])

@@ -156,6 +156,48 @@ more_derivs = njit(cache=True, inline='always')(more_derivs_py)
 state_derivs = njit(cache=True, inline='always')(state_derivs_py)
 
 
+def input_bounds_py(u_abs, us_abs, omegas, amps, order, ub):
+    """``ub[j, f]`` (j <= order) bounds ``|d^j u_f/dt^j|``: the held input ``u_abs``, its slope
+    ``us_abs``, plus each harmonic's amplitude times ``Omega^j``."""
+    nf = ub.shape[1]
+    for j in range(order + 1):
+        for f in range(nf):
+            ub[j, f] = 0.0
+    for f in range(nf):
+        ub[0, f] = u_abs[f]
+        if order >= 1:
+            ub[1, f] = us_abs[f]
+    for h in range(omegas.size):
+        for f in range(nf):
+            a = cabs(amps[h, f])
+            p = 1.0
+            for j in range(order + 1):
+                ub[j, f] += a * p
+                p *= omegas[h]
+
+
+input_bounds = njit(cache=True, inline='always')(input_bounds_py)
+
+
+def derivative_chain_py(b, lam_abs, W, k, ub, order, wu, out):
+    """``out[m, k]`` (m <= order) from the bound ``b`` on ``|y_k|`` and ``ub`` on the inputs:
+    ``B_m = |lam| B_(m-1) + |W u^(m-1)|_k``, ``B_0 = b``; ``wu`` is scratch."""
+    for j in range(order + 1):
+        wu[j] = 0.0
+    for f in range(W.shape[1]):
+        w_abs = cabs(W[k, f])
+        for j in range(order + 1):
+            wu[j] += w_abs * ub[j, f]
+    acc = b
+    out[0, k] = acc
+    for m in range(1, order + 1):
+        acc = lam_abs * acc + wu[m - 1]
+        out[m, k] = acc
+
+
+derivative_chain = njit(cache=True, inline='always')(derivative_chain_py)
+
+
 def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs, us_abs,
                          omegas, amps, order, ub, wu, out):
     """Bounds on ``|d^m y_k/dt^m|`` over ``[tau, Th]`` (s) for ``m <= order``.
@@ -166,42 +208,14 @@ def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_a
     ``exp(max(Re lam_k, 0) T) (|yh_k| + T max|W u|_k)``, and
     ``|y^(m)| <= |lam|^m |y| + sum_j |lam|^(m-1-j) |W u^(j)|``.
     """
-    n2 = lam.size
-    nf = W.shape[1]
-    nh = omegas.size
     T = Th - tau
-    for j in range(order + 1):
-        for f in range(nf):
-            ub[j, f] = 0.0
-    for f in range(nf):
-        ub[0, f] = u_abs[f]
-        if order >= 1:
-            ub[1, f] = us_abs[f]
-    for h in range(nh):
-        for f in range(nf):
-            a = cabs(amps[h, f])
-            p = 1.0
-            for j in range(order + 1):
-                ub[j, f] += a * p
-                p *= omegas[h]
-    for k in range(n2):
+    input_bounds(u_abs, us_abs, omegas, amps, order, ub)
+    for k in range(lam.size):
         grow = np.exp(lam[k].real * T) if lam[k].real > 0.0 else 1.0  # exp is the cost here
         b = grow * (cabs(yh[k]) + T * max(cabs(w0[k] + ws[k] * tau), cabs(w0[k] + ws[k] * Th)))
-        for h in range(nh):
+        for h in range(omegas.size):
             b += cabs(part_plus[h, k]) + cabs(part_minus[h, k])
-        lk = cabs(lam[k])
-        for j in range(order + 1):
-            wu[j] = 0.0
-        for f in range(nf):
-            w_abs = cabs(W[k, f])
-            for j in range(order + 1):
-                wu[j] += w_abs * ub[j, f]
-        # Horner-like recurrence: B_m = |lam| B_{m-1} + |W u^(m-1)|, B_0 = b
-        acc = b
-        out[0, k] = acc
-        for m in range(1, order + 1):
-            acc = lk * acc + wu[m - 1]
-            out[m, k] = acc
+        derivative_chain(b, cabs(lam[k]), W, k, ub, order, wu, out)
 
 
 derivative_bounds = njit(cache=True)(derivative_bounds_py)
@@ -314,3 +328,27 @@ def excursion_bounds_py(yh, lam, w0, ws, part_plus, part_minus, omegas, T, out):
 
 
 excursion_bounds = njit(cache=True)(excursion_bounds_py)
+
+
+def search_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, S, u_abs, us_abs, omegas,
+                     amps, order, ub, wu, out, exc):
+    """:func:`derivative_bounds` over ``[0, S]`` (s) into ``out`` and :func:`excursion_bounds`
+    over ``S`` into ``exc`` in one pass, with the same values: the moduli and growth factors
+    both need are taken once (an event search needs both, and square roots are its cost)."""
+    input_bounds(u_abs, us_abs, omegas, amps, order, ub)
+    for k in range(lam.size):
+        grow = np.exp(lam[k].real * S) if lam[k].real > 0.0 else 1.0
+        held = S * max(cabs(w0[k]), cabs(w0[k] + ws[k] * S))
+        y_abs = cabs(yh[k])
+        lam_abs = cabs(lam[k])
+        b = grow * (y_abs + held)
+        e = grow * (y_abs * min(lam_abs * S, 2.0) + held)
+        for h in range(omegas.size):
+            part = cabs(part_plus[h, k]) + cabs(part_minus[h, k])
+            b += part
+            e += part * min(omegas[h] * S, 2.0)
+        exc[k] = e
+        derivative_chain(b, lam_abs, W, k, ub, order, wu, out)
+
+
+search_bounds = njit(cache=True)(search_bounds_py)
