@@ -173,7 +173,8 @@ def test_ledger_step_equals_ledger_panel(rng):
     # The whole-step ledger (precomputed Gauss node factors, sparse rows, circulatory term
     # skipped without skew stiffness) is the same quadrature as ledger_panel: the three
     # entries agree to 1e-12 of their size, on a dense coupled model with two harmonics, a
-    # held input slope and skew stiffness, and on an uncoupled one without skew stiffness.
+    # held input slope and skew stiffness, and on an uncoupled one (modal damping: diagonal
+    # C, its zeros skipped) without skew stiffness.
     n, nf, nh, h, t = 4, 3, 2, 7.3e-4, 0.137
     n2 = 2 * n
     lam = -rng.uniform(1.0, 30.0, n2) + 1j * rng.uniform(-3e3, 3e3, n2)
@@ -186,9 +187,10 @@ def test_ledger_step_equals_ledger_panel(rng):
     B = rng.normal(size=(n, nf))
     C = rng.normal(size=(n, n))
     C = C @ C.T
-    for Vq, Vv, Kskew in ((cplx(n, n2), cplx(n, n2), rng.normal(size=(n, n))),
-                          (np.kron(np.eye(n), [[1.0, 1.0]]).astype(complex),
-                           np.kron(np.eye(n), [[1.0, 1.0]]) * lam, np.zeros((n, n)))):
+    for Vq, Vv, Kskew, C in ((cplx(n, n2), cplx(n, n2), rng.normal(size=(n, n)), C),
+                             (np.kron(np.eye(n), [[1.0, 1.0]]).astype(complex),
+                              np.kron(np.eye(n), [[1.0, 1.0]]) * lam, np.zeros((n, n)),
+                              np.diag(np.diag(C)))):
         Kskew = Kskew - Kskew.T
         ref = np.zeros(5)
         L.ledger_panel(yh, lam, W, w0, ws, pp, pm, omegas, amps, u0, us, t, h, Vq, Vv, C,
@@ -203,9 +205,11 @@ def test_ledger_step_equals_ledger_panel(rng):
         vcols = [np.empty((n, n2), np.int64), np.empty(n, np.int64)]
         L.row_pattern(Vq, *cols)
         L.row_pattern(Vv, *vcols)
+        ccols = [np.empty((n, n), np.int64), np.empty(n, np.int64)]
+        L.row_pattern(C, *ccols)
         out = np.zeros(5)
         L.ledger_step(yh, w0, ws, pp, pm, omegas, amps, u0, us, t, s, w, E, P1, P2, EH, Vq, Vv,
-                      *cols, *vcols, C, Kskew, bool(np.any(Kskew)), B, np.empty(n2, complex),
+                      *cols, *vcols, C, *ccols, Kskew, bool(np.any(Kskew)), B, np.empty(n2, complex),
                       np.full(2 * n + nf, np.nan), np.full(nh, np.nan, complex), out)
         np.testing.assert_allclose(out[2:], ref[2:], rtol=1e-12, atol=1e-12 * np.abs(ref).max())
         assert np.any(Kskew) == (out[4] != 0.0)

@@ -251,6 +251,7 @@ class ExactPropagator(IntegratorBase):
         self._imp_grace = np.zeros(ni, dtype=np.int64)
         self._count_step = np.zeros(ni, dtype=np.int64)
         self._ledger = np.zeros(5)
+        self._c_pattern = None
         self._info = np.zeros(4, dtype=np.int64)
         self.counters = np.zeros(kernels.N_COUNTERS, dtype=np.int64)
         self._work = None        # the kernel's work arrays, (sizes, tuple); see _work_arrays
@@ -417,7 +418,8 @@ class ExactPropagator(IntegratorBase):
                 self._imp_z[:ni], self._imp_v[:ni], self._stuck[:ni], self._imp_normal[:ni],
                 self._imp_last_t[:ni], self._imp_rel[:ni], self._imp_grace[:ni],
                 self._count_step[:ni], rule, self.stick_time, self.max_events_per_step,
-                self.taylor_order, self.ledger_on, model.C, model.K_skew, model.B,
+                self.taylor_order, self.ledger_on, model.C, *self._damping_pattern(model.C),
+                model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
                 ev_after, ev_count, self._info, self.counters,
                 self._work_arrays(ni, model.C.shape[0], table))
@@ -453,6 +455,16 @@ class ExactPropagator(IntegratorBase):
                                f'{model.impactors[int(self._info[1])].name!r}')
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
+
+    def _damping_pattern(self, C):
+        """Columns of the non-zero entries of each row of ``C`` and their counts: the ledger's
+        damping power skips the zeros (modal damping is diagonal)."""
+        if self._c_pattern is None or self._c_pattern[0] is not C:
+            cols = np.zeros(C.shape, dtype=np.int64)
+            counts = np.zeros(C.shape[0], dtype=np.int64)
+            ledger_kernels.row_pattern(C, cols, counts)
+            self._c_pattern = (C, cols, counts)
+        return self._c_pattern[1:]
 
     def _work_arrays(self, ni, n, table):
         """The kernel's work arrays, made again only when a size changes (the ledger's node

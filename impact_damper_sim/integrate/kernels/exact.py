@@ -796,7 +796,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
                stick_rule, stick_time, max_events_per_step, taylor_order,
-               ledger_on, Cmat, Kskew, Bmat, ledger,
+               ledger_on, Cmat, c_cols, c_counts, Kskew, Bmat, ledger,
                out_disp, out_vel, out_acc,
                ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, info,
                counters, work):
@@ -863,6 +863,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     imp_grace = borrow(imp_grace)
     count_step = borrow(count_step)
     Cmat = borrow(Cmat)
+    c_cols = borrow(c_cols)
+    c_counts = borrow(c_counts)
     Kskew = borrow(Kskew)
     Bmat = borrow(Bmat)
     ledger = borrow(ledger)
@@ -1024,7 +1026,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                 tb_snodes[slot, :nn], tb_wnodes[slot, :nn], tb_E[slot, :nn],
                                 tb_P1[slot, :nn], tb_P2[slot, :nn], tb_EH[slot, :nn],
                                 tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
-                                tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat, Kskew,
+                                tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat,
+                                c_cols, c_counts, Kskew,
                                 circulatory, Bmat, y_l, x_led, eh_led, ledger)
                     counters[CNT_LEDGER_EVALS] += nn
                 elif tau > 0.0:
@@ -1036,7 +1039,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                     ledger_step(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
                                 pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn], pn_P2[:nn],
                                 pn_EH[:nn], tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
-                                tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat, Kskew,
+                                tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat,
+                                c_cols, c_counts, Kskew,
                                 circulatory, Bmat, y_l, x_led, eh_led, ledger)
                     counters[CNT_LEDGER_EVALS] += nn
             if whole_step:

@@ -175,12 +175,13 @@ row_pattern = njit(cache=True)(row_pattern_py)
 
 def ledger_step_py(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, s_nodes,
                    w_nodes, E, P1, P2, EH, Vq, Vv, q_cols, q_counts, v_cols, v_counts, Cmat,
-                   Kskew, circulatory, Bmat, y_tau, real_work, eh_t, ledger):
+                   c_cols, c_counts, Kskew, circulatory, Bmat, y_tau, real_work, eh_t, ledger):
     """:func:`ledger_panel` over a whole step with the node factors of :func:`ledger_nodes`.
 
     The same rule and nodes, so the same result to round-off, at a fraction of the cost: no
     exponentials, the sparsity of ``Vq``/``Vv`` (two entries per row for uncoupled modes)
-    and no circulatory term without a skew stiffness. Work arrays (no allocation per call):
+    and of ``Cmat`` (``c_cols``/``c_counts`` of :func:`row_pattern`: modal damping is
+    diagonal), and no circulatory term without a skew stiffness. Work arrays (no allocation per call):
     ``real_work`` at least ``2 n + nf`` floats, ``eh_t`` one complex per harmonic.
     """
     n = Vq.shape[0]
@@ -226,7 +227,8 @@ def ledger_step_py(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cu
         pf = 0.0
         for i in range(n):
             cq = 0.0
-            for k2 in range(n):
+            for c in range(c_counts[i]):
+                k2 = c_cols[i, c]
                 cq += Cmat[i, k2] * qd[k2]
             pd += qd[i] * cq
             if circulatory:
