@@ -243,9 +243,10 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
     dict
         ``study``, ``scene``, ``criterion``, ``rows`` (per point: ``kcc``, ``weight``,
         ``clearance`` as given, ``kcc_N_m``, ``impactors``, ``verdict``,
-        ``rms_radial_m``, ``growth_ratio``, ``growth_rate_1_s``, ``impacts_per_second``;
+        ``rms_radial_m``, ``growth_ratio``, ``growth_rate_1_s``, ``diverged_at_s`` (s, or
+        None; a run that outgrew floating point has no ratio), ``impacts_per_second``;
         with ``verify``: ``verdict_half_dt``, ``verdict_other_method`` (and their
-        ``growth_ratio_*``, ``rms_radial_m_*``) and ``verified``, True when all three verdicts
+        ``growth_ratio_*``, ``rms_radial_m_*``, ``diverged_at_s_*``) and ``verified``, True when all three verdicts
         agree), ``onset`` (or None), ``verification`` (the checks'
         settings, or None), ``scene_weight`` and ``scene_clearance`` (the scene's own
         impactors, shown where a row keeps them), ``points``, ``failures``, ``wall_time_s``.
@@ -314,6 +315,8 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
                 rows[-1][f'verdict_{name}'] = (
                     ('stable' if rc.value['stable'] else 'unstable') if rc.ok else 'error')
                 rows[-1][f'growth_ratio_{name}'] = rc.value['growth_ratio'] if rc.ok else None
+                rows[-1][f'diverged_at_s_{name}'] = (rc.value.get('diverged_at_s') if rc.ok
+                                                     else None)
                 rows[-1][f'rms_radial_m_{name}'] = rc.value['rms_radial_m'] if rc.ok else None
                 if not rc.ok:
                     rows[-1][f'error_{name}'] = rc.error
