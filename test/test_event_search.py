@@ -1245,8 +1245,8 @@ def test_table_mode_equals_the_python_fallback(monkeypatch, fallback):
     # impactor's bounce-down sequences (closing speeds down to 1e-6 m/s) grow the difference
     # tenfold every few impacts after 0.05 s (measured over 0.3 s: 1e-16 s up to 0.045 s,
     # 1e-13 s at 0.056 s, different sequences from 0.058 s). Compared over the first 0.05 s
-    # (6 switches, 4 of them in the kernel): the same event sequence (kind, impactor), times to 1e-13 s, samples to
-    # 1e-12 of their peak, the energy ledger to 1e-12 relative.
+    # (6 switches, 4 of them in the kernel): the same event sequence (kind, impactor), times
+    # to 1e-13 s, samples to 1e-12 of their peak, the energy ledger to 1e-12 relative.
     table, s_t, ev_t = run_scene(steps=100)
     assert table._table_mode
     counts = table.work_counters()

@@ -209,7 +209,8 @@ def test_ledger_step_equals_ledger_panel(rng):
         L.row_pattern(C, *ccols)
         out = np.zeros(5)
         L.ledger_step(yh, w0, ws, pp, pm, omegas, amps, u0, us, t, s, w, E, P1, P2, EH, Vq, Vv,
-                      *cols, *vcols, C, *ccols, Kskew, bool(np.any(Kskew)), B, np.empty(n2, complex),
+                      *cols, *vcols, C, *ccols, Kskew, bool(np.any(Kskew)), B,
+                      np.empty(n2, complex),
                       np.full(2 * n + nf, np.nan), np.full(nh, np.nan, complex), out)
         np.testing.assert_allclose(out[2:], ref[2:], rtol=1e-12, atol=1e-12 * np.abs(ref).max())
         assert np.any(Kskew) == (out[4] != 0.0)

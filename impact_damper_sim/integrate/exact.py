@@ -146,7 +146,8 @@ class _Table:
         a = self.arrays
         return (self.built, a['lam'], self.lam_max, a['V'], a['Vinv'], a['W'], a['part_plus'],
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
-                self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni], a['mobility'][:, :ni],
+                self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni],
+                a['mobility'][:, :ni],
                 a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.n_nodes,
                 self.s_nodes, self.w_nodes, self.E, self.P1, self.P2, self.EH, self.q_cols,
                 self.q_counts, self.v_cols, self.v_counts)

@@ -246,8 +246,8 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
         ``rms_radial_m``, ``growth_ratio``, ``growth_rate_1_s``, ``diverged_at_s`` (s, or
         None; a run that outgrew floating point has no ratio), ``impacts_per_second``;
         with ``verify``: ``verdict_half_dt``, ``verdict_other_method`` (and their
-        ``growth_ratio_*``, ``rms_radial_m_*``, ``diverged_at_s_*``) and ``verified``, True when all three verdicts
-        agree), ``onset`` (or None), ``verification`` (the checks'
+        ``growth_ratio_*``, ``rms_radial_m_*``, ``diverged_at_s_*``) and ``verified``, True
+        when all three verdicts agree), ``onset`` (or None), ``verification`` (the checks'
         settings, or None), ``scene_weight`` and ``scene_clearance`` (the scene's own
         impactors, shown where a row keeps them), ``points``, ``failures``, ``wall_time_s``.
     """

@@ -790,8 +790,8 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, nn_cap):
 
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, slot_state,
                table_mode, tb_built, tb_lam, tb_lam_max, tb_V, tb_Vinv, tb_W, tb_pp, tb_pm,
-               tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh, tb_p1h,
-               tb_p2h, tb_nn, tb_snodes, tb_wnodes, tb_E, tb_P1, tb_P2, tb_EH, tb_qcols,
+               tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh,
+               tb_p1h, tb_p2h, tb_nn, tb_snodes, tb_wnodes, tb_E, tb_P1, tb_P2, tb_EH, tb_qcols,
                tb_qcounts, tb_vcols, tb_vcounts,
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
@@ -1027,8 +1027,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                 tb_P1[slot, :nn], tb_P2[slot, :nn], tb_EH[slot, :nn],
                                 tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
                                 tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat,
-                                c_cols, c_counts, Kskew,
-                                circulatory, Bmat, y_l, x_led, eh_led, ledger)
+                                c_cols, c_counts, Kskew, circulatory, Bmat, y_l, x_led,
+                                eh_led, ledger)
                     counters[CNT_LEDGER_EVALS] += nn
                 elif tau > 0.0:
                     # a piece of a step: the same rule, its node factors made here (a
@@ -1040,8 +1040,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                 pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn], pn_P2[:nn],
                                 pn_EH[:nn], tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
                                 tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat,
-                                c_cols, c_counts, Kskew,
-                                circulatory, Bmat, y_l, x_led, eh_led, ledger)
+                                c_cols, c_counts, Kskew, circulatory, Bmat, y_l, x_led,
+                                eh_led, ledger)
                     counters[CNT_LEDGER_EVALS] += nn
             if whole_step:
                 e_h = tb_eh[slot]

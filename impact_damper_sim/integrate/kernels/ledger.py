@@ -181,8 +181,8 @@ def ledger_step_py(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cu
     The same rule and nodes, so the same result to round-off, at a fraction of the cost: no
     exponentials, the sparsity of ``Vq``/``Vv`` (two entries per row for uncoupled modes)
     and of ``Cmat`` (``c_cols``/``c_counts`` of :func:`row_pattern`: modal damping is
-    diagonal), and no circulatory term without a skew stiffness. Work arrays (no allocation per call):
-    ``real_work`` at least ``2 n + nf`` floats, ``eh_t`` one complex per harmonic.
+    diagonal), and no circulatory term without a skew stiffness. Work arrays (no allocation
+    per call): ``real_work`` at least ``2 n + nf`` floats, ``eh_t`` one complex per harmonic.
     """
     n = Vq.shape[0]
     n2 = yh.size
