@@ -188,6 +188,23 @@ def test_row_derivs_row_bound_site_bounds_more_derivs_twins(rng):
     agree(part, yd, sy.scale(order))
 
 
+def test_sort_candidates_orders_by_safe_step_and_carries_each_row(rng):
+    # The search takes its candidates by safe step, so that one past the best bracket ends
+    # the work: the sort must be ascending, stable for equal steps, keep every row's fields
+    # together, and leave entries past n_cand alone (JIT and twin alike).
+    for n_cand in (0, 1, 2, 7, 13):
+        s0 = rng.choice([0.1, 0.2, 0.3, 0.5], 16)
+        rows = [np.arange(16), rng.integers(0, 4, 16), s0, rng.normal(size=16),
+                rng.integers(0, 2, 16)]
+        want = np.argsort(s0[:n_cand], kind='stable')
+        for fn in (KE.sort_candidates, KE.sort_candidates_py):
+            got = [r.copy() for r in rows]
+            fn(n_cand, *got)
+            for r, g in zip(rows, got):
+                np.testing.assert_array_equal(g[:n_cand], r[:n_cand][want])
+                np.testing.assert_array_equal(g[n_cand:], r[n_cand:])
+
+
 def test_search_bounds_are_the_two_bounds_in_one_pass(rng):
     # search_bounds fuses derivative_bounds over [0, S] and excursion_bounds over S for the
     # event search: it must give the same values, bit for bit (no tolerance), JIT and twin,
@@ -1319,8 +1336,8 @@ def test_planar_realignment_release_leaves_without_a_new_contact():
 
 # ============================================================== whole runs of the exact twins
 EXACT_KERNELS = ('grace_shift', 'fn_taylor', 'near_eval', 'refine_root', 'third_bound',
-                 'out_of_reach', 'search', 'switch_slot', 'release_normals', 'record',
-                 'impact', 'advance', 'borrow')
+                 'out_of_reach', 'sort_candidates', 'search', 'switch_slot', 'release_normals',
+                 'record', 'impact', 'advance', 'borrow')
 
 
 def _scenario(name):

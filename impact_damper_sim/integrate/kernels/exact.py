@@ -273,6 +273,29 @@ def out_of_reach_py(n_rows, reach, X, z, v, limit, T):
 out_of_reach = njit(cache=True, inline='always')(out_of_reach_py)
 
 
+def sort_candidates_py(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv):
+    """Order the first ``n_cand`` candidates by their safe step ``cand_s0`` (s), ascending
+    (insertion sort, stable: a handful of entries)."""
+    for c in range(1, n_cand):
+        j, fid, s0, shift, lv = cand_j[c], cand_fid[c], cand_s0[c], cand_shift[c], cand_lv[c]
+        d = c - 1
+        while d >= 0 and cand_s0[d] > s0:
+            cand_j[d + 1] = cand_j[d]
+            cand_fid[d + 1] = cand_fid[d]
+            cand_s0[d + 1] = cand_s0[d]
+            cand_shift[d + 1] = cand_shift[d]
+            cand_lv[d + 1] = cand_lv[d]
+            d -= 1
+        cand_j[d + 1] = j
+        cand_fid[d + 1] = fid
+        cand_s0[d + 1] = s0
+        cand_shift[d + 1] = shift
+        cand_lv[d + 1] = lv
+
+
+sort_candidates = njit(cache=True)(sort_candidates_py)
+
+
 def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus, omegas, amps,
               u0, us, house, house_abs, imp_rep, imp_dim, imp_z, imp_v, imp_limit, imp_stuck,
               imp_grace, release_n, P, yh_tau, y_tau, uder, yd, Xs, ybound, u_abs, us_abs, ub,
@@ -406,10 +429,16 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
     n_slow = 0
     best_c = -1
     best_sb = S
+    sort_candidates(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv)
     for c in range(n_cand):
         j = cand_j[c]
         site = imp_rep[j]
         active[site] = False
+        cand_out[c, 0] = -1.0
+        if best_c >= 0 and cand_s0[c] > best_sb:
+            # positive up to its safe step, past the best bracket: it cannot hold the first
+            # event (nor can any later one: they come by safe step)
+            continue
         counters[CNT_CANDIDATES] += 1
         G = fn_taylor(cand_fid[c], Xs[site], imp_z[j], imp_v[j], imp_limit[j], release_n[j], P,
                       Eb[site], S, cand_shift[c], rwork, coef)
@@ -425,7 +454,6 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
             n = P - 1
             Kd = Kd + K
         status = certified_first_root(coef, n, K, Kd, S, cand_s0[c], pwork, root_out)
-        cand_out[c, 0] = -1.0
         if status == ROOT_NONE:
             continue
         if status == ROOT_FOUND:
