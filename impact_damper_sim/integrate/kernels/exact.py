@@ -41,7 +41,8 @@ from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_de
                    point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
 from .ledger import ledger_node_count, ledger_nodes, ledger_step
 from .borrow import borrow, borrow_py  # noqa: F401  (borrow_py: the twin, for the tests)
-from .poly import BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step
+from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
+                   positive_until)
 from .scan import FN_PLANAR, FN_RELEASE, FN_WALL_NEG, FN_WALL_POS, fn_values, scan_multi
 
 # status codes returned by advance()
@@ -453,6 +454,8 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
                 coef[i] = coef[i + 1]
             n = P - 1
             Kd = Kd + K
+        if best_c >= 0 and positive_until(coef, n, K, best_sb, pwork):
+            continue   # certified positive up to the best bracket's end
         status = certified_first_root(coef, n, K, Kd, S, cand_s0[c], pwork, root_out)
         if status == ROOT_NONE:
             continue

@@ -188,6 +188,22 @@ ROOT_FOUND = 1
 ROOT_UNDECIDED = 2
 
 
+def positive_until_py(a, n, K, s_end, work):
+    """True if ``g > 0`` on ``[0, s_end]`` (s) is certified for every ``g`` with
+    ``|g(s) - p(s)| <= K s^(n+1)``, ``p`` the degree-``n`` polynomial ``a``: the Bernstein
+    coefficients of the lower bound ``p - K s^(n+1)`` are all positive there. ``work`` needs
+    ``2 n + 4`` entries; its first ``n + 2`` hold that lower bound afterwards."""
+    m = n + 1
+    for i in range(n + 1):
+        work[i] = a[i]
+    work[m] = -K
+    b_min, _ = bernstein_range(work[:m + 1], m, 0.0, s_end, work[m + 1:2 * m + 2])
+    return b_min > 0.0
+
+
+positive_until = njit(cache=True)(positive_until_py)
+
+
 def certified_first_root_py(a, n, K, Kd, S, s_start, work, out):
     """First root on ``(0, S]`` of a function known by its Taylor polynomial and remainder.
 
@@ -208,11 +224,7 @@ def certified_first_root_py(a, n, K, Kd, S, s_start, work, out):
     m = n + 1
     low = work[:m + 1]
     scratch = work[m + 1:2 * m + 2]
-    for i in range(n + 1):
-        low[i] = a[i]
-    low[m] = -K
-    b_min, _ = bernstein_range(low, m, 0.0, S, scratch)
-    if b_min > 0.0:
+    if positive_until(a, n, K, S, work):
         return ROOT_NONE
     # the root of the Taylor polynomial, bracketed from the last point known to be positive
     lo = min(max(s_start, 0.0), S)
