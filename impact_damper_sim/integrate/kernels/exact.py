@@ -430,6 +430,12 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
     n_slow = 0
     best_c = -1
     best_sb = S
+    # 1/(P + 1)!, rounded up so that G/(P + 1)! stays a bound (a chain of divisions per
+    # candidate was the search's hottest loop)
+    inv_fact = 1.0
+    for i in range(2, P + 2):
+        inv_fact /= i
+    inv_fact *= 1.0 + 1e-14
     sort_candidates(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv)
     for c in range(n_cand):
         j = cand_j[c]
@@ -444,9 +450,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
         G = fn_taylor(cand_fid[c], Xs[site], imp_z[j], imp_v[j], imp_limit[j], release_n[j], P,
                       Eb[site], S, cand_shift[c], rwork, coef)
         n = P
-        K = G
-        for i in range(2, P + 2):
-            K /= i  # G / (P + 1)!
+        K = G * inv_fact  # G / (P + 1)!
         Kd = K * (P + 1)  # G / P!
         if cand_lv[c] == 1:
             # g(0) = 0 and g leaves: certify the roots of g(s)/s instead
