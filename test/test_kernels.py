@@ -169,51 +169,100 @@ def test_whole_run_equals_its_pure_python_twin():
     np.testing.assert_allclose(jit['ledger'], twin['ledger'], rtol=1e-10)
 
 
-def test_ledger_step_equals_ledger_panel(rng):
-    # The whole-step ledger (precomputed Gauss node factors, sparse rows, circulatory term
-    # skipped without skew stiffness) is the same quadrature as ledger_panel: the three
-    # entries agree to 1e-12 of their size, on a dense coupled model with two harmonics, a
-    # held input slope and skew stiffness, and on an uncoupled one (modal damping: diagonal
-    # C, its zeros skipped) without skew stiffness.
-    n, nf, nh, h, t = 4, 3, 2, 7.3e-4, 0.137
-    n2 = 2 * n
-    lam = -rng.uniform(1.0, 30.0, n2) + 1j * rng.uniform(-3e3, 3e3, n2)
+def _fine_ledger(args, panels):
+    """Reference: ledger_panel (4-point Gauss) over ``panels`` sub-intervals of the piece."""
+    (yh, lam, W, w0, ws, pp, pm, omegas, amps, u0, us, t, tau, Vq, Vv, C, Kskew, B) = args
+    n2, nf = lam.size, u0.size
+    y_start = np.empty(n2, complex)
+    ref = np.zeros(5)
+    width = tau / panels
+    for p in range(panels):
+        # the held-input flow restarted at s0: state, then input (w0 + ws s0) and slope
+        K.propagate(yh, lam, p * width, w0, ws, y_start)
+        L.ledger_panel(y_start, lam, W, w0 + ws * (p * width), ws, pp, pm, omegas, amps,
+                       u0 + us * (p * width), us, t + p * width, width, Vq, Vv, C, Kskew, B,
+                       np.empty(n2, complex), np.empty(n2, complex), np.empty((6, nf)),
+                       np.empty((6, n2), complex), ref)
+    return ref[2:]
+
+
+def _ledger_case(rng, n, nf, nh, coupled, lam_top, tau):
+    """A random flow over one piece: dense coupled rows with skew stiffness, or modal rows
+    (one complex coordinate per row, diagonal damping, no skew stiffness)."""
+    n2 = 2 * n if coupled else n
+    lam = -rng.uniform(1.0, 30.0, n2) + 1j * rng.uniform(-lam_top, lam_top, n2)
+    lam[0] = -40.0 + 1j * lam_top
     cplx = lambda *shape: rng.normal(size=shape) + 1j * rng.normal(size=shape)  # noqa: E731
-    yh, w0, ws, W = cplx(n2), cplx(n2), cplx(n2), cplx(n2, nf)
-    pp, pm = cplx(nh, n2), cplx(nh, n2)
-    omegas = rng.uniform(100.0, 2000.0, nh)
-    amps = cplx(nh, nf)
-    u0, us = rng.normal(size=nf), rng.normal(size=nf)
-    B = rng.normal(size=(n, nf))
+    yh, W = cplx(n2), cplx(n2, nf)
+    u0, us = rng.normal(size=nf), 1e3 * rng.normal(size=nf)
     C = rng.normal(size=(n, n))
-    C = C @ C.T
-    for Vq, Vv, Kskew, C in ((cplx(n, n2), cplx(n, n2), rng.normal(size=(n, n)), C),
-                             (np.kron(np.eye(n), [[1.0, 1.0]]).astype(complex),
-                              np.kron(np.eye(n), [[1.0, 1.0]]) * lam, np.zeros((n, n)),
-                              np.diag(np.diag(C)))):
-        Kskew = Kskew - Kskew.T
-        ref = np.zeros(5)
-        L.ledger_panel(yh, lam, W, w0, ws, pp, pm, omegas, amps, u0, us, t, h, Vq, Vv, C,
-                       Kskew, B, np.empty(n2, complex), np.empty(n2, complex),
-                       np.empty((6, nf)), np.empty((6, n2), complex), ref)
-        m = L.ledger_node_count(lam, h)
-        s, w = np.empty(m), np.empty(m)
-        E, P1, P2 = (np.empty((m, n2), complex) for _ in range(3))
-        EH = np.empty((m, nh), complex)
-        L.ledger_nodes(lam, omegas, h, s, w, E, P1, P2, EH)
-        cols = [np.empty((n, n2), np.int64), np.empty(n, np.int64)]
-        vcols = [np.empty((n, n2), np.int64), np.empty(n, np.int64)]
-        L.row_pattern(Vq, *cols)
-        L.row_pattern(Vv, *vcols)
-        ccols = [np.empty((n, n), np.int64), np.empty(n, np.int64)]
-        L.row_pattern(C, *ccols)
+    if coupled:
+        Vq, Vv, Kskew, C = cplx(n, n2), cplx(n, n2), rng.normal(size=(n, n)), C @ C.T
+    else:
+        Vq = np.zeros((n, n2), complex)
+        Vq[np.arange(n), rng.permutation(n2)] = cplx(n)
+        Vv, Kskew, C = Vq * lam, np.zeros((n, n)), np.diag(rng.uniform(0.1, 2.0, n))
+    return (yh, lam, W, W @ u0, W @ us, cplx(nh, n2), cplx(nh, n2),
+            rng.uniform(100.0, 2000.0, nh), cplx(nh, nf), u0, us, 0.137, tau, Vq, Vv, C,
+            Kskew - Kskew.T, rng.normal(size=(n, nf)))
+
+
+def _pattern(M):
+    cols, counts = np.empty(M.shape, np.int64), np.empty(M.shape[0], np.int64)
+    L.row_pattern(M, cols, counts)
+    return cols, counts
+
+
+@pytest.mark.parametrize('coupled, nh, lam_top, tau', [
+    (True, 2, 3e3, 7.3e-4),     # |lam| tau 2.2: three Taylor panels, harmonics, skew
+    (True, 0, 8e3, 3e-6),       # a short piece: low degree
+    (False, 0, 8.1e3, 1e-4),    # HPOTP-like: |lam| tau 0.81, one panel of degree 13
+    (False, 1, 8.1e3, 2e-3),    # modal, 17 panels, a harmonic
+    (False, 0, 5e2, 1e-7),      # tiny piece: the polynomial (held-input) part dominates
+])
+def test_ledger_series_equal_fine_gauss_quadrature(rng, coupled, nh, lam_top, tau):
+    # The ledger's Taylor series, integrated exactly, against 4-point Gauss on 64 panels of
+    # the piece (quadrature error < 1e-15 here): damping, forcing and circulatory work
+    # agree to 1e-12 of the largest, and the modal form (one coordinate per velocity row,
+    # diagonal damping) to the general one; each kernel equals its NumPy twin to 1e-14.
+    n, nf = 4, 3
+    args = _ledger_case(rng, n, nf, nh, coupled, lam_top, tau)
+    (yh, lam, W, w0, ws, pp, pm, omegas, amps, u0, us, t, tau, Vq, Vv, C, Kskew, B) = args
+    n2 = lam.size
+    ref = _fine_ledger(args, 64)
+    scale = np.abs(ref).max()
+    for kernel in (L.ledger_taylor, L.ledger_taylor_py):
         out = np.zeros(5)
-        L.ledger_step(yh, w0, ws, pp, pm, omegas, amps, u0, us, t, s, w, E, P1, P2, EH, Vq, Vv,
-                      *cols, *vcols, C, *ccols, Kskew, bool(np.any(Kskew)), B,
-                      np.empty(n2, complex),
-                      np.full(2 * n + nf, np.nan), np.full(nh, np.nan, complex), out)
-        np.testing.assert_allclose(out[2:], ref[2:], rtol=1e-12, atol=1e-12 * np.abs(ref).max())
-        assert np.any(Kskew) == (out[4] != 0.0)
+        panels = kernel(yh, lam, w0, ws, pp, pm, omegas, amps, u0, us, t, tau,
+                        np.abs(lam).max(), Vq, Vv, *_pattern(Vq), *_pattern(Vv), C,
+                        *_pattern(C), Kskew, bool(np.any(Kskew)), B,
+                        np.full((n2, L.N_TERMS), np.nan, complex),
+                        np.full((3, n, L.N_TERMS), np.nan), np.full((nf, L.N_TERMS), np.nan),
+                        np.zeros(n2 + n, np.int64), np.empty(n2, complex), out)
+        assert panels == max(1, int(np.ceil(max(np.abs(lam).max(), *omegas, 0.0) * tau)))
+        np.testing.assert_allclose(out[2:], ref, rtol=0, atol=1e-12 * scale)
+        assert (out[4] != 0.0) == coupled
+    if coupled:
+        return
+    for kernel in (L.ledger_modal, L.ledger_modal_py):
+        modal = np.zeros(5)
+        kernel(yh, lam, w0, ws, pp, pm, omegas, amps, u0, us, t, tau, np.abs(lam).max(), Vv,
+               _pattern(Vv)[0], C, B, np.full((3, L.N_TERMS + 8, n), np.nan),
+               np.full((nf, L.N_TERMS), np.nan), np.empty(n2, complex), modal)
+        np.testing.assert_allclose(modal[2:], ref, rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(modal[2:], out[2:], rtol=0, atol=1e-14 * scale)
+
+
+def test_ledger_series_degree_meets_its_tolerance():
+    # taylor_degree(|z|^2) is the smallest degree whose first dropped term |z|^(d+1)/(d+1)!
+    # is below TAYLOR_TOL, up to the series length (13 for HPOTP's fastest mode per step).
+    import math
+    for r in (0.0, 1e-6, 0.05, 0.3, 0.81, 1.0):
+        d = L.taylor_degree(r * r)
+        assert r ** (d + 1) / math.factorial(d + 1) <= L.TAYLOR_TOL * (1 + 1e-12)
+        assert d == 0 or r ** d / math.factorial(d) > L.TAYLOR_TOL
+        assert L.taylor_degree_py(r * r) == d
+    assert L.taylor_degree(0.81 ** 2) == 13
 
 
 def test_borrowed_view_is_the_callers_memory():

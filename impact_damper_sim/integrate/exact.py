@@ -99,25 +99,13 @@ class _Table:
         n2 = flow.lam.size
         self.lam_max = np.zeros(n_slots)
         self.e_h, self.p1_h, self.p2_h = (np.zeros((n_slots, n2), complex) for _ in range(3))
-        self.n_nodes = np.zeros(n_slots, dtype=np.int64)
-        self._alloc_nodes(n_slots, 4, n2, flow.part_plus.shape[0])
         self.q_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
         self.q_counts = np.zeros((n_slots, n_q), dtype=np.int64)
         self.v_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
         self.v_counts = np.zeros((n_slots, n_q), dtype=np.int64)
+        self.v_modal = np.zeros(n_slots, dtype=np.bool_)   # one coordinate per velocity row
 
-    def _alloc_nodes(self, n_slots, n_nodes, n2, nh, old=None):
-        self.s_nodes = np.zeros((n_slots, n_nodes))
-        self.w_nodes = np.zeros((n_slots, n_nodes))
-        self.E, self.P1, self.P2 = (np.zeros((n_slots, n_nodes, n2), complex) for _ in range(3))
-        self.EH = np.zeros((n_slots, n_nodes, nh), complex)
-        if old is not None:
-            m = old[0].shape[1]
-            for new, prev in zip((self.s_nodes, self.w_nodes, self.E, self.P1, self.P2, self.EH),
-                                 old):
-                new[:, :m] = prev
-
-    def fill(self, slot, flow, omegas):
+    def fill(self, slot, flow):
         """Store configuration ``flow`` (a :class:`~.flow.FlowConfig`) in ``slot``."""
         for name in self.FIELDS:
             self.arrays[name][slot] = getattr(flow, name)
@@ -127,18 +115,10 @@ class _Table:
         flow_kernels.step_factors(lam, self.dt, self.e_h[slot], self.p1_h[slot],
                                     self.p2_h[slot])
         if self.ledger_on:
-            nn = int(ledger_kernels.ledger_node_count(lam, self.dt))
-            if nn > self.s_nodes.shape[1]:
-                old = (self.s_nodes, self.w_nodes, self.E, self.P1, self.P2, self.EH)
-                self._alloc_nodes(self.built.size, nn, lam.size, omegas.size, old)
-            self.n_nodes[slot] = nn
-            ledger_kernels.ledger_nodes(lam, omegas, self.dt, self.s_nodes[slot, :nn],
-                                        self.w_nodes[slot, :nn], self.E[slot, :nn],
-                                        self.P1[slot, :nn], self.P2[slot, :nn],
-                                        self.EH[slot, :nn])
             n = flow.V.shape[0] // 2
             ledger_kernels.row_pattern(flow.V[:n], self.q_cols[slot], self.q_counts[slot])
             ledger_kernels.row_pattern(flow.V[n:], self.v_cols[slot], self.v_counts[slot])
+            self.v_modal[slot] = bool(np.all(self.v_counts[slot] == 1))
         self.built[slot] = 1
 
     def kernel_args(self, ni):
@@ -148,9 +128,8 @@ class _Table:
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
                 self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni],
                 a['mobility'][:, :ni],
-                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.n_nodes,
-                self.s_nodes, self.w_nodes, self.E, self.P1, self.P2, self.EH, self.q_cols,
-                self.q_counts, self.v_cols, self.v_counts)
+                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.q_cols,
+                self.q_counts, self.v_cols, self.v_counts, self.v_modal)
 
 
 class ExactPropagator(IntegratorBase):
@@ -311,7 +290,7 @@ class ExactPropagator(IntegratorBase):
             self._tables[table_key] = table
         slot = self._slot(key)
         if not table.built[slot]:
-            table.fill(slot, flow, self._omegas)
+            table.fill(slot, flow)
         return table
 
     @property
@@ -322,7 +301,7 @@ class ExactPropagator(IntegratorBase):
     def work_counters(self):
         """Work done so far, by kind: a dict of counts (see ``kernels.exact.CNT_*``)."""
         names = ('steps', 'searches', 'candidates', 'taylor_expansions', 'flow_evaluations',
-                 'ledger_evaluations', 'fallback_scans', 'kernel_switches', 'segments',
+                 'ledger_panels', 'fallback_scans', 'kernel_switches', 'segments',
                  'quiet_steps')
         counts = dict(zip(names, (int(c) for c in self.counters)))
         counts['python_switches'] = self._python_switches
@@ -423,7 +402,7 @@ class ExactPropagator(IntegratorBase):
                 model.K_skew, model.B,
                 self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
                 ev_after, ev_count, self._info, self.counters,
-                self._work_arrays(ni, model.C.shape[0], table))
+                self._work_arrays(ni, model.C.shape[0]))
             m = int(ev_count[0])
             if m:
                 chunk = np.zeros(m, dtype=EVENT_DTYPE)
@@ -467,13 +446,11 @@ class ExactPropagator(IntegratorBase):
             self._c_pattern = (C, cols, counts)
         return self._c_pattern[1:]
 
-    def _work_arrays(self, ni, n, table):
-        """The kernel's work arrays, made again only when a size changes (the ledger's node
-        count grows with a new configuration). Kept here, so alive while the kernel borrows
-        them."""
-        nn_cap = table.s_nodes.shape[1] if self.ledger_on else 0
+    def _work_arrays(self, ni, n):
+        """The kernel's work arrays, made again only when a size changes. Kept here, so
+        alive while the kernel borrows them."""
         sizes = (self._yh.size, self.forcing.n_inputs, ni, self._omegas.size, n,
-                 self.taylor_order, nn_cap)
+                 self.taylor_order, self.ledger_on)
         if self._work is None or self._work[0] != sizes:
             self._work = (sizes, kernels.advance_work(*sizes))
         return self._work[1]

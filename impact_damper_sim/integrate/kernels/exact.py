@@ -39,7 +39,7 @@ from numba import njit
 
 from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
                    point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
-from .ledger import ledger_node_count, ledger_nodes, ledger_step
+from .ledger import N_TERMS as LEDGER_TERMS, ledger_modal, ledger_taylor
 from .borrow import borrow, borrow_py  # noqa: F401  (borrow_py: the twin, for the tests)
 from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
                    positive_until)
@@ -69,7 +69,7 @@ CNT_SEARCHES = 1       # event searches (sub-intervals with impactors)
 CNT_CANDIDATES = 2     # event functions that passed the filters (Taylor stage)
 CNT_TAYLOR = 3         # high-order expansions of the state
 CNT_EVALS = 4          # flow evaluations at arbitrary times, outside the ledger
-CNT_LEDGER_EVALS = 5   # flow evaluations of the ledger's quadrature
+CNT_LEDGER_PANELS = 5  # Taylor panels of the energy ledger (one per piece of a step, mostly)
 CNT_FALLBACK = 6       # event functions decided by the safe-step scan
 CNT_SWITCHES = 7       # configuration switches inside the kernel
 CNT_SEGMENTS = 8       # sub-intervals cut short at a Taylor segment end
@@ -763,19 +763,19 @@ def impact_py(j, fid, n_rows, t_cur, X, yh, kick, mob, lawmob, imp_mass, imp_cor
 impact = njit(cache=True)(impact_py)
 
 
-def advance_work(n2, nf, ni, nh, n, taylor_order, nn_cap):
+def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
     """The work arrays of :func:`advance`, as the tuple its ``work`` argument takes.
 
     Made once per integrator by the caller, which keeps them alive while the kernel runs
     (the kernel borrows them, see :mod:`.borrow`). Sizes: ``n2`` complex state coordinates,
     ``nf`` inputs, ``ni`` impactors, ``nh`` harmonics, ``n`` modal coordinates, the Taylor
-    order, and ``nn_cap`` ledger nodes per step (0 without the ledger).
+    order, and whether the energy ledger is kept (its series arrays are empty otherwise).
     """
     order_max = taylor_order + 4
+    terms = LEDGER_TERMS if ledger_on else 0
     return (
         np.empty(n2, dtype=np.complex128),  # yh_tau
         np.empty(n2, dtype=np.complex128),  # y_tau
-        np.empty(n2, dtype=np.complex128),  # y_l
         np.empty(n2, dtype=np.complex128),  # y_sw
         np.empty(2 * n),  # x_sw
         np.empty((order_max + 1, n2), dtype=np.complex128),  # yd
@@ -812,22 +812,19 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, nn_cap):
         np.empty(nf),  # u_max
         np.empty(n2, dtype=np.complex128),  # w_max
         np.empty(n2, dtype=np.complex128),  # w_zero
-        np.empty(nn_cap),  # pn_s
-        np.empty(nn_cap),  # pn_w
-        np.empty((nn_cap, n2), dtype=np.complex128),  # pn_E
-        np.empty((nn_cap, n2), dtype=np.complex128),  # pn_P1
-        np.empty((nn_cap, n2), dtype=np.complex128),  # pn_P2
-        np.empty((nn_cap, nh), dtype=np.complex128),  # pn_EH
-        np.empty(2 * n + nf),  # x_led
-        np.empty(nh, dtype=np.complex128),  # eh_led
+        np.empty((n2, terms), dtype=np.complex128),  # led_coef
+        np.empty((3, n, terms)),  # led_rows
+        np.empty((nf, terms)),  # led_u
+        np.empty(n2 + n, dtype=np.int64),  # led_degs
+        np.empty(n2, dtype=np.complex128),  # led_y0
+        np.empty((3, terms + 8 if ledger_on else 0, n)),  # led_soa
     )
 
 
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, slot_state,
                table_mode, tb_built, tb_lam, tb_lam_max, tb_V, tb_Vinv, tb_W, tb_pp, tb_pm,
                tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh,
-               tb_p1h, tb_p2h, tb_nn, tb_snodes, tb_wnodes, tb_E, tb_P1, tb_P2, tb_EH, tb_qcols,
-               tb_qcounts, tb_vcols, tb_vcounts,
+               tb_p1h, tb_p2h, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts, tb_vmodal,
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
                stick_rule, stick_time, max_events_per_step, taylor_order,
@@ -871,17 +868,11 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     tb_eh = borrow(tb_eh)
     tb_p1h = borrow(tb_p1h)
     tb_p2h = borrow(tb_p2h)
-    tb_nn = borrow(tb_nn)
-    tb_snodes = borrow(tb_snodes)
-    tb_wnodes = borrow(tb_wnodes)
-    tb_E = borrow(tb_E)
-    tb_P1 = borrow(tb_P1)
-    tb_P2 = borrow(tb_P2)
-    tb_EH = borrow(tb_EH)
     tb_qcols = borrow(tb_qcols)
     tb_qcounts = borrow(tb_qcounts)
     tb_vcols = borrow(tb_vcols)
     tb_vcounts = borrow(tb_vcounts)
+    tb_vmodal = borrow(tb_vmodal)
     imp_rep = borrow(imp_rep)
     imp_group = borrow(imp_group)
     group_radix = borrow(group_radix)
@@ -917,13 +908,12 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     ev_count = borrow(ev_count)
     info = borrow(info)
     counters = borrow(counters)
-    (yh_tau, y_tau, y_l, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
+    (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
      cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
      pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
-     w_max, w_zero, pn_s, pn_w, pn_E, pn_P1, pn_P2, pn_EH, x_led, eh_led) = work
+     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa) = work
     yh_tau = borrow(yh_tau)
     y_tau = borrow(y_tau)
-    y_l = borrow(y_l)
     y_sw = borrow(y_sw)
     x_sw = borrow(x_sw)
     yd = borrow(yd)
@@ -960,14 +950,12 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     u_max = borrow(u_max)
     w_max = borrow(w_max)
     w_zero = borrow(w_zero)
-    pn_s = borrow(pn_s)
-    pn_w = borrow(pn_w)
-    pn_E = borrow(pn_E)
-    pn_P1 = borrow(pn_P1)
-    pn_P2 = borrow(pn_P2)
-    pn_EH = borrow(pn_EH)
-    x_led = borrow(x_led)
-    eh_led = borrow(eh_led)
+    led_coef = borrow(led_coef)
+    led_rows = borrow(led_rows)
+    led_u = borrow(led_u)
+    led_degs = borrow(led_degs)
+    led_y0 = borrow(led_y0)
+    led_soa = borrow(led_soa)
     Xs[...] = 0
     X[...] = 0
     Eb[...] = 0
@@ -987,6 +975,12 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
         for i2 in range(Kskew.shape[1]):
             if Kskew[i, i2] != 0.0:
                 circulatory = True
+    # the ledger's modal form: diagonal damping, no skew stiffness (and, per slot, one state
+    # coordinate per velocity row)
+    modal_ledger = not circulatory
+    for i in range(c_counts.size):
+        if c_counts[i] > 1 or (c_counts[i] == 1 and c_cols[i, 0] != i):
+            modal_ledger = False
     slot = slot_state[0]
     release_normals(imp_stuck, imp_normal, tb_relmap[slot], release_n)
     t_cur = t_state[0]
@@ -1055,29 +1049,22 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                         quiet_until = t_end
             whole_step = best_j == -1 and t_cur == t_k
             if ledger_on:
+                # the piece [t_cur, t_cur + tau], or the whole step
+                piece = tau
                 if whole_step:
-                    nn = tb_nn[slot]
-                    ledger_step(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
-                                tb_snodes[slot, :nn], tb_wnodes[slot, :nn], tb_E[slot, :nn],
-                                tb_P1[slot, :nn], tb_P2[slot, :nn], tb_EH[slot, :nn],
-                                tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
-                                tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat,
-                                c_cols, c_counts, Kskew, circulatory, Bmat, y_l, x_led,
-                                eh_led, ledger)
-                    counters[CNT_LEDGER_EVALS] += nn
-                elif tau > 0.0:
-                    # a piece of a step: the same rule, its node factors made here (a
-                    # piece is no longer than a step, so its nodes fit the table's count)
-                    nn = ledger_node_count(lam, tau)
-                    ledger_nodes(lam, omegas, tau, pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn],
-                                 pn_P2[:nn], pn_EH[:nn])
-                    ledger_step(yh, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
-                                pn_s[:nn], pn_w[:nn], pn_E[:nn], pn_P1[:nn], pn_P2[:nn],
-                                pn_EH[:nn], tb_V[slot, :n], tb_V[slot, n:], tb_qcols[slot],
-                                tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot], Cmat,
-                                c_cols, c_counts, Kskew, circulatory, Bmat, y_l, x_led,
-                                eh_led, ledger)
-                    counters[CNT_LEDGER_EVALS] += nn
+                    piece = h
+                if modal_ledger and tb_vmodal[slot]:
+                    counters[CNT_LEDGER_PANELS] += ledger_modal(
+                        yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
+                        piece, tb_lam_max[slot], tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat,
+                        led_soa, led_u, led_y0, ledger)
+                else:
+                    counters[CNT_LEDGER_PANELS] += ledger_taylor(
+                        yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
+                        piece, tb_lam_max[slot], tb_V[slot, :n], tb_V[slot, n:],
+                        tb_qcols[slot], tb_qcounts[slot], tb_vcols[slot], tb_vcounts[slot],
+                        Cmat, c_cols, c_counts, Kskew, circulatory, Bmat, led_coef, led_rows,
+                        led_u, led_degs, led_y0, ledger)
             if whole_step:
                 e_h = tb_eh[slot]
                 p1_h = tb_p1h[slot]
