@@ -99,6 +99,7 @@ class _Table:
         n2 = flow.lam.size
         self.lam_max = np.zeros(n_slots)
         self.e_h, self.p1_h, self.p2_h = (np.zeros((n_slots, n2), complex) for _ in range(3))
+        self.m_h = np.zeros((n_slots, n2 if ledger_on else 0))   # int |e^(lam s)|^2 over dt
         self.q_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
         self.q_counts = np.zeros((n_slots, n_q), dtype=np.int64)
         self.v_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
@@ -119,6 +120,8 @@ class _Table:
             ledger_kernels.row_pattern(flow.V[:n], self.q_cols[slot], self.q_counts[slot])
             ledger_kernels.row_pattern(flow.V[n:], self.v_cols[slot], self.v_counts[slot])
             self.v_modal[slot] = bool(np.all(self.v_counts[slot] == 1))
+            scratch = np.empty((3, lam.size), complex)
+            ledger_kernels.piece_factors(lam, self.dt, *scratch, self.m_h[slot])
         self.built[slot] = 1
 
     def kernel_args(self, ni):
@@ -128,7 +131,7 @@ class _Table:
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
                 self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni],
                 a['mobility'][:, :ni],
-                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.q_cols,
+                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.m_h, self.q_cols,
                 self.q_counts, self.v_cols, self.v_counts, self.v_modal)
 
 
@@ -302,7 +305,7 @@ class ExactPropagator(IntegratorBase):
         """Work done so far, by kind: a dict of counts (see ``kernels.exact.CNT_*``)."""
         names = ('steps', 'searches', 'candidates', 'taylor_expansions', 'flow_evaluations',
                  'ledger_panels', 'fallback_scans', 'kernel_switches', 'segments',
-                 'quiet_steps')
+                 'quiet_steps', 'ledger_closed')
         counts = dict(zip(names, (int(c) for c in self.counters)))
         counts['python_switches'] = self._python_switches
         return counts

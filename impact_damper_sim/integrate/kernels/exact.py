@@ -39,7 +39,8 @@ from numba import njit
 
 from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
                    point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
-from .ledger import N_TERMS as LEDGER_TERMS, ledger_modal, ledger_taylor
+from .ledger import N_TERMS as LEDGER_TERMS, ledger_closed, ledger_modal, ledger_taylor, \
+    piece_factors
 from .borrow import borrow, borrow_py  # noqa: F401  (borrow_py: the twin, for the tests)
 from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
                    positive_until)
@@ -69,12 +70,13 @@ CNT_SEARCHES = 1       # event searches (sub-intervals with impactors)
 CNT_CANDIDATES = 2     # event functions that passed the filters (Taylor stage)
 CNT_TAYLOR = 3         # high-order expansions of the state
 CNT_EVALS = 4          # flow evaluations at arbitrary times, outside the ledger
-CNT_LEDGER_PANELS = 5  # Taylor panels of the energy ledger (one per piece of a step, mostly)
+CNT_LEDGER_PANELS = 5  # Taylor panels of the energy ledger (pieces it takes in series)
 CNT_FALLBACK = 6       # event functions decided by the safe-step scan
 CNT_SWITCHES = 7       # configuration switches inside the kernel
 CNT_SEGMENTS = 8       # sub-intervals cut short at a Taylor segment end
 CNT_QUIET = 9          # output steps certified event-free in advance (no search)
-N_COUNTERS = 10
+CNT_LEDGER_CLOSED = 10  # pieces of a step whose ledger is in closed form (no series)
+N_COUNTERS = 11
 
 #: Output steps ahead that a quiet-window certificate tries to cover.
 QUIET_STEPS = 8
@@ -813,18 +815,21 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
         np.empty(n2, dtype=np.complex128),  # w_max
         np.empty(n2, dtype=np.complex128),  # w_zero
         np.empty((n2, terms), dtype=np.complex128),  # led_coef
-        np.empty((3, n, terms)),  # led_rows
+        np.empty((5, max(n, n2), terms)),  # led_rows
         np.empty((nf, terms)),  # led_u
         np.empty(n2 + n, dtype=np.int64),  # led_degs
         np.empty(n2, dtype=np.complex128),  # led_y0
-        np.empty((3, terms + 8 if ledger_on else 0, n)),  # led_soa
+        np.empty((3, terms + 8 if ledger_on else 0, max(n, n2))),  # led_soa
+        np.empty((2, n2, n) if ledger_on else (2, 0, 0)),  # led_vt
+        np.empty((3, n2 if ledger_on else 0), dtype=np.complex128),  # led_fac
+        np.empty(n2 if ledger_on else 0),  # led_m
     )
 
 
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, slot_state,
                table_mode, tb_built, tb_lam, tb_lam_max, tb_V, tb_Vinv, tb_W, tb_pp, tb_pm,
                tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh,
-               tb_p1h, tb_p2h, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts, tb_vmodal,
+               tb_p1h, tb_p2h, tb_mh, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts, tb_vmodal,
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
                stick_rule, stick_time, max_events_per_step, taylor_order,
@@ -868,6 +873,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     tb_eh = borrow(tb_eh)
     tb_p1h = borrow(tb_p1h)
     tb_p2h = borrow(tb_p2h)
+    tb_mh = borrow(tb_mh)
     tb_qcols = borrow(tb_qcols)
     tb_qcounts = borrow(tb_qcounts)
     tb_vcols = borrow(tb_vcols)
@@ -911,7 +917,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
      cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
      pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
-     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa) = work
+     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac, led_m) = work
     yh_tau = borrow(yh_tau)
     y_tau = borrow(y_tau)
     y_sw = borrow(y_sw)
@@ -956,6 +962,9 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     led_degs = borrow(led_degs)
     led_y0 = borrow(led_y0)
     led_soa = borrow(led_soa)
+    led_vt = borrow(led_vt)
+    led_fac = borrow(led_fac)
+    led_m = borrow(led_m)
     Xs[...] = 0
     X[...] = 0
     Eb[...] = 0
@@ -1053,11 +1062,26 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                 piece = tau
                 if whole_step:
                     piece = h
-                if modal_ledger and tb_vmodal[slot]:
+                used = -1
+                if modal_ledger and tb_vmodal[slot] and nh == 0:
+                    # closed form: the step's own flow factors, or the piece's
+                    if whole_step:
+                        used = ledger_closed(yh, lam, w0, ws, u0, us, h, tb_eh[slot],
+                                             tb_p1h[slot], tb_p2h[slot], tb_mh[slot],
+                                             tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat, led_rows[4, 0],
+                                             ledger)
+                    else:
+                        piece_factors(lam, piece, led_fac[0], led_fac[1], led_fac[2], led_m)
+                        used = ledger_closed(yh, lam, w0, ws, u0, us, piece, led_fac[0],
+                                             led_fac[1], led_fac[2], led_m, tb_V[slot, n:],
+                                             tb_vcols[slot], Cmat, Bmat, led_rows[4, 0], ledger)
+                if used > 0:
+                    counters[CNT_LEDGER_CLOSED] += 1
+                elif modal_ledger:
                     counters[CNT_LEDGER_PANELS] += ledger_modal(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
-                        piece, tb_lam_max[slot], tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat,
-                        led_soa, led_u, led_y0, ledger)
+                        piece, tb_lam_max[slot], tb_V[slot, n:], tb_vcols[slot],
+                        not tb_vmodal[slot], Cmat, Bmat, led_soa, led_vt, led_u, led_y0, ledger)
                 else:
                     counters[CNT_LEDGER_PANELS] += ledger_taylor(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,

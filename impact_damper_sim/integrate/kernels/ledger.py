@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .flow import cabs, point_eval, propagate
+from .flow import _PHI1_SERIES, cabs, phis, point_eval, propagate
 
 
 def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
@@ -101,13 +101,20 @@ N_TERMS = 16
 
 
 def _degree_radii(tol, n_terms):
-    """``r2[m]``: the largest ``|z|^2`` at which degree ``m`` leaves a first dropped term
-    ``|z|^(m+1)/(m+1)!`` below ``tol``."""
-    r2 = np.empty(n_terms)
-    fact = 1.0
-    for m in range(n_terms):
+    """``r2[m]``: the largest ``|z|^2`` at which degree ``m`` (at least 2) leaves a first
+    dropped term ``2 |z|^(m-1)/(m+1)!`` below ``tol``.
+
+    Beyond degree 2 the coefficients of a coordinate's series are ``c_m = c_2 2 z^(m-2)/m!``
+    (the second derivative is ``lam y' + ws``, the third ``lam`` times the second), and
+    ``c_2`` may be as large as the series' scale when the held input dominates (a piece of
+    ``|z| = 5e-5`` near rest: a rule on ``|z|^(m+1)/(m+1)!`` alone kept degree 2 and lost
+    5e-10 there).
+    """
+    r2 = np.zeros(n_terms)
+    fact = 2.0
+    for m in range(2, n_terms):
         fact *= m + 1
-        r2[m] = (tol * fact) ** (2.0 / (m + 1))
+        r2[m] = (0.5 * tol * fact) ** (2.0 / (m - 1))
     return r2
 
 
@@ -118,9 +125,10 @@ _HILBERT = 1.0 / np.arange(1.0, 2.0 * N_TERMS)
 
 
 def taylor_degree_py(z2):
-    """Degree of the series of ``exp(z x)`` on ``x in [0, 1]`` for ``|z|^2 = z2``: the first
-    dropped term is below ``TAYLOR_TOL`` (relative)."""
-    for m in range(N_TERMS - 1):
+    """Degree (at least 2) of the series of a coordinate on ``x in [0, 1]`` for
+    ``|z|^2 = z2``: the first dropped term is below ``TAYLOR_TOL`` of the series' scale
+    (:func:`_degree_radii`)."""
+    for m in range(2, N_TERMS - 1):
         if z2 <= _DEGREE_R2[m]:
             return m
     return N_TERMS - 1
@@ -186,7 +194,7 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
     Bmat : ndarray
         Input matrix (force per unit input).
     coef, rows, u_t, degs, y0 : ndarray
-        Work arrays: ``(n2, N_TERMS)`` complex, ``(3, n, N_TERMS)`` float,
+        Work arrays: ``(n2, N_TERMS)`` complex, ``(5, max(n, n2), N_TERMS)`` float,
         ``(nf, N_TERMS)`` float, ``n2 + n`` int, ``n2`` complex.
     ledger : ndarray
         Entries 2, 3, 4 receive damping (J), forcing (J) and circulatory (J) work.
@@ -214,6 +222,8 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
     qd = rows[0]
     q = rows[1]
     acc = rows[2]
+    cr = rows[3]
+    ci = rows[4]
     p_damp = 0.0
     p_force = 0.0
     p_circ = 0.0
@@ -265,29 +275,35 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
                 for m in range(deg_h + 1):
                     u_t[f, m] += a.real
                     a = a * zh * _INV[m + 1]
-        # velocity (and coordinate) polynomials of each row
+        # velocity (and coordinate) polynomials of each row: real parts of V coef, the
+        # degrees innermost and contiguous (the compiler vectorizes them; rows are dense in
+        # a stuck configuration)
+        for k in range(n2):
+            for m in range(d_top + 1):
+                cr[k, m] = coef[k, m].real
+                ci[k, m] = coef[k, m].imag
         for i in range(n):
             d = 0
             for c in range(v_counts[i]):
                 d = max(d, degs[v_cols[i, c]])
             degs[n2 + i] = d
-            for m in range(d + 1):
-                av = 0.0
-                for c in range(v_counts[i]):
-                    k = v_cols[i, c]
-                    x = Vv[i, k] * coef[k, m]
-                    av += x.real
-                qd[i, m] = av
-            for m in range(d + 1, d_top + 1):
+            for m in range(d_top + 1):
                 qd[i, m] = 0.0
+            for c in range(v_counts[i]):
+                k = v_cols[i, c]
+                vr = Vv[i, k].real
+                vi = Vv[i, k].imag
+                for m in range(d + 1):
+                    qd[i, m] += vr * cr[k, m] - vi * ci[k, m]
             if circulatory:
                 for m in range(d_top + 1):
-                    aq = 0.0
-                    for c in range(q_counts[i]):
-                        k = q_cols[i, c]
-                        x = Vq[i, k] * coef[k, m]
-                        aq += x.real
-                    q[i, m] = aq
+                    q[i, m] = 0.0
+                for c in range(q_counts[i]):
+                    k = q_cols[i, c]
+                    vr = Vq[i, k].real
+                    vi = Vq[i, k].imag
+                    for m in range(d_top + 1):
+                        q[i, m] += vr * cr[k, m] - vi * ci[k, m]
         pd = 0.0
         pf = 0.0
         pc = 0.0
@@ -335,18 +351,23 @@ ledger_taylor = njit(cache=True)(ledger_taylor_py)
 
 
 def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
-                    lam_max, Vv, v_cols, Cmat, Bmat, soa, u_t, y0, ledger):
-    """:func:`ledger_taylor` for modal coordinates: each velocity row reads one state
-    coordinate (``v_cols[i, 0]``), the damping is diagonal and there is no skew stiffness.
+                    lam_max, Vv, v_cols, dense, Cmat, Bmat, soa, vt, u_t, y0, ledger):
+    """:func:`ledger_taylor` for diagonal damping and no skew stiffness.
 
-    The same series and exact integration, laid out mode by mode (``soa[part, degree, row]``)
-    so that the rows are independent chains the compiler vectorizes, all rows to the degree
-    of the fastest one. Work arrays: ``soa`` ``(3, N_TERMS + 8, n)`` float, ``u_t``
-    ``(nf, N_TERMS)`` float, ``y0`` ``n2`` complex. Returns the panels used.
+    The same series and exact integration, laid out so that the inner loops run over rows or
+    coordinates with nothing but independent chains, which the compiler vectorizes, all to the
+    degree of the fastest coordinate. With ``dense`` false each velocity row reads one state
+    coordinate (``v_cols[i, 0]``: a modal configuration) and the series is kept per row; with
+    ``dense`` true (a stuck configuration: every row reads every coordinate) it is kept per
+    coordinate and the rows are sums of them. Work arrays: ``soa``
+    ``(3, N_TERMS + 8, max(n, n2))`` float, ``vt`` ``(2, n2, n)`` float (dense only),
+    ``u_t`` ``(nf, N_TERMS)`` float, ``y0`` ``n2`` complex. Returns the panels used.
     """
     if tau <= 0.0:
         return 0
     n = Vv.shape[0]
+    n2 = lam.size
+    nj = n2 if dense else n   # series columns: coordinates, or rows
     nf = u0.size
     nh = omegas.size
     w_top = 0.0
@@ -362,7 +383,7 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     cr = soa[0]
     ci = soa[1]
     qd = soa[2]
-    # per-row vectors after the series rows
+    # per-column and per-row vectors after the series rows
     zr = soa[0, N_TERMS]
     zi = soa[0, N_TERMS + 1]
     vr = soa[0, N_TERMS + 2]
@@ -372,41 +393,46 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     part = soa[0, N_TERMS + 6]
     bu = soa[0, N_TERMS + 7]
     for i in range(n):
-        k = v_cols[i, 0]
-        vr[i] = Vv[i, k].real
-        vi[i] = Vv[i, k].imag
+        if dense:
+            for k in range(n2):
+                vt[0, k, i] = Vv[i, k].real
+                vt[1, k, i] = Vv[i, k].imag
+        else:
+            k = v_cols[i, 0]
+            vr[i] = Vv[i, k].real
+            vi[i] = Vv[i, k].imag
         acc_d[i] = 0.0
         acc_f[i] = 0.0
     for p in range(n_pan):
         s0 = p * width
         if p == 0:
-            for k in range(lam.size):
+            for k in range(n2):
                 y0[k] = yh[k]
         else:
             propagate(yh, lam, s0, w0, ws, y0)
         t0 = t_cur + s0
-        for i in range(n):
-            k = v_cols[i, 0]
+        for j in range(nj):
+            k = j if dense else v_cols[j, 0]
             lk = lam[k]
             z = lk * width
-            zr[i] = z.real
-            zi[i] = z.imag
+            zr[j] = z.real
+            zi[j] = z.imag
             c = y0[k]
-            cr[0, i] = c.real
-            ci[0, i] = c.imag
+            cr[0, j] = c.real
+            ci[0, j] = c.imag
             c = width * (lk * c + w0[k] + ws[k] * s0)
-            cr[1, i] = c.real
-            ci[1, i] = c.imag
+            cr[1, j] = c.real
+            ci[1, j] = c.imag
             c = 0.5 * (z * c + (width * width) * ws[k])
-            cr[2, i] = c.real
-            ci[2, i] = c.imag
+            cr[2, j] = c.real
+            ci[2, j] = c.imag
         for m in range(3, deg + 1):
             inv = _INV[m]
-            for i in range(n):
-                ar = cr[m - 1, i]
-                ai = ci[m - 1, i]
-                cr[m, i] = (ar * zr[i] - ai * zi[i]) * inv
-                ci[m, i] = (ar * zi[i] + ai * zr[i]) * inv
+            for j in range(nj):
+                ar = cr[m - 1, j]
+                ai = ci[m - 1, j]
+                cr[m, j] = (ar * zr[j] - ai * zi[j]) * inv
+                ci[m, j] = (ar * zi[j] + ai * zr[j]) * inv
         for f in range(nf):
             u_t[f, 0] = u0[f] + us[f] * s0
             u_t[f, 1] = us[f] * width
@@ -415,14 +441,14 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
         for hh in range(nh):
             e = np.exp(1j * (omegas[hh] * t0))
             zh = 1j * (omegas[hh] * width)
-            for i in range(n):
-                k = v_cols[i, 0]
+            for j in range(nj):
+                k = j if dense else v_cols[j, 0]
                 a = part_plus[hh, k] * e
                 b = part_minus[hh, k] * np.conj(e)
                 for m in range(deg_h + 1):
                     c = a + b
-                    cr[m, i] += c.real
-                    ci[m, i] += c.imag
+                    cr[m, j] += c.real
+                    ci[m, j] += c.imag
                     a = a * zh * _INV[m + 1]
                     b = -b * zh * _INV[m + 1]
             for f in range(nf):
@@ -430,9 +456,19 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
                 for m in range(deg_h + 1):
                     u_t[f, m] += a.real
                     a = a * zh * _INV[m + 1]
-        for m in range(deg + 1):
-            for i in range(n):
-                qd[m, i] = vr[i] * cr[m, i] - vi[i] * ci[m, i]
+        if dense:
+            for m in range(deg + 1):
+                for i in range(n):
+                    qd[m, i] = 0.0
+                for k in range(n2):
+                    a = cr[m, k]
+                    b = ci[m, k]
+                    for i in range(n):
+                        qd[m, i] += vt[0, k, i] * a - vt[1, k, i] * b
+        else:
+            for m in range(deg + 1):
+                for i in range(n):
+                    qd[m, i] = vr[i] * cr[m, i] - vi[i] * ci[m, i]
         # damping: qd_i' H qd_i, each pair of degrees once (H[a, b] = 1/(a+b+1))
         for a in range(deg + 1):
             h_aa = 0.5 * _HILBERT[2 * a]
@@ -467,3 +503,185 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
 
 ledger_modal = njit(cache=True)(ledger_modal_py)
 
+
+#: Largest ``(|c|^2 max(1, |e^(lam tau)|^2) + |a|^2 + |b tau|^2) / (|y0|^2 + |w0 tau|^2 +
+#: |ws tau^2|^2)`` (the particular solution's size against the flow's own) at which
+#: :func:`ledger_closed` answers for a row in closed form (rounding error about
+#: ``10 eps CLOSED_COND``, 2e-13, of the row's scale); beyond it the row takes its Taylor
+#: series (:func:`row_series`), short there: the ratio is large only when ``|lam| tau`` is small.
+CLOSED_COND = 100.0
+
+
+def phi1_real_py(x):
+    """``(e^x - 1)/x`` of a real ``x``, accurate near 0 (Horner below ``|x| = 0.2``)."""
+    if x * x < 0.04:
+        top = 13 if x * x > 1e-4 else (7 if x * x > 1e-10 else 3)
+        a = _PHI1_SERIES[top]
+        for k in range(top - 1, -1, -1):
+            a = a * x + _PHI1_SERIES[k]
+        return a
+    return np.expm1(x) / x
+
+
+phi1_real = njit(cache=True, inline='always')(phi1_real_py)
+
+
+def piece_factors_py(lam, tau, e_tau, p1_tau, p2_tau, m_tau):
+    """Flow factors of a piece of length ``tau`` (s), per coordinate: ``exp(lam tau)`` (1),
+    ``tau phi1(lam tau)`` (s), ``tau^2 phi2(lam tau)`` (s^2) and
+    ``int_0^tau |e^(lam s)|^2 ds = tau phi1(2 Re(lam) tau)`` (s), with one exponential (none
+    below ``|lam tau| = 0.2``, where ``e = 1 + z phi1``)."""
+    for k in range(lam.size):
+        z = lam[k] * tau
+        r2 = z.real * z.real + z.imag * z.imag
+        if r2 < 0.04:
+            f1, f2 = phis(z)
+            e = 1.0 + z * f1
+        else:
+            e = np.exp(z)
+            inv = np.conj(z) * (1.0 / r2)
+            f1 = (e - 1.0) * inv
+            f2 = (f1 - 1.0) * inv
+        e_tau[k] = e
+        p1_tau[k] = tau * f1
+        p2_tau[k] = tau * tau * f2
+        m_tau[k] = tau * phi1_real(2.0 * z.real)
+
+
+piece_factors = njit(cache=True, inline='always')(piece_factors_py)
+
+
+
+
+def row_series_py(y0, lk, w0k, wsk, v, tau, g0, g1, qd):
+    """Damping integral ``int_0^tau qd^2`` (m^2/s) and forcing integral
+    ``int_0^tau qd (g0 + g1 s)`` (J per unit force scale) of one modal row
+    ``qd = Re(v y)``, from the Taylor series of ``y' = lam y + w0 + ws s`` (``|lam| tau`` at
+    most ``PANEL_RADIUS``): the series form of :func:`ledger_modal`, for one row. ``qd``:
+    work array of ``N_TERMS`` floats."""
+    z = lk * tau
+    deg = max(2, taylor_degree(z.real * z.real + z.imag * z.imag))
+    c1 = tau * (lk * y0 + w0k)
+    c2 = 0.5 * (z * c1 + (tau * tau) * wsk)
+    qd[0] = (v * y0).real
+    qd[1] = (v * c1).real
+    c = c2
+    for m in range(2, deg + 1):
+        qd[m] = (v * c).real
+        c = c * z * _INV[m + 1]
+    damp = 0.0
+    force = 0.0
+    for a in range(deg + 1):
+        x = 0.5 * qd[a] * _HILBERT[2 * a]
+        for b in range(a + 1, deg + 1):
+            x += qd[b] * _HILBERT[a + b]
+        damp += 2.0 * qd[a] * x
+        force += qd[a] * (g0 * _HILBERT[a] + g1 * tau * _HILBERT[a + 1])
+    return tau * damp, tau * force
+
+
+row_series = njit(cache=True, inline='always')(row_series_py)
+
+
+def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau, Vv, v_cols,
+                     Cmat, Bmat, work, ledger):
+    """:func:`ledger_modal` in closed form, for held inputs (no harmonics): each coordinate
+    is ``y(s) = c e^(lam s) + a + b s``, so each row's velocity is
+    ``Re(A e^(lam s)) + alpha + beta s`` and its damping and forcing powers integrate to
+    exponential integrals: the factors of :func:`piece_factors` (or the whole-step ones of
+    the propagator's table) give ``int e^(lam s)``, ``int s e^(lam s)``,
+    ``int e^(2 lam s) = int e^(lam s) (e^(lam tau) + 1)/2`` and ``int |e^(lam s)|^2``.
+
+    Parameters
+    ----------
+    yh : ndarray of complex
+        State coordinates at the start of the piece (modal units).
+    lam : ndarray of complex
+        Eigenvalues (1/s).
+    w0, ws : ndarray of complex
+        Held input ``W u0`` (modal units/s) and its slope ``W us`` (modal units/s^2).
+    u0, us : ndarray
+        Held inputs (N) and their slopes (N/s).
+    tau : float
+        Length of the piece (s).
+    e_tau, p1_tau, p2_tau : ndarray of complex
+        ``exp(lam tau)`` (1), ``tau phi1(lam tau)`` (s), ``tau^2 phi2(lam tau)`` (s^2).
+    m_tau : ndarray
+        ``int_0^tau |e^(lam s)|^2 ds`` (s).
+    Vv : ndarray of complex
+        Velocity rows (m/s per modal unit); row ``i`` reads coordinate ``v_cols[i, 0]``.
+    v_cols : ndarray of int
+        Coordinate read by each row.
+    Cmat : ndarray
+        Damping (N s/m), diagonal.
+    Bmat : ndarray
+        Input matrix (1).
+    work : ndarray
+        ``N_TERMS`` floats.
+    ledger : ndarray
+        Adds damping dissipation to ``ledger[2]`` and forcing work to ``ledger[3]`` (J).
+
+    Returns
+    -------
+    int
+        1; or -1 (ledger untouched) if a row whose particular solution is more than
+        ``sqrt(CLOSED_COND)`` times the flow's size has ``|lam| tau > PANEL_RADIUS`` (such a
+        row takes its series otherwise): the caller takes :func:`ledger_modal` instead.
+    """
+    n = Vv.shape[0]
+    nf = u0.size
+    tau2 = tau * tau
+    p_damp = 0.0
+    p_force = 0.0
+    for i in range(n):
+        k = v_cols[i, 0]
+        lk = lam[k]
+        v = Vv[i, k]
+        y0 = yh[k]
+        g0 = 0.0
+        g1 = 0.0
+        for f in range(nf):
+            g0 += Bmat[i, f] * u0[f]
+            g1 += Bmat[i, f] * us[f]
+        l2 = lk.real * lk.real + lk.imag * lk.imag
+        size_y = y0.real * y0.real + y0.imag * y0.imag \
+            + (w0[k].real * w0[k].real + w0[k].imag * w0[k].imag) * tau2 \
+            + (ws[k].real * ws[k].real + ws[k].imag * ws[k].imag) * tau2 * tau2
+        closed = l2 > 0.0
+        if closed:
+            inv = np.conj(lk) * (1.0 / l2)
+            b = -ws[k] * inv
+            a = (b - w0[k]) * inv
+            c = y0 - a
+            e = e_tau[k]
+            e2 = max(1.0, e.real * e.real + e.imag * e.imag)
+            size_p = (c.real * c.real + c.imag * c.imag) * e2 + a.real * a.real \
+                + a.imag * a.imag + (b.real * b.real + b.imag * b.imag) * tau2
+            closed = size_p <= CLOSED_COND * size_y
+        if not closed:
+            if l2 * tau2 > PANEL_RADIUS * PANEL_RADIUS:
+                return -1
+            d, fw = row_series(y0, lk, w0[k], ws[k], v, tau, g0, g1, work)
+            p_damp += Cmat[i, i] * d
+            p_force += fw
+            continue
+        amp = v * c
+        alpha = (v * a).real
+        beta = (v * b).real
+        i1 = p1_tau[k]
+        i_s = tau * i1 - p2_tau[k]
+        i2 = 0.5 * i1 * (e + 1.0)
+        im = m_tau[k]
+        amp2 = amp.real * amp.real + amp.imag * amp.imag
+        d = 0.5 * (amp * amp * i2).real + 0.5 * amp2 * im \
+            + 2.0 * (amp * (alpha * i1 + beta * i_s)).real \
+            + tau * (alpha * alpha + tau * (alpha * beta + tau * beta * beta / 3.0))
+        p_damp += Cmat[i, i] * d
+        p_force += (amp * (g0 * i1 + g1 * i_s)).real \
+            + tau * (alpha * g0 + tau * (0.5 * (alpha * g1 + beta * g0) + tau * beta * g1 / 3.0))
+    ledger[2] += p_damp
+    ledger[3] += p_force
+    return 1
+
+
+ledger_closed = njit(cache=True)(ledger_closed_py)
