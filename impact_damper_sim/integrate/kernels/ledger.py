@@ -7,10 +7,12 @@ the independent reference the tests hold them to. Conventions as in :mod:`.flow`
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
-from .flow import _PHI1_SERIES, cabs, phis, point_eval, propagate
+from .flow import _PHI1_SERIES, cabs, point_eval, propagate
 
 
 def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
@@ -526,16 +528,35 @@ def phi1_real_py(x):
 phi1_real = njit(cache=True, inline='always')(phi1_real_py)
 
 
+#: Taylor coefficients of phi2: 1/(k+2)!, k = 0..11
+_PHI2_SERIES = np.array([1.0 / math.factorial(k + 2) for k in range(12)])
+#: Largest |z|^2 at which degree 3, 5, 7, 9, 11 of the phi2 series leaves a first dropped
+#: term below 1e-17 of it (the terms are |z|^(d+1)/(d+3)! against 1/2)
+_PHI2_R2 = np.array([(0.5e-17 * math.factorial(d + 3)) ** (2.0 / (d + 1)) for d in (3, 5, 7, 9, 11)])
+
+
 def piece_factors_py(lam, tau, e_tau, p1_tau, p2_tau, m_tau):
     """Flow factors of a piece of length ``tau`` (s), per coordinate: ``exp(lam tau)`` (1),
     ``tau phi1(lam tau)`` (s), ``tau^2 phi2(lam tau)`` (s^2) and
-    ``int_0^tau |e^(lam s)|^2 ds = tau phi1(2 Re(lam) tau)`` (s), with one exponential (none
-    below ``|lam tau| = 0.2``, where ``e = 1 + z phi1``)."""
+    ``int_0^tau |e^(lam s)|^2 ds = tau phi1(2 Re(lam) tau)`` (s).
+
+    One exponential per coordinate at ``|lam tau| >= 0.2``; below, one Horner chain for
+    ``phi2`` of the degree its ``|z|`` needs (3 to 11), then ``phi1 = 1 + z phi2`` and
+    ``e = 1 + z phi1``, which cancel nothing there.
+    """
     for k in range(lam.size):
         z = lam[k] * tau
         r2 = z.real * z.real + z.imag * z.imag
         if r2 < 0.04:
-            f1, f2 = phis(z)
+            top = 11
+            for j in range(5):
+                if r2 <= _PHI2_R2[j]:
+                    top = 3 + 2 * j
+                    break
+            f2 = _PHI2_SERIES[top] + 0j
+            for m in range(top - 1, -1, -1):
+                f2 = f2 * z + _PHI2_SERIES[m]
+            f1 = 1.0 + z * f2
             e = 1.0 + z * f1
         else:
             e = np.exp(z)
