@@ -9,8 +9,10 @@ For each scene (default ``sdof, rbs_kcc, hpotp, hpotp_x10``) over its default du
   marginal cost ``(CPU - CPU with impacts disabled) / impacts``;
 * ``us/step``: CPU per output step of the same scene with impacts disabled;
 * the kernel's work counters per impact: event searches, Taylor expansions, flow evaluations
-  (outside the ledger's quadrature), fallback scans, in-kernel configuration switches, and
-  the returns to Python for a configuration change.
+  (outside the ledger), fallback scans, in-kernel configuration switches, and the returns to
+  Python for a configuration change;
+* the energy ledger: its CPU (ledger-on run minus ledger-off run), the pieces of steps it
+  integrated in closed form and the Taylor panels of the others, and the CPU per piece.
 
 ``--stick-rules`` also runs the paper's 0.2 % rule against the accumulation-point rule (cost,
 impacts per stick, and the RMS of each sensor, so that the effect on the answer is visible in
@@ -76,6 +78,7 @@ def scene_table(names, repeat, duration):
     print(f"{'scene':10s} {'sim s':>5s} {'impacts':>8s} {'RTF':>6s} {'RTF nl':>7s} "
           f"{'us/imp':>7s} {'marg.':>6s} {'us/step':>7s} | per impact: "
           f"{'search':>6s} {'taylor':>6s} {'evals':>6s} {'scan':>5s} {'switch':>6s} {'py':>5s}")
+    ledger_rows = []
     for name in names:
         scene = load(name)
         T = duration or scene.scene['simulation']['duration']
@@ -95,17 +98,28 @@ def scene_table(names, repeat, duration):
               f"{marginal} {per_step} |             "
               + ' '.join(f'{c[k] / n_imp:{w}.2f}' for k, w in zip(COUNTERS, (6, 6, 6, 5, 6, 5))),
               flush=True)
+        lc = led['counters']
+        ledger_rows.append((name, led['cpu'] - free['cpu'], lc['ledger_closed'],
+                            lc['ledger_panels']))
     print('RTF = simulated s / CPU s (RTF nl: energy ledger off); us/imp = CPU / impacts '
           '(ledger off); marg. = (CPU - CPU with impacts disabled) / impacts; us/step with '
           'impacts disabled; evals = flow evaluations outside the ledger; scan = fallback '
           'safe-step scans; py = returns to Python for a configuration change')
     print('targets: hpotp <= 5 us/impact and RTF >= 20; hpotp_x10 RTF >= 3')
+    print(f"\nenergy ledger: {'scene':10s} {'CPU s':>6s} {'closed':>8s} {'panels':>8s} "
+          f"{'us/piece':>8s}")
+    for name, cpu, closed, panels in ledger_rows:
+        print(f"               {name:10s} {cpu:6.3f} {closed:8d} {panels:8d} "
+              f"{1e6 * cpu / max(closed + panels, 1):8.2f}")
+    print('CPU = CPU with the ledger - CPU without; closed = pieces of steps integrated in closed '
+          'form; panels = Taylor panels of the others (one per piece, mostly)')
 
 
 def stick_rules(names, repeat, duration):
     print(f"\nstick rule: cost and answer (ledger on), same run")
     print(f"{'scene':10s} {'rule':13s} {'impacts':>8s} {'sticks':>7s} {'imp/stick':>9s} "
           f"{'RTF':>6s}  sensor RMS acceleration (m/s^2) | peak displacement (um)")
+    ledger_rows = []
     for name in names:
         scene = load(name)
         T = duration or scene.scene['simulation']['duration']

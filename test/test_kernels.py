@@ -188,8 +188,10 @@ def _fine_ledger(args, panels):
 
 def _ledger_case(rng, n, nf, nh, kind, lam_top, tau):
     """A random flow over one piece: ``kind`` 'coupled' (dense rows, dense damping, skew
-    stiffness), 'stuck' (dense rows, diagonal damping, as in a stuck configuration) or
-    'modal' (one complex coordinate per row, diagonal damping, no skew stiffness)."""
+    stiffness), 'kcc' (dense rows, diagonal damping, skew stiffness: a rotor with
+    cross-coupled stiffness), 'stuck' (dense rows, diagonal damping, as in a stuck
+    configuration) or 'modal' (one complex coordinate per row, diagonal damping, no skew
+    stiffness)."""
     coupled = kind != 'modal'
     n2 = 2 * n if coupled else n
     lam = -rng.uniform(1.0, 30.0, n2) + 1j * rng.uniform(-lam_top, lam_top, n2)
@@ -200,8 +202,10 @@ def _ledger_case(rng, n, nf, nh, kind, lam_top, tau):
     C = rng.normal(size=(n, n))
     if coupled:
         Vq, Vv, Kskew, C = cplx(n, n2), cplx(n, n2), rng.normal(size=(n, n)), C @ C.T
+        if kind != 'coupled':
+            C = np.diag(rng.uniform(0.1, 2.0, n))
         if kind == 'stuck':
-            Kskew, C = np.zeros((n, n)), np.diag(rng.uniform(0.1, 2.0, n))
+            Kskew = np.zeros((n, n))
     else:
         Vq = np.zeros((n, n2), complex)
         Vq[np.arange(n), rng.permutation(n2)] = cplx(n)
@@ -220,6 +224,7 @@ def _pattern(M):
 @pytest.mark.parametrize('kind, nh, lam_top, tau', [
     ('coupled', 2, 3e3, 7.3e-4),  # |lam| tau 2.2: three Taylor panels, harmonics, skew
     ('coupled', 0, 8e3, 3e-6),    # a short piece: low degree
+    ('kcc', 1, 3e3, 5e-5),        # RBS-like: dense rows, diagonal damping, skew, a harmonic
     ('stuck', 2, 3e3, 7.3e-4),    # dense rows, diagonal damping: three panels, harmonics
     ('stuck', 0, 8.1e3, 1e-4),    # the same, one panel of degree 13
     ('modal', 0, 8.1e3, 1e-4),    # HPOTP-like: |lam| tau 0.81, one panel of degree 13
@@ -230,8 +235,8 @@ def test_ledger_series_equal_fine_gauss_quadrature(rng, kind, nh, lam_top, tau):
     # The ledger's Taylor series, integrated exactly, against 4-point Gauss on 64 panels of
     # the piece (quadrature error < 1e-15 here): damping, forcing and circulatory work
     # agree to 1e-12 of the largest, and the form for diagonal damping (per row, or dense
-    # rows of a stuck configuration) to the general one to 1e-13 (each keeps the terms its
-    # own degree rule asks for).
+    # rows of a stuck configuration or a cross-coupled rotor) to the general one to 1e-13
+    # (each keeps the terms its own degree rule asks for).
     n, nf = 4, 3
     coupled = kind != 'modal'
     args = _ledger_case(rng, n, nf, nh, kind, lam_top, tau)
@@ -250,15 +255,15 @@ def test_ledger_series_equal_fine_gauss_quadrature(rng, kind, nh, lam_top, tau):
                         np.zeros(n2 + n, np.int64), np.empty(n2, complex), out)
         assert panels == max(1, int(np.ceil(max(np.abs(lam).max(), *omegas, 0.0) * tau)))
         np.testing.assert_allclose(out[2:], ref, rtol=0, atol=1e-12 * scale)
-        assert (out[4] != 0.0) == (kind == 'coupled')
+        assert (out[4] != 0.0) == (kind in ('coupled', 'kcc'))
     if kind == 'coupled':
         return
     for kernel in (L.ledger_modal, L.ledger_modal_py):
         modal = np.zeros(5)
         kernel(yh, lam, w0, ws, pp, pm, omegas, amps, u0, us, t, tau, np.abs(lam).max(), Vv,
-               _pattern(Vv)[0], coupled, C, B, np.full((3, L.N_TERMS + 8, max(n, n2)), np.nan),
-               np.full((2, n2, n), np.nan), np.full((nf, L.N_TERMS), np.nan),
-               np.empty(n2, complex), modal)
+               _pattern(Vv)[0], coupled, Kskew @ Vq, bool(np.any(Kskew)), C, B,
+               np.full((4, L.N_TERMS + 9, max(n, n2)), np.nan), np.full((4, n2, n), np.nan),
+               np.full((nf, L.N_TERMS), np.nan), np.empty(n2, complex), modal)
         np.testing.assert_allclose(modal[2:], ref, rtol=0, atol=1e-12 * scale)
         np.testing.assert_allclose(modal[2:], out[2:], rtol=0, atol=1e-13 * scale)
 

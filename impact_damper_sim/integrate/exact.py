@@ -89,7 +89,7 @@ class _Table:
     FIELDS = ('lam', 'V', 'Vinv', 'W', 'part_plus', 'part_minus', 'sensor_q', 'sensor_v',
               'house_q', 'kick', 'house_mobility', 'mobility', 'release_map')
 
-    def __init__(self, n_slots, flow, dt, ledger_on, n_q):
+    def __init__(self, n_slots, flow, dt, ledger_on, n_q, k_skew):
         self.dt = dt
         self.ledger_on = ledger_on
         self.built = np.zeros(n_slots, dtype=np.int64)
@@ -100,6 +100,10 @@ class _Table:
         self.lam_max = np.zeros(n_slots)
         self.e_h, self.p1_h, self.p2_h = (np.zeros((n_slots, n2), complex) for _ in range(3))
         self.m_h = np.zeros((n_slots, n2 if ledger_on else 0))   # int |e^(lam s)|^2 over dt
+        # skew stiffness times the coordinate rows, for the ledger's circulatory work
+        self.k_skew = k_skew if ledger_on and np.any(k_skew) else None
+        self.kvq = np.zeros((n_slots, n_q, n2) if self.k_skew is not None else (n_slots, 0, 0),
+                            complex)
         self.q_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
         self.q_counts = np.zeros((n_slots, n_q), dtype=np.int64)
         self.v_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
@@ -122,6 +126,8 @@ class _Table:
             self.v_modal[slot] = bool(np.all(self.v_counts[slot] == 1))
             scratch = np.empty((3, lam.size), complex)
             ledger_kernels.piece_factors(lam, self.dt, *scratch, self.m_h[slot])
+            if self.k_skew is not None:
+                self.kvq[slot] = self.k_skew @ flow.V[:n]
         self.built[slot] = 1
 
     def kernel_args(self, ni):
@@ -131,7 +137,7 @@ class _Table:
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
                 self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni],
                 a['mobility'][:, :ni],
-                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.m_h, self.q_cols,
+                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.m_h, self.kvq, self.q_cols,
                 self.q_counts, self.v_cols, self.v_counts, self.v_modal)
 
 
@@ -289,7 +295,7 @@ class ExactPropagator(IntegratorBase):
         flow = self._config(key)
         if table is None:
             table = _Table(self._n_slots, flow, self.dt, self.ledger_on, self.model.n
-                           if self._table_mode else self._flows[key][1].n)
+                           if self._table_mode else self._flows[key][1].n, self.model.K_skew)
             self._tables[table_key] = table
         slot = self._slot(key)
         if not table.built[slot]:

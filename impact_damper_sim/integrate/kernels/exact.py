@@ -819,8 +819,8 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
         np.empty((nf, terms)),  # led_u
         np.empty(n2 + n, dtype=np.int64),  # led_degs
         np.empty(n2, dtype=np.complex128),  # led_y0
-        np.empty((3, terms + 8 if ledger_on else 0, max(n, n2))),  # led_soa
-        np.empty((2, n2, n) if ledger_on else (2, 0, 0)),  # led_vt
+        np.empty((4, terms + 9 if ledger_on else 0, max(n, n2))),  # led_soa
+        np.empty((4, n2, n) if ledger_on else (4, 0, 0)),  # led_vt
         np.empty((3, n2 if ledger_on else 0), dtype=np.complex128),  # led_fac
         np.empty(n2 if ledger_on else 0),  # led_m
     )
@@ -829,7 +829,7 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, slot_state,
                table_mode, tb_built, tb_lam, tb_lam_max, tb_V, tb_Vinv, tb_W, tb_pp, tb_pm,
                tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh,
-               tb_p1h, tb_p2h, tb_mh, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts, tb_vmodal,
+               tb_p1h, tb_p2h, tb_mh, tb_kvq, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts, tb_vmodal,
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
                stick_rule, stick_time, max_events_per_step, taylor_order,
@@ -874,6 +874,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     tb_p1h = borrow(tb_p1h)
     tb_p2h = borrow(tb_p2h)
     tb_mh = borrow(tb_mh)
+    tb_kvq = borrow(tb_kvq)
     tb_qcols = borrow(tb_qcols)
     tb_qcounts = borrow(tb_qcounts)
     tb_vcols = borrow(tb_vcols)
@@ -984,12 +985,12 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
         for i2 in range(Kskew.shape[1]):
             if Kskew[i, i2] != 0.0:
                 circulatory = True
-    # the ledger's modal form: diagonal damping, no skew stiffness (and, per slot, one state
-    # coordinate per velocity row)
-    modal_ledger = not circulatory
+    # the ledger's forms for diagonal damping (closed form: also no skew stiffness and, per
+    # slot, one state coordinate per velocity row)
+    diag_ledger = True
     for i in range(c_counts.size):
         if c_counts[i] > 1 or (c_counts[i] == 1 and c_cols[i, 0] != i):
-            modal_ledger = False
+            diag_ledger = False
     slot = slot_state[0]
     release_normals(imp_stuck, imp_normal, tb_relmap[slot], release_n)
     t_cur = t_state[0]
@@ -1063,7 +1064,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                 if whole_step:
                     piece = h
                 used = -1
-                if modal_ledger and tb_vmodal[slot] and nh == 0:
+                if diag_ledger and not circulatory and tb_vmodal[slot] and nh == 0:
                     # closed form: the step's own flow factors, or the piece's
                     if whole_step:
                         used = ledger_closed(yh, lam, w0, ws, u0, us, h, tb_eh[slot],
@@ -1077,11 +1078,12 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                              tb_vcols[slot], Cmat, Bmat, led_rows[4, 0], ledger)
                 if used > 0:
                     counters[CNT_LEDGER_CLOSED] += 1
-                elif modal_ledger:
+                elif diag_ledger:
                     counters[CNT_LEDGER_PANELS] += ledger_modal(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
                         piece, tb_lam_max[slot], tb_V[slot, n:], tb_vcols[slot],
-                        not tb_vmodal[slot], Cmat, Bmat, led_soa, led_vt, led_u, led_y0, ledger)
+                        circulatory or not tb_vmodal[slot], tb_kvq[slot], circulatory, Cmat,
+                        Bmat, led_soa, led_vt, led_u, led_y0, ledger)
                 else:
                     counters[CNT_LEDGER_PANELS] += ledger_taylor(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,

@@ -353,16 +353,20 @@ ledger_taylor = njit(cache=True)(ledger_taylor_py)
 
 
 def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
-                    lam_max, Vv, v_cols, dense, Cmat, Bmat, soa, vt, u_t, y0, ledger):
-    """:func:`ledger_taylor` for diagonal damping and no skew stiffness.
+                    lam_max, Vv, v_cols, dense, KVq, circulatory, Cmat, Bmat, soa, vt, u_t, y0,
+                    ledger):
+    """:func:`ledger_taylor` for diagonal damping.
 
     The same series and exact integration, laid out so that the inner loops run over rows or
     coordinates with nothing but independent chains, which the compiler vectorizes, all to the
     degree of the fastest coordinate. With ``dense`` false each velocity row reads one state
     coordinate (``v_cols[i, 0]``: a modal configuration) and the series is kept per row; with
-    ``dense`` true (a stuck configuration: every row reads every coordinate) it is kept per
-    coordinate and the rows are sums of them. Work arrays: ``soa``
-    ``(3, N_TERMS + 8, max(n, n2))`` float, ``vt`` ``(2, n2, n)`` float (dense only),
+    ``dense`` true (a stuck configuration, or a rotor with cross-coupled stiffness: every
+    row reads every coordinate) it is kept per coordinate and the rows are sums of them.
+    With ``circulatory`` (dense only) the skew stiffness force rows ``K_skew q`` are sums of
+    the coordinates too, through ``KVq = K_skew Vq`` (N/m per modal unit, per configuration),
+    and their work goes to ``ledger[4]``. Work arrays: ``soa``
+    ``(4, N_TERMS + 9, max(n, n2))`` float, ``vt`` ``(4, n2, n)`` float (dense only),
     ``u_t`` ``(nf, N_TERMS)`` float, ``y0`` ``n2`` complex. Returns the panels used.
     """
     if tau <= 0.0:
@@ -385,6 +389,8 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     cr = soa[0]
     ci = soa[1]
     qd = soa[2]
+    kq = soa[3]
+    acc_c = soa[0, N_TERMS + 8]
     # per-column and per-row vectors after the series rows
     zr = soa[0, N_TERMS]
     zi = soa[0, N_TERMS + 1]
@@ -399,12 +405,16 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
             for k in range(n2):
                 vt[0, k, i] = Vv[i, k].real
                 vt[1, k, i] = Vv[i, k].imag
+                if circulatory:
+                    vt[2, k, i] = KVq[i, k].real
+                    vt[3, k, i] = KVq[i, k].imag
         else:
             k = v_cols[i, 0]
             vr[i] = Vv[i, k].real
             vi[i] = Vv[i, k].imag
         acc_d[i] = 0.0
         acc_f[i] = 0.0
+        acc_c[i] = 0.0
     for p in range(n_pan):
         s0 = p * width
         if p == 0:
@@ -467,6 +477,14 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
                     b = ci[m, k]
                     for i in range(n):
                         qd[m, i] += vt[0, k, i] * a - vt[1, k, i] * b
+                if circulatory:
+                    for i in range(n):
+                        kq[m, i] = 0.0
+                    for k in range(n2):
+                        a = cr[m, k]
+                        b = ci[m, k]
+                        for i in range(n):
+                            kq[m, i] += vt[2, k, i] * a - vt[3, k, i] * b
         else:
             for m in range(deg + 1):
                 for i in range(n):
@@ -493,13 +511,27 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
                 h_ab = width * _HILBERT[a + b]
                 for i in range(n):
                     acc_f[i] += h_ab * qd[a, i] * bu[i]
+        # circulatory: -qd_i (K_skew q)_i
+        if dense and circulatory:
+            for a in range(deg + 1):
+                for i in range(n):
+                    part[i] = 0.0
+                for b in range(deg + 1):
+                    h_ab = _HILBERT[a + b]
+                    for i in range(n):
+                        part[i] += h_ab * kq[b, i]
+                for i in range(n):
+                    acc_c[i] -= width * qd[a, i] * part[i]
     p_damp = 0.0
     p_force = 0.0
+    p_circ = 0.0
     for i in range(n):
         p_damp += Cmat[i, i] * acc_d[i]
         p_force += acc_f[i]
+        p_circ += acc_c[i]
     ledger[2] += p_damp
     ledger[3] += p_force
+    ledger[4] += p_circ
     return n_pan
 
 
