@@ -139,6 +139,56 @@ def taylor_degree_py(z2):
 taylor_degree = njit(cache=True, inline='always')(taylor_degree_py)
 
 
+def panel_plan_py(lam_max, omegas, tau):
+    """Panels of a piece of length ``tau`` (s): their number and width (s), no wider than
+    ``PANEL_RADIUS / max(max|lam|, max|omega|)``, and the series degree of the harmonics."""
+    w_top = 0.0
+    for hh in range(omegas.size):
+        w_top = max(w_top, abs(omegas[hh]))
+    n_pan = int(np.ceil(max(lam_max, w_top) * tau / PANEL_RADIUS))
+    if n_pan < 1:
+        n_pan = 1
+    width = tau / n_pan
+    deg_h = taylor_degree(w_top * w_top * width * width) if omegas.size > 0 else 0
+    return n_pan, width, deg_h
+
+
+panel_plan = njit(cache=True, inline='always')(panel_plan_py)
+
+
+def input_series_py(u0, us, amps, omegas, t0, s0, width, deg_u, deg_h, u_t):
+    """``u_t[f, m]``: Taylor coefficients (in the panel's ``x = s/width``) of the inputs over a
+    panel starting at ``s0`` (s) of a piece starting at ``t0 - s0`` (s): the held input and
+    its slope, plus the harmonics (their series to degree ``deg_h``)."""
+    for f in range(u0.size):
+        u_t[f, 0] = u0[f] + us[f] * s0
+        u_t[f, 1] = us[f] * width
+        for m in range(2, deg_u + 1):
+            u_t[f, m] = 0.0
+    for hh in range(omegas.size):
+        e = np.exp(1j * (omegas[hh] * t0))
+        zh = 1j * (omegas[hh] * width)
+        for f in range(u0.size):
+            a = amps[hh, f] * e
+            for m in range(deg_h + 1):
+                u_t[f, m] += a.real
+                a = a * zh * _INV[m + 1]
+
+
+input_series = njit(cache=True, inline='always')(input_series_py)
+
+
+def hilbert_dot_py(qd, i, di, b):
+    """``int_0^1 qd_i(x) x^b dx`` of row ``i``'s polynomial (degree ``di``)."""
+    x = 0.0
+    for a in range(di + 1):
+        x += qd[i, a] * _HILBERT[a + b]
+    return x
+
+
+hilbert_dot = njit(cache=True, inline='always')(hilbert_dot_py)
+
+
 def damping_row_py(qd, Cmat, c_cols, c_counts, degs, n2, i, di, acc):
     """``int_0^1 qd_i (C qd)_i dx`` of the velocity polynomials ``qd`` (rows, by degree)."""
     dc = 0
@@ -212,14 +262,7 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
     n2 = lam.size
     nf = u0.size
     nh = omegas.size
-    w_top = 0.0
-    for hh in range(nh):
-        w_top = max(w_top, abs(omegas[hh]))
-    n_pan = int(np.ceil(max(lam_max, w_top) * tau / PANEL_RADIUS))
-    if n_pan < 1:
-        n_pan = 1
-    width = tau / n_pan
-    deg_h = taylor_degree(w_top * w_top * width * width) if nh > 0 else 0
+    n_pan, width, deg_h = panel_plan(lam_max, omegas, tau)
     deg_u = max(1, deg_h)
     qd = rows[0]
     q = rows[1]
@@ -231,11 +274,7 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
     p_circ = 0.0
     for p in range(n_pan):
         s0 = p * width
-        if p == 0:
-            for k in range(n2):
-                y0[k] = yh[k]
-        else:
-            propagate(yh, lam, s0, w0, ws, y0)
+        propagate(yh, lam, s0, w0, ws, y0)   # the state at the panel's start (s0 = 0: yh)
         t0 = t_cur + s0
         # coef[k, m] = y_k^(m)(s0) width^m / m!, the forced part in closed form
         d_top = 2
@@ -257,11 +296,7 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
         for k in range(n2):
             for m in range(degs[k] + 1, d_top + 1):
                 coef[k, m] = 0.0
-        for f in range(nf):
-            u_t[f, 0] = u0[f] + us[f] * s0
-            u_t[f, 1] = us[f] * width
-            for m in range(2, deg_u + 1):
-                u_t[f, m] = 0.0
+        input_series(u0, us, amps, omegas, t0, s0, width, deg_u, deg_h, u_t)
         for hh in range(nh):
             e = np.exp(1j * (omegas[hh] * t0))
             zh = 1j * (omegas[hh] * width)
@@ -272,11 +307,6 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
                     coef[k, m] += a + b
                     a = a * zh * _INV[m + 1]
                     b = -b * zh * _INV[m + 1]
-            for f in range(nf):
-                a = amps[hh, f] * e
-                for m in range(deg_h + 1):
-                    u_t[f, m] += a.real
-                    a = a * zh * _INV[m + 1]
         # velocity (and coordinate) polynomials of each row: real parts of V coef, the
         # degrees innermost and contiguous (the compiler vectorizes them; rows are dense in
         # a stuck configuration)
@@ -327,19 +357,13 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
                 bu = 0.0
                 for f in range(nf):
                     bu += Bmat[i, f] * u_t[f, b]
-                x = 0.0
-                for a in range(di + 1):
-                    x += qd[i, a] * _HILBERT[a + b]
-                pf += bu * x
+                pf += bu * hilbert_dot(qd, i, di, b)
             if circulatory:
                 for b in range(d_top + 1):
                     kq = 0.0
                     for k2 in range(n):
                         kq += Kskew[i, k2] * q[k2, b]
-                    x = 0.0
-                    for a in range(di + 1):
-                        x += qd[i, a] * _HILBERT[a + b]
-                    pc -= kq * x
+                    pc -= kq * hilbert_dot(qd, i, di, b)
         p_damp += width * pd
         p_force += width * pf
         p_circ += width * pc
@@ -350,6 +374,21 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
 
 
 ledger_taylor = njit(cache=True)(ledger_taylor_py)
+
+
+def dense_row_sums_py(cr, ci, vt, part, m, n, n2, out):
+    """``out[m, i] = Re(sum_k R[i, k] c[k, m])`` for the rows ``R`` stored transposed as
+    ``vt[part]`` (real) and ``vt[part + 1]`` (imaginary), the rows innermost."""
+    for i in range(n):
+        out[m, i] = 0.0
+    for k in range(n2):
+        a = cr[m, k]
+        b = ci[m, k]
+        for i in range(n):
+            out[m, i] += vt[part, k, i] * a - vt[part + 1, k, i] * b
+
+
+dense_row_sums = njit(cache=True, inline='always')(dense_row_sums_py)
 
 
 def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
@@ -376,14 +415,7 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     nj = n2 if dense else n   # series columns: coordinates, or rows
     nf = u0.size
     nh = omegas.size
-    w_top = 0.0
-    for hh in range(nh):
-        w_top = max(w_top, abs(omegas[hh]))
-    n_pan = int(np.ceil(max(lam_max, w_top) * tau / PANEL_RADIUS))
-    if n_pan < 1:
-        n_pan = 1
-    width = tau / n_pan
-    deg_h = taylor_degree(w_top * w_top * width * width) if nh > 0 else 0
+    n_pan, width, deg_h = panel_plan(lam_max, omegas, tau)
     deg = max(2, deg_h, taylor_degree(lam_max * lam_max * width * width))
     deg_u = max(1, deg_h)
     cr = soa[0]
@@ -417,11 +449,7 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
         acc_c[i] = 0.0
     for p in range(n_pan):
         s0 = p * width
-        if p == 0:
-            for k in range(n2):
-                y0[k] = yh[k]
-        else:
-            propagate(yh, lam, s0, w0, ws, y0)
+        propagate(yh, lam, s0, w0, ws, y0)   # the state at the panel's start (s0 = 0: yh)
         t0 = t_cur + s0
         for j in range(nj):
             k = j if dense else v_cols[j, 0]
@@ -445,11 +473,7 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
                 ai = ci[m - 1, j]
                 cr[m, j] = (ar * zr[j] - ai * zi[j]) * inv
                 ci[m, j] = (ar * zi[j] + ai * zr[j]) * inv
-        for f in range(nf):
-            u_t[f, 0] = u0[f] + us[f] * s0
-            u_t[f, 1] = us[f] * width
-            for m in range(2, deg_u + 1):
-                u_t[f, m] = 0.0
+        input_series(u0, us, amps, omegas, t0, s0, width, deg_u, deg_h, u_t)
         for hh in range(nh):
             e = np.exp(1j * (omegas[hh] * t0))
             zh = 1j * (omegas[hh] * width)
@@ -463,28 +487,11 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
                     ci[m, j] += c.imag
                     a = a * zh * _INV[m + 1]
                     b = -b * zh * _INV[m + 1]
-            for f in range(nf):
-                a = amps[hh, f] * e
-                for m in range(deg_h + 1):
-                    u_t[f, m] += a.real
-                    a = a * zh * _INV[m + 1]
         if dense:
             for m in range(deg + 1):
-                for i in range(n):
-                    qd[m, i] = 0.0
-                for k in range(n2):
-                    a = cr[m, k]
-                    b = ci[m, k]
-                    for i in range(n):
-                        qd[m, i] += vt[0, k, i] * a - vt[1, k, i] * b
+                dense_row_sums(cr, ci, vt, 0, m, n, n2, qd)
                 if circulatory:
-                    for i in range(n):
-                        kq[m, i] = 0.0
-                    for k in range(n2):
-                        a = cr[m, k]
-                        b = ci[m, k]
-                        for i in range(n):
-                            kq[m, i] += vt[2, k, i] * a - vt[3, k, i] * b
+                    dense_row_sums(cr, ci, vt, 2, m, n, n2, kq)
         else:
             for m in range(deg + 1):
                 for i in range(n):
