@@ -39,8 +39,8 @@ from numba import njit
 
 from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
                    point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
-from .ledger import N_TERMS as LEDGER_TERMS, ledger_closed, ledger_modal, ledger_taylor, \
-    piece_factors
+from .ledger import N_TERMS as LEDGER_TERMS, harmonic_factors, ledger_closed, ledger_modal, \
+    ledger_taylor, piece_factors
 from .borrow import borrow, borrow_py  # noqa: F401  (borrow_py: the twin, for the tests)
 from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
                    positive_until)
@@ -823,6 +823,7 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
         np.empty((4, n2, n) if ledger_on else (4, 0, 0)),  # led_vt
         np.empty((3, n2 if ledger_on else 0), dtype=np.complex128),  # led_fac
         np.empty(n2 if ledger_on else 0),  # led_m
+        np.empty((4 + 2 * nh, nh) if ledger_on else (0, 0), dtype=np.complex128),  # led_harm
     )
 
 
@@ -918,7 +919,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
      cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
      pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
-     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac, led_m) = work
+     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac, led_m, led_harm) = work
     yh_tau = borrow(yh_tau)
     y_tau = borrow(y_tau)
     y_sw = borrow(y_sw)
@@ -966,6 +967,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     led_vt = borrow(led_vt)
     led_fac = borrow(led_fac)
     led_m = borrow(led_m)
+    led_harm = borrow(led_harm)
     Xs[...] = 0
     X[...] = 0
     Eb[...] = 0
@@ -1064,18 +1066,23 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                 if whole_step:
                     piece = h
                 used = -1
-                if diag_ledger and not circulatory and tb_vmodal[slot] and nh == 0:
+                if diag_ledger and not circulatory and tb_vmodal[slot]:
                     # closed form: the step's own flow factors, or the piece's
+                    if nh > 0:
+                        harmonic_factors(omegas, t_cur, piece, led_harm)
                     if whole_step:
                         used = ledger_closed(yh, lam, w0, ws, u0, us, h, tb_eh[slot],
                                              tb_p1h[slot], tb_p2h[slot], tb_mh[slot],
-                                             tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat, led_rows[4, 0],
-                                             ledger)
+                                             part_plus, part_minus, omegas, amps, led_harm,
+                                             tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat,
+                                             led_rows[4, 0], ledger)
                     else:
                         piece_factors(lam, piece, led_fac[0], led_fac[1], led_fac[2], led_m)
                         used = ledger_closed(yh, lam, w0, ws, u0, us, piece, led_fac[0],
-                                             led_fac[1], led_fac[2], led_m, tb_V[slot, n:],
-                                             tb_vcols[slot], Cmat, Bmat, led_rows[4, 0], ledger)
+                                             led_fac[1], led_fac[2], led_m, part_plus,
+                                             part_minus, omegas, amps, led_harm,
+                                             tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat,
+                                             led_rows[4, 0], ledger)
                 if used > 0:
                     counters[CNT_LEDGER_CLOSED] += 1
                 elif diag_ledger:

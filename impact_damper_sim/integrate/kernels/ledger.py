@@ -574,38 +574,73 @@ _PHI2_SERIES = np.array([1.0 / math.factorial(k + 2) for k in range(12)])
 _PHI2_R2 = np.array([(0.5e-17 * math.factorial(d + 3)) ** (2.0 / (d + 1)) for d in (3, 5, 7, 9, 11)])
 
 
+def phis_from_py(z, ez):
+    """``(phi1(z), phi2(z))`` of a complex ``z`` given ``ez = e^z``: below ``|z| = 0.2`` one
+    Horner chain for ``phi2`` of the degree ``|z|`` needs (3 to 11; ``ez`` unused), then
+    ``phi1 = 1 + z phi2``, which cancels nothing there; above, from ``ez``."""
+    r2 = z.real * z.real + z.imag * z.imag
+    if r2 < 0.04:
+        top = 11
+        for j in range(5):
+            if r2 <= _PHI2_R2[j]:
+                top = 3 + 2 * j
+                break
+        f2 = _PHI2_SERIES[top] + 0j
+        for m in range(top - 1, -1, -1):
+            f2 = f2 * z + _PHI2_SERIES[m]
+        return 1.0 + z * f2, f2
+    inv = np.conj(z) * (1.0 / r2)
+    f1 = (ez - 1.0) * inv
+    return f1, (f1 - 1.0) * inv
+
+
+phis_from = njit(cache=True, inline='always')(phis_from_py)
+
+
 def piece_factors_py(lam, tau, e_tau, p1_tau, p2_tau, m_tau):
     """Flow factors of a piece of length ``tau`` (s), per coordinate: ``exp(lam tau)`` (1),
     ``tau phi1(lam tau)`` (s), ``tau^2 phi2(lam tau)`` (s^2) and
     ``int_0^tau |e^(lam s)|^2 ds = tau phi1(2 Re(lam) tau)`` (s).
 
-    One exponential per coordinate at ``|lam tau| >= 0.2``; below, one Horner chain for
-    ``phi2`` of the degree its ``|z|`` needs (3 to 11), then ``phi1 = 1 + z phi2`` and
-    ``e = 1 + z phi1``, which cancel nothing there.
+    One exponential per coordinate at ``|lam tau| >= 0.2``; below, none
+    (:func:`phis_from`, then ``e = 1 + z phi1``).
     """
     for k in range(lam.size):
         z = lam[k] * tau
-        r2 = z.real * z.real + z.imag * z.imag
-        if r2 < 0.04:
-            top = 11
-            for j in range(5):
-                if r2 <= _PHI2_R2[j]:
-                    top = 3 + 2 * j
-                    break
-            f2 = _PHI2_SERIES[top] + 0j
-            for m in range(top - 1, -1, -1):
-                f2 = f2 * z + _PHI2_SERIES[m]
-            f1 = 1.0 + z * f2
+        if z.real * z.real + z.imag * z.imag < 0.04:
+            f1, f2 = phis_from(z, 0j)
             e = 1.0 + z * f1
         else:
             e = np.exp(z)
-            inv = np.conj(z) * (1.0 / r2)
-            f1 = (e - 1.0) * inv
-            f2 = (f1 - 1.0) * inv
+            f1, f2 = phis_from(z, e)
         e_tau[k] = e
         p1_tau[k] = tau * f1
         p2_tau[k] = tau * tau * f2
         m_tau[k] = tau * phi1_real(2.0 * z.real)
+
+
+def harmonic_factors_py(omegas, t0, tau, harm):
+    """Factors of the harmonics over a piece ``[t0, t0 + tau]`` (s), ``harm`` of shape
+    ``(4 + 2 nh, nh)`` complex: ``e^(i omega t0)`` (1), ``e^(i omega tau)`` (1),
+    ``int_0^tau e^(i omega s) ds`` (s), ``int_0^tau s e^(i omega s) ds`` (s^2), then the
+    products ``int e^(i (omega_h + omega_g) s)`` and ``int e^(i (omega_h - omega_g) s)`` (s)."""
+    nh = omegas.size
+    for h in range(nh):
+        harm[0, h] = np.exp(1j * (omegas[h] * t0))
+        harm[1, h] = np.exp(1j * (omegas[h] * tau))
+        f1, f2 = phis_from(1j * (omegas[h] * tau), harm[1, h])
+        harm[2, h] = tau * f1
+        harm[3, h] = tau * tau * (f1 - f2)
+    for h in range(nh):
+        for g in range(nh):
+            f1, f2 = phis_from(1j * ((omegas[h] + omegas[g]) * tau), harm[1, h] * harm[1, g])
+            harm[4 + h, g] = tau * f1
+            f1, f2 = phis_from(1j * ((omegas[h] - omegas[g]) * tau),
+                               harm[1, h] * np.conj(harm[1, g]))
+            harm[4 + nh + h, g] = tau * f1
+
+
+harmonic_factors = njit(cache=True, inline='always')(harmonic_factors_py)
 
 
 piece_factors = njit(cache=True, inline='always')(piece_factors_py)
@@ -643,11 +678,12 @@ def row_series_py(y0, lk, w0k, wsk, v, tau, g0, g1, qd):
 row_series = njit(cache=True, inline='always')(row_series_py)
 
 
-def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau, Vv, v_cols,
-                     Cmat, Bmat, work, ledger):
-    """:func:`ledger_modal` in closed form, for held inputs (no harmonics): each coordinate
-    is ``y(s) = c e^(lam s) + a + b s``, so each row's velocity is
-    ``Re(A e^(lam s)) + alpha + beta s`` and its damping and forcing powers integrate to
+def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau, part_plus,
+                     part_minus, omegas, amps, harm, Vv, v_cols, Cmat, Bmat, work, ledger):
+    """:func:`ledger_modal` in closed form: each coordinate is ``y(s) = c e^(lam s) + a + b s``
+    plus its harmonic particular solution, so each row's velocity is
+    ``Re(A e^(lam s)) + alpha + beta s + sum_h Re(R_h e^(i omega_h s))`` (and each input
+    ``g0 + g1 s + sum_h Re(G_h e^(i omega_h s))``), and its damping and forcing powers integrate to
     exponential integrals: the factors of :func:`piece_factors` (or the whole-step ones of
     the propagator's table) give ``int e^(lam s)``, ``int s e^(lam s)``,
     ``int e^(2 lam s) = int e^(lam s) (e^(lam tau) + 1)/2`` and ``int |e^(lam s)|^2``.
@@ -668,6 +704,11 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
         ``exp(lam tau)`` (1), ``tau phi1(lam tau)`` (s), ``tau^2 phi2(lam tau)`` (s^2).
     m_tau : ndarray
         ``int_0^tau |e^(lam s)|^2 ds`` (s).
+    part_plus, part_minus, omegas, amps : ndarray
+        Harmonic particular solution (modal units), frequencies (rad/s) and input amplitudes
+        (N), as in :func:`.flow.point_eval`; empty without harmonics.
+    harm : ndarray of complex
+        :func:`harmonic_factors` of the piece.
     Vv : ndarray of complex
         Velocity rows (m/s per modal unit); row ``i`` reads coordinate ``v_cols[i, 0]``.
     v_cols : ndarray of int
@@ -685,11 +726,13 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
     -------
     int
         1; or -1 (ledger untouched) if a row whose particular solution is more than
-        ``sqrt(CLOSED_COND)`` times the flow's size has ``|lam| tau > PANEL_RADIUS`` (such a
-        row takes its series otherwise): the caller takes :func:`ledger_modal` instead.
+        ``sqrt(CLOSED_COND)`` times the flow's size has harmonics or ``|lam| tau >
+        PANEL_RADIUS`` (such a row takes its series otherwise): the caller takes
+        :func:`ledger_modal` instead.
     """
     n = Vv.shape[0]
     nf = u0.size
+    nh = part_plus.shape[0]
     tau2 = tau * tau
     p_damp = 0.0
     p_force = 0.0
@@ -719,7 +762,7 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
                 + a.imag * a.imag + (b.real * b.real + b.imag * b.imag) * tau2
             closed = size_p <= CLOSED_COND * size_y
         if not closed:
-            if l2 * tau2 > PANEL_RADIUS * PANEL_RADIUS:
+            if nh > 0 or l2 * tau2 > PANEL_RADIUS * PANEL_RADIUS:
                 return -1
             d, fw = row_series(y0, lk, w0[k], ws[k], v, tau, g0, g1, work)
             p_damp += Cmat[i, i] * d
@@ -736,9 +779,38 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
         d = 0.5 * (amp * amp * i2).real + 0.5 * amp2 * im \
             + 2.0 * (amp * (alpha * i1 + beta * i_s)).real \
             + tau * (alpha * alpha + tau * (alpha * beta + tau * beta * beta / 3.0))
-        p_damp += Cmat[i, i] * d
-        p_force += (amp * (g0 * i1 + g1 * i_s)).real \
+        fw = (amp * (g0 * i1 + g1 * i_s)).real \
             + tau * (alpha * g0 + tau * (0.5 * (alpha * g1 + beta * g0) + tau * beta * g1 / 3.0))
+        for h in range(nh):
+            # the harmonic terms: R_h in the velocity, G_h in the input
+            eh = harm[0, h]
+            om = harm[1, h]
+            r_h = eh * (v * part_plus[h, k] + np.conj(v * part_minus[h, k]))
+            g_h = 0j
+            for f in range(nf):
+                g_h += Bmat[i, f] * amps[h, f]
+            g_h *= eh
+            z = lk * tau
+            w_tau = 1j * (omegas[h] * tau)
+            j_plus = tau * phis_from(z + w_tau, e * om)[0]
+            j_minus = tau * phis_from(z - w_tau, e * np.conj(om))[0]
+            lin = alpha * harm[2, h] + beta * harm[3, h]
+            d += (amp * r_h * j_plus).real + (amp * np.conj(r_h) * j_minus).real \
+                + 2.0 * (r_h * lin).real
+            fw += 0.5 * ((amp * g_h * j_plus).real + (amp * np.conj(g_h) * j_minus).real) \
+                + (g_h * lin).real + (r_h * (g0 * harm[2, h] + g1 * harm[3, h])).real
+            for g in range(nh):
+                r_g = harm[0, g] * (v * part_plus[g, k] + np.conj(v * part_minus[g, k]))
+                g_g = 0j
+                for f in range(nf):
+                    g_g += Bmat[i, f] * amps[g, f]
+                g_g *= harm[0, g]
+                pp_hg = harm[4 + h, g]
+                pm_hg = harm[4 + nh + h, g]
+                d += 0.5 * ((r_h * r_g * pp_hg).real + (r_h * np.conj(r_g) * pm_hg).real)
+                fw += 0.5 * ((r_h * g_g * pp_hg).real + (r_h * np.conj(g_g) * pm_hg).real)
+        p_damp += Cmat[i, i] * d
+        p_force += fw
     ledger[2] += p_damp
     ledger[3] += p_force
     return 1
