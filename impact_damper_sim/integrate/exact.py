@@ -137,8 +137,8 @@ class _Table:
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
                 self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni],
                 a['mobility'][:, :ni],
-                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.m_h, self.kvq, self.q_cols,
-                self.q_counts, self.v_cols, self.v_counts, self.v_modal)
+                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.m_h, self.kvq,
+                self.q_cols, self.q_counts, self.v_cols, self.v_counts, self.v_modal)
 
 
 class ExactPropagator(IntegratorBase):

@@ -830,7 +830,8 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, slot_state,
                table_mode, tb_built, tb_lam, tb_lam_max, tb_V, tb_Vinv, tb_W, tb_pp, tb_pm,
                tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh,
-               tb_p1h, tb_p2h, tb_mh, tb_kvq, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts, tb_vmodal,
+               tb_p1h, tb_p2h, tb_mh, tb_kvq, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts,
+               tb_vmodal,
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
                stick_rule, stick_time, max_events_per_step, taylor_order,
@@ -919,7 +920,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
      cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
      pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
-     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac, led_m, led_harm) = work
+     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac,
+     led_m, led_harm) = work
     yh_tau = borrow(yh_tau)
     y_tau = borrow(y_tau)
     y_sw = borrow(y_sw)
@@ -1065,8 +1067,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                 piece = tau
                 if whole_step:
                     piece = h
-                used = -1
-                if diag_ledger and not circulatory and tb_vmodal[slot]:
+                used = -1 if piece > 0.0 else 0   # nothing to add over an empty piece
+                if used < 0 and diag_ledger and not circulatory and tb_vmodal[slot]:
                     # closed form: the step's own flow factors, or the piece's
                     if nh > 0:
                         harmonic_factors(omegas, t_cur, piece, led_harm)
@@ -1083,8 +1085,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                              part_minus, omegas, amps, led_harm,
                                              tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat,
                                              led_rows[4, 0], ledger)
-                if used > 0:
-                    counters[CNT_LEDGER_CLOSED] += 1
+                if used >= 0:
+                    counters[CNT_LEDGER_CLOSED] += used
                 elif diag_ledger:
                     counters[CNT_LEDGER_PANELS] += ledger_modal(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,

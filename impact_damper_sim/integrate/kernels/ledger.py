@@ -571,7 +571,8 @@ phi1_real = njit(cache=True, inline='always')(phi1_real_py)
 _PHI2_SERIES = np.array([1.0 / math.factorial(k + 2) for k in range(12)])
 #: Largest |z|^2 at which degree 3, 5, 7, 9, 11 of the phi2 series leaves a first dropped
 #: term below 1e-17 of it (the terms are |z|^(d+1)/(d+3)! against 1/2)
-_PHI2_R2 = np.array([(0.5e-17 * math.factorial(d + 3)) ** (2.0 / (d + 1)) for d in (3, 5, 7, 9, 11)])
+_PHI2_R2 = np.array([(0.5e-17 * math.factorial(d + 3)) ** (2.0 / (d + 1))
+                     for d in (3, 5, 7, 9, 11)])
 
 
 def phis_from_py(z, ez):
