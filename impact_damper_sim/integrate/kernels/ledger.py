@@ -1,9 +1,12 @@
 """Numba kernels of the energy ledger: damping, forcing and circulatory work (J).
 
-The exact engine integrates the powers over each piece of a step from Taylor series of the
-exact flow (:func:`ledger_taylor`, and :func:`ledger_modal` for modal coordinates), exactly
-term by term. :func:`ledger_panel`, composite 4-point Gauss-Legendre on flow evaluations, is
-the independent reference the tests hold them to. Conventions as in :mod:`.flow`.
+The exact engine integrates the powers over each piece of a step exactly: in closed form
+where each velocity row reads one modal coordinate (:func:`ledger_closed`: exponential
+integrals of the piece's flow factors, held inputs and harmonics), otherwise term by term on
+Taylor series of the exact flow (:func:`ledger_modal` for diagonal damping, rows innermost;
+:func:`ledger_taylor` in general). :func:`ledger_panel`, composite 4-point Gauss-Legendre on
+flow evaluations, is the independent reference the tests hold them to. Conventions as in
+:mod:`.flow`.
 """
 from __future__ import annotations
 
@@ -76,7 +79,6 @@ def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
 
 
 ledger_panel = njit(cache=True)(ledger_panel_py)
-
 
 
 def row_pattern_py(V, cols, counts):
