@@ -124,8 +124,8 @@ class _Table:
             ledger_kernels.row_pattern(flow.V[:n], self.q_cols[slot], self.q_counts[slot])
             ledger_kernels.row_pattern(flow.V[n:], self.v_cols[slot], self.v_counts[slot])
             self.v_modal[slot] = bool(np.all(self.v_counts[slot] == 1))
-            scratch = np.empty((3, lam.size), complex)
-            ledger_kernels.piece_factors(lam, self.dt, *scratch, self.m_h[slot])
+            for k in range(lam.size):   # int |e^(lam s)|^2 over a step, as piece_factors
+                self.m_h[slot, k] = self.dt * ledger_kernels.phi1_real(2.0 * lam[k].real * self.dt)
             if self.k_skew is not None:
                 self.kvq[slot] = self.k_skew @ flow.V[:n]
         self.built[slot] = 1

@@ -824,6 +824,7 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
         np.empty((3, n2 if ledger_on else 0), dtype=np.complex128),  # led_fac
         np.empty(n2 if ledger_on else 0),  # led_m
         np.empty((4 + 2 * nh, nh) if ledger_on else (0, 0), dtype=np.complex128),  # led_harm
+        np.empty((2, nh), dtype=np.complex128),  # led_rg
     )
 
 
@@ -921,7 +922,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
      cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
      pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
      w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac,
-     led_m, led_harm) = work
+     led_m, led_harm, led_rg) = work
     yh_tau = borrow(yh_tau)
     y_tau = borrow(y_tau)
     y_sw = borrow(y_sw)
@@ -970,6 +971,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     led_fac = borrow(led_fac)
     led_m = borrow(led_m)
     led_harm = borrow(led_harm)
+    led_rg = borrow(led_rg)
     Xs[...] = 0
     X[...] = 0
     Eb[...] = 0
@@ -1077,14 +1079,14 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                              tb_p1h[slot], tb_p2h[slot], tb_mh[slot],
                                              part_plus, part_minus, omegas, amps, led_harm,
                                              tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat,
-                                             led_rows[4, 0], ledger)
+                                             led_rows[4, 0], led_rg, ledger)
                     else:
                         piece_factors(lam, piece, led_fac[0], led_fac[1], led_fac[2], led_m)
                         used = ledger_closed(yh, lam, w0, ws, u0, us, piece, led_fac[0],
                                              led_fac[1], led_fac[2], led_m, part_plus,
                                              part_minus, omegas, amps, led_harm,
                                              tb_V[slot, n:], tb_vcols[slot], Cmat, Bmat,
-                                             led_rows[4, 0], ledger)
+                                             led_rows[4, 0], led_rg, ledger)
                 if used >= 0:
                     counters[CNT_LEDGER_CLOSED] += used
                 elif diag_ledger:

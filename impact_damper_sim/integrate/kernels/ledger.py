@@ -695,7 +695,7 @@ row_series = njit(cache=True, inline='always')(row_series_py)
 
 
 def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau, part_plus,
-                     part_minus, omegas, amps, harm, Vv, v_cols, Cmat, Bmat, work, ledger):
+                     part_minus, omegas, amps, harm, Vv, v_cols, Cmat, Bmat, work, rg, ledger):
     """:func:`ledger_modal` in closed form: each coordinate is ``y(s) = c e^(lam s) + a + b s``
     plus its harmonic particular solution, so each row's velocity is
     ``Re(A e^(lam s)) + alpha + beta s + sum_h Re(R_h e^(i omega_h s))`` (and each input
@@ -735,6 +735,8 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
         Input matrix (1).
     work : ndarray
         ``N_TERMS`` floats.
+    rg : ndarray of complex
+        ``(2, nh)``: a row's harmonic velocity and input amplitudes ``R_h``, ``G_h``.
     ledger : ndarray
         Adds damping dissipation to ``ledger[2]`` and forcing work to ``ledger[3]`` (J).
 
@@ -797,16 +799,18 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
             + tau * (alpha * alpha + tau * (alpha * beta + tau * beta * beta / 3.0))
         fw = (amp * (g0 * i1 + g1 * i_s)).real \
             + tau * (alpha * g0 + tau * (0.5 * (alpha * g1 + beta * g0) + tau * beta * g1 / 3.0))
+        # the harmonic terms: R_h in the velocity, G_h in the input
         for h in range(nh):
-            # the harmonic terms: R_h in the velocity, G_h in the input
-            eh = harm[0, h]
-            om = harm[1, h]
-            r_h = eh * (v * part_plus[h, k] + np.conj(v * part_minus[h, k]))
             g_h = 0j
             for f in range(nf):
                 g_h += Bmat[i, f] * amps[h, f]
-            g_h *= eh
-            z = lk * tau
+            rg[0, h] = harm[0, h] * (v * part_plus[h, k] + np.conj(v * part_minus[h, k]))
+            rg[1, h] = harm[0, h] * g_h
+        z = lk * tau
+        for h in range(nh):
+            r_h = rg[0, h]
+            g_h = rg[1, h]
+            om = harm[1, h]
             w_tau = 1j * (omegas[h] * tau)
             j_plus = tau * phi1_ledger(z + w_tau, e * om)
             j_minus = tau * phi1_ledger(z - w_tau, e * np.conj(om))
@@ -816,15 +820,12 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
             fw += 0.5 * ((amp * g_h * j_plus).real + (amp * np.conj(g_h) * j_minus).real) \
                 + (g_h * lin).real + (r_h * (g0 * harm[2, h] + g1 * harm[3, h])).real
             for g in range(nh):
-                r_g = harm[0, g] * (v * part_plus[g, k] + np.conj(v * part_minus[g, k]))
-                g_g = 0j
-                for f in range(nf):
-                    g_g += Bmat[i, f] * amps[g, f]
-                g_g *= harm[0, g]
                 pp_hg = harm[4 + h, g]
                 pm_hg = harm[4 + nh + h, g]
-                d += 0.5 * ((r_h * r_g * pp_hg).real + (r_h * np.conj(r_g) * pm_hg).real)
-                fw += 0.5 * ((r_h * g_g * pp_hg).real + (r_h * np.conj(g_g) * pm_hg).real)
+                d += 0.5 * ((r_h * rg[0, g] * pp_hg).real
+                            + (r_h * np.conj(rg[0, g]) * pm_hg).real)
+                fw += 0.5 * ((r_h * rg[1, g] * pp_hg).real
+                             + (r_h * np.conj(rg[1, g]) * pm_hg).real)
         p_damp += Cmat[i, i] * d
         p_force += fw
     ledger[2] += p_damp
