@@ -159,7 +159,7 @@ class VibrationNode(Node):
         self._make_interfaces(p)
         self.pacer = Pacer(p['real_time_factor'], self.live.t, max_lag=p['max_lag'],
                            clock=self._wall)
-        self.stats = _Stats(self._wall(), time.process_time(), self.live.t)
+        self.stats = _Stats(self._wall(), time.process_time(), self.live.t, self.live.t)
         self.rejected = 0
         self.stats_total = {'samples': 0, 'impacts': 0}   # since start, per accelerometer
         self._growth_rate = self.live.linear_growth_rate()
@@ -526,6 +526,16 @@ class VibrationNode(Node):
         """Sim time up to which items have been published (s)."""
         return self._t_published
 
+    def _delivered_t(self, wall):
+        """Sim time (s) whose items are all out by wall time ``wall`` (s): the published
+        time, or, with no backlog, the stepped time up to the schedule (between two wake-ups
+        the published time stands still while the schedule moves on). Call with the lock."""
+        due = self.pacer.sim_at(wall)
+        pending = self._pending
+        if pending and pending[0][0] * 1e-9 <= due:
+            return self._t_published   # a backlog: what consumers have got so far
+        return max(self._t_published, min(self.live.t, due))
+
     def destroy_node(self):
         """Stop stepping, finish any recording, then destroy the node."""
         self.stop()
@@ -584,6 +594,10 @@ class VibrationNode(Node):
         """
         pending = self._pending
         if not pending:
+            # nothing queued (a scene without outputs): all that was stepped is out, up to
+            # the schedule, or pacing would wait forever for an item
+            self._t_published = max(self._t_published,
+                                    min(self.live.t, self.pacer.sim_at(now)))
             return False
         with self._lock:
             horizon = self.pacer.sim_at(now) * 1e9   # ns (a float; inf for now = inf)
@@ -639,7 +653,8 @@ class VibrationNode(Node):
         pending.extend(impact_items[j:])
         self.stats.samples += k
         self.stats_total['samples'] += k
-        peak = float(np.max(np.abs(batch.linear_acceleration))) if k else 0.0
+        lin = batch.linear_acceleration
+        peak = float(np.max(np.abs(lin))) if lin.size else 0.0   # a scene may have no sensor
         self.stats.peak = max(self.stats.peak, peak)
         self.stats.impacts += impacts.size
         self.stats_total['impacts'] += impacts.size
@@ -750,7 +765,10 @@ class VibrationNode(Node):
         wall, cpu = self._wall(), time.process_time()
         d_wall = max(wall - st.wall, 1e-9)
         d_sim = live.t - st.sim
-        achieved = d_sim / d_wall
+        # delivered, not stepped, sim time: stepping runs up to a chunk and a lookahead
+        # ahead, which would put +-2 % of noise on a 1 s period
+        delivered = self._delivered_t(wall)
+        achieved = (delivered - st.delivered) / d_wall
         n_imp = len(self.scene.impactors)
         stuck_fraction = (st.stuck_time / (d_sim * n_imp)) if d_sim > 0 and n_imp else 0.0
         status = DiagnosticStatus(name=f'{self.get_name()}: simulation',
@@ -815,7 +833,7 @@ class VibrationNode(Node):
                                           'message': status.message}
         # growth only counts at steady speed (a ramp through a critical also grows)
         growing = st.peak > 1.2 * st.last_peak > 0 and live.rotor_state()[1] == 0.0
-        self.stats = _Stats(wall, cpu, live.t, steps0=live.steps,
+        self.stats = _Stats(wall, cpu, live.t, delivered, steps0=live.steps,
                             growing=st.growing + 1 if growing else 0, last_peak=st.peak)
 
 
@@ -835,8 +853,9 @@ def _plain(value):
 class _Stats:
     """Counters of one diagnostics period."""
 
-    def __init__(self, wall, cpu, sim, steps0=0, growing=0, last_peak=0.0):
+    def __init__(self, wall, cpu, sim, delivered, steps0=0, growing=0, last_peak=0.0):
         self.wall, self.cpu, self.sim, self.steps0 = wall, cpu, sim, steps0
+        self.delivered = delivered
         self.samples = self.impacts = self.commands = self.overruns = 0
         self.stuck_time = self.peak = self.lag = 0.0
         self.growing, self.last_peak = growing, last_peak
