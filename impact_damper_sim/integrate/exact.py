@@ -457,7 +457,7 @@ class ExactPropagator(IntegratorBase):
 
     def _work_arrays(self, ni, n):
         """The kernel's work arrays, made again only when a size changes. Kept here, so
-        alive while the kernel borrows them."""
+        alive while the kernel runs (kernels hold no references to arrays)."""
         sizes = (self._yh.size, self.forcing.n_inputs, ni, self._omegas.size, n,
                  self.taylor_order, self.ledger_on)
         if self._work is None or self._work[0] != sizes:

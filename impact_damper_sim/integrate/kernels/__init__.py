@@ -1,7 +1,8 @@
 """All Numba kernels of the project.
 
 Conventions: float64/complex128 arrays only, no Python objects, state arrays updated in
-place, times in s. Each kernel ``name`` is compiled with ``numba.njit(cache=True)`` from a
+place, times in s. Each kernel ``name`` is compiled by :func:`kernel` (``numba.njit``, cached,
+without reference counting) from a
 plain Python/NumPy function ``name_py`` kept beside it: that twin is what the tests compare
 the compiled kernel against (``test/test_kernels*.py``), so the JIT never hides an untested
 path. Set ``NUMBA_CACHE_DIR`` to choose where compiled kernels are cached.
@@ -25,6 +26,20 @@ from pathlib import Path
 from numba import njit
 
 _STAMP = 'impact_damper_sim_kernels.fingerprint'
+
+#: How every kernel is compiled. ``_nrt=False`` turns off Numba's reference counting (NRT):
+#: the kernels allocate nothing (work arrays come from the caller), so counting references is
+#: pure cost, and an opaque call at every array argument, view and variable death also keeps
+#: LLVM from hoisting and vectorizing across them (hpotp 6 s, exact engine: 0.263 -> 0.222 s
+#: CPU, docs/impact-cost.md). A kernel that allocates fails to compile without it, so the
+#: two that do (a test reference, and Newmark's step loop, once per call) say ``_nrt=True``.
+KERNEL_OPTIONS = {'cache': True, '_nrt': False}
+
+
+def kernel(**options):
+    """The decorator of a kernel: ``numba.njit`` with :data:`KERNEL_OPTIONS` and ``options``
+    (such as ``inline='always'``)."""
+    return njit(**{**KERNEL_OPTIONS, **options})
 
 
 def _cache_probe():  # pragma: no cover - never called, only located

@@ -35,13 +35,12 @@ Conventions as in :mod:`.flow`; ``counters`` (``CNT_*``) count the work done.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from . import kernel
 
 from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
                    point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
 from .ledger import N_TERMS as LEDGER_TERMS, harmonic_factors, ledger_closed, ledger_modal, \
     ledger_taylor, piece_factors
-from .borrow import borrow, borrow_py  # noqa: F401  (borrow_py: the twin, for the tests)
 from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
                    positive_until)
 from .scan import FN_PLANAR, FN_RELEASE, FN_WALL_NEG, FN_WALL_POS, fn_values, scan_multi
@@ -101,7 +100,7 @@ def grace_shift_py(fid, X, limit):
     return 1e-9 * limit
 
 
-grace_shift = njit(cache=True, inline='always')(grace_shift_py)
+grace_shift = kernel(inline='always')(grace_shift_py)
 
 
 def fn_taylor_py(fid, X, z, v, limit, normal, P, Eb, S, shift, rw, a):
@@ -159,7 +158,7 @@ def fn_taylor_py(fid, X, z, v, limit, normal, P, Eb, S, shift, rw, a):
     return np.sqrt(normal[0] * normal[0] + normal[1] * normal[1]) * Eb[P + 3]
 
 
-fn_taylor = njit(cache=True)(fn_taylor_py)
+fn_taylor = kernel()(fn_taylor_py)
 
 
 def near_eval_py(yh_tau, lam, W, w0, ws, s, d, omegas, part_plus, part_minus, amps, u0, us,
@@ -177,7 +176,7 @@ def near_eval_py(yh_tau, lam, W, w0, ws, s, d, omegas, part_plus, part_minus, am
     state_derivs(y_tau, lam, W, uder, order, yd)
 
 
-near_eval = njit(cache=True)(near_eval_py)
+near_eval = kernel()(near_eval_py)
 
 
 def refine_root_py(fid, s_a, s_b, r_hat, shift, t_cur, yh, lam, lam_max, W, w0, ws, part_plus,
@@ -229,7 +228,7 @@ def refine_root_py(fid, s_a, s_b, r_hat, shift, t_cur, yh, lam, lam_max, W, w0, 
     return s
 
 
-refine_root = njit(cache=True)(refine_root_py)
+refine_root = kernel()(refine_root_py)
 
 
 def third_bound_py(fid, X, z, v, limit, normal, Eb, T):
@@ -252,7 +251,7 @@ def third_bound_py(fid, X, z, v, limit, normal, Eb, T):
     return np.sqrt(normal[0] * normal[0] + normal[1] * normal[1]) * Eb[5]
 
 
-third_bound = njit(cache=True, inline='always')(third_bound_py)
+third_bound = kernel(inline='always')(third_bound_py)
 
 
 def out_of_reach_py(n_rows, reach, X, z, v, limit, T):
@@ -273,7 +272,7 @@ def out_of_reach_py(n_rows, reach, X, z, v, limit, T):
     return room > 0.0 and max(a0 * a0 + a1 * a1, b0 * b0 + b1 * b1) < room * room
 
 
-out_of_reach = njit(cache=True, inline='always')(out_of_reach_py)
+out_of_reach = kernel(inline='always')(out_of_reach_py)
 
 
 def sort_candidates_py(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv):
@@ -296,7 +295,7 @@ def sort_candidates_py(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv):
         cand_lv[d + 1] = lv
 
 
-sort_candidates = njit(cache=True)(sort_candidates_py)
+sort_candidates = kernel()(sort_candidates_py)
 
 
 def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus, omegas, amps,
@@ -530,7 +529,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
     return undecided
 
 
-search = njit(cache=True)(search_py)
+search = kernel()(search_py)
 
 
 def quiet_window_py(T, yh, lam, W, part_plus, part_minus, omegas, u_grid, k0, k1, house_abs,
@@ -571,7 +570,7 @@ def quiet_window_py(T, yh, lam, W, part_plus, part_minus, omegas, u_grid, k0, k1
     return True
 
 
-quiet_window = njit(cache=True)(quiet_window_py)
+quiet_window = kernel()(quiet_window_py)
 
 
 def switch_slot_py(yh, V_old, pp_old, pm_old, Vinv_new, pp_new, pm_new, omegas, t, y, x):
@@ -600,7 +599,7 @@ def switch_slot_py(yh, V_old, pp_old, pm_old, Vinv_new, pp_new, pm_new, omegas, 
             yh[i] -= pp_new[hh, i] * ep + pm_new[hh, i] * em
 
 
-switch_slot = njit(cache=True)(switch_slot_py)
+switch_slot = kernel()(switch_slot_py)
 
 
 def release_normals_py(imp_stuck, imp_normal, relmap, release_n):
@@ -611,7 +610,7 @@ def release_normals_py(imp_stuck, imp_normal, relmap, release_n):
                                + relmap[j, 1, r] * imp_normal[j, 1])
 
 
-release_normals = njit(cache=True)(release_normals_py)
+release_normals = kernel()(release_normals_py)
 
 
 def record_py(ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, t, j,
@@ -631,7 +630,7 @@ def record_py(ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_co
     ev_count[0] = e + 1
 
 
-record = njit(cache=True, inline='always')(record_py)
+record = kernel(inline='always')(record_py)
 
 
 def impact_py(j, fid, n_rows, t_cur, X, yh, kick, mob, lawmob, imp_mass, imp_cor, imp_limit,
@@ -762,14 +761,14 @@ def impact_py(j, fid, n_rows, t_cur, X, yh, kick, mob, lawmob, imp_mass, imp_cor
     return 1
 
 
-impact = njit(cache=True)(impact_py)
+impact = kernel()(impact_py)
 
 
 def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
     """The work arrays of :func:`advance`, as the tuple its ``work`` argument takes.
 
     Made once per integrator by the caller, which keeps them alive while the kernel runs
-    (the kernel borrows them, see :mod:`.borrow`). Sizes: ``n2`` complex state coordinates,
+    (kernels hold no references: they compile without reference counting). Sizes: ``n2`` complex state coordinates,
     ``nf`` inputs, ``ni`` impactors, ``nh`` harmonics, ``n`` modal coordinates, the Taylor
     order, and whether the energy ledger is kept (its series arrays are empty otherwise).
     """
@@ -850,128 +849,11 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     event time in the old slot; the caller builds the new configuration, converts ``yh``,
     sets ``slot_state`` and calls again.
     """
-    # every array is borrowed (no reference counting): the caller owns them for the call
-    t_state = borrow(t_state)
-    u_grid = borrow(u_grid)
-    omegas = borrow(omegas)
-    amps = borrow(amps)
-    yh = borrow(yh)
-    slot_state = borrow(slot_state)
-    tb_built = borrow(tb_built)
-    tb_lam = borrow(tb_lam)
-    tb_lam_max = borrow(tb_lam_max)
-    tb_V = borrow(tb_V)
-    tb_Vinv = borrow(tb_Vinv)
-    tb_W = borrow(tb_W)
-    tb_pp = borrow(tb_pp)
-    tb_pm = borrow(tb_pm)
-    tb_sq = borrow(tb_sq)
-    tb_sv = borrow(tb_sv)
-    tb_house = borrow(tb_house)
-    tb_house_abs = borrow(tb_house_abs)
-    tb_kick = borrow(tb_kick)
-    tb_mob = borrow(tb_mob)
-    tb_lawmob = borrow(tb_lawmob)
-    tb_relmap = borrow(tb_relmap)
-    tb_eh = borrow(tb_eh)
-    tb_p1h = borrow(tb_p1h)
-    tb_p2h = borrow(tb_p2h)
-    tb_mh = borrow(tb_mh)
-    tb_kvq = borrow(tb_kvq)
-    tb_qcols = borrow(tb_qcols)
-    tb_qcounts = borrow(tb_qcounts)
-    tb_vcols = borrow(tb_vcols)
-    tb_vcounts = borrow(tb_vcounts)
-    tb_vmodal = borrow(tb_vmodal)
-    imp_rep = borrow(imp_rep)
-    imp_group = borrow(imp_group)
-    group_radix = borrow(group_radix)
-    imp_dim = borrow(imp_dim)
-    imp_mass = borrow(imp_mass)
-    imp_cor = borrow(imp_cor)
-    imp_limit = borrow(imp_limit)
-    imp_z = borrow(imp_z)
-    imp_v = borrow(imp_v)
-    imp_stuck = borrow(imp_stuck)
-    imp_normal = borrow(imp_normal)
-    imp_last_t = borrow(imp_last_t)
-    imp_rel = borrow(imp_rel)
-    imp_grace = borrow(imp_grace)
-    count_step = borrow(count_step)
-    Cmat = borrow(Cmat)
-    c_cols = borrow(c_cols)
-    c_counts = borrow(c_counts)
-    Kskew = borrow(Kskew)
-    Bmat = borrow(Bmat)
-    ledger = borrow(ledger)
-    out_disp = borrow(out_disp)
-    out_vel = borrow(out_vel)
-    out_acc = borrow(out_acc)
-    ev_t = borrow(ev_t)
-    ev_imp = borrow(ev_imp)
-    ev_kind = borrow(ev_kind)
-    ev_n = borrow(ev_n)
-    ev_vn = borrow(ev_vn)
-    ev_J = borrow(ev_J)
-    ev_loss = borrow(ev_loss)
-    ev_after = borrow(ev_after)
-    ev_count = borrow(ev_count)
-    info = borrow(info)
-    counters = borrow(counters)
     (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
      cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
      pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
      w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac,
      led_m, led_harm, led_rg) = work
-    yh_tau = borrow(yh_tau)
-    y_tau = borrow(y_tau)
-    y_sw = borrow(y_sw)
-    x_sw = borrow(x_sw)
-    yd = borrow(yd)
-    uder = borrow(uder)
-    Xs = borrow(Xs)
-    X = borrow(X)
-    Eb = borrow(Eb)
-    reach = borrow(reach)
-    ybound = borrow(ybound)
-    u_abs = borrow(u_abs)
-    us_abs = borrow(us_abs)
-    exc = borrow(exc)
-    cand_j = borrow(cand_j)
-    cand_fid = borrow(cand_fid)
-    cand_s0 = borrow(cand_s0)
-    cand_shift = borrow(cand_shift)
-    cand_lv = borrow(cand_lv)
-    cand_out = borrow(cand_out)
-    active = borrow(active)
-    shifts = borrow(shifts)
-    coef = borrow(coef)
-    rwork = borrow(rwork)
-    pwork = borrow(pwork)
-    root_out = borrow(root_out)
-    scan_result = borrow(scan_result)
-    search_result = borrow(search_result)
-    ub = borrow(ub)
-    wu = borrow(wu)
-    w0 = borrow(w0)
-    ws = borrow(ws)
-    u0 = borrow(u0)
-    us = borrow(us)
-    release_n = borrow(release_n)
-    u_max = borrow(u_max)
-    w_max = borrow(w_max)
-    w_zero = borrow(w_zero)
-    led_coef = borrow(led_coef)
-    led_rows = borrow(led_rows)
-    led_u = borrow(led_u)
-    led_degs = borrow(led_degs)
-    led_y0 = borrow(led_y0)
-    led_soa = borrow(led_soa)
-    led_vt = borrow(led_vt)
-    led_fac = borrow(led_fac)
-    led_m = borrow(led_m)
-    led_harm = borrow(led_harm)
-    led_rg = borrow(led_rg)
     Xs[...] = 0
     X[...] = 0
     Eb[...] = 0
@@ -1210,4 +1092,4 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     return DONE
 
 
-advance = njit(cache=True)(advance_py)
+advance = kernel()(advance_py)

@@ -6,7 +6,7 @@ what ``scipy.signal.sosfilt(sos, x, axis=0, zi=zi)`` computes (``test/test_filte
 """
 from __future__ import annotations
 
-from numba import njit
+from . import kernel
 
 
 def sosfilt_py(sos, x, zi, y):
@@ -29,4 +29,4 @@ def sosfilt_py(sos, x, zi, y):
             y[k, c] = v
 
 
-sosfilt = njit(cache=True)(sosfilt_py)
+sosfilt = kernel()(sosfilt_py)

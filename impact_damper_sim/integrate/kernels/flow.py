@@ -5,21 +5,21 @@ objects; times in seconds; ``y`` is the complex first-order modal state of
 :mod:`impact_damper_sim.integrate.flow` (``[q; q'] = Re(V y)``), ``yh`` its homogeneous-plus-
 first-order-hold part and the harmonic particular part is added on top; arrays passed in are
 updated in place. Every kernel is written as plain Python/NumPy (``*_py``, its NumPy twin) and
-compiled with ``numba.njit(cache=True)``; tests run both.
+compiled by :func:`.kernel`; tests run both.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from numba import njit
+from . import kernel
 
 def cabs_py(z):
     """``|z|`` of a complex number without glibc's ``hypot`` (several times slower here)."""
     return np.sqrt(z.real * z.real + z.imag * z.imag)
 
 
-cabs = njit(cache=True, inline='always')(cabs_py)
+cabs = kernel(inline='always')(cabs_py)
 
 
 #: Taylor coefficients of phi1 and phi2: 1/(k+1)! and 1/(k+2)!, k = 0..13
@@ -47,7 +47,7 @@ def phis_py(z):
     return (ez - 1.0) * inv, (ez - 1.0 - z) * inv * inv
 
 
-phis = njit(cache=True, inline='always')(phis_py)
+phis = kernel(inline='always')(phis_py)
 
 
 def propagate_py(yh, lam, tau, w0, ws, out):
@@ -71,7 +71,7 @@ def propagate_py(yh, lam, tau, w0, ws, out):
             out[k] = ez * yh[k] + em1 * w0[k] + (em1 - tau) * inv * ws[k]
 
 
-propagate = njit(cache=True, inline='always')(propagate_py)
+propagate = kernel(inline='always')(propagate_py)
 
 
 def step_factors_py(lam, h, e_h, p1_h, p2_h):
@@ -84,7 +84,7 @@ def step_factors_py(lam, h, e_h, p1_h, p2_h):
         p2_h[k] = h * h * f2
 
 
-step_factors = njit(cache=True)(step_factors_py)
+step_factors = kernel()(step_factors_py)
 
 
 def add_particular_py(yh, omegas, part_plus, part_minus, t, out):
@@ -98,7 +98,7 @@ def add_particular_py(yh, omegas, part_plus, part_minus, t, out):
             out[k] += part_plus[h, k] * ep + part_minus[h, k] * em
 
 
-add_particular = njit(cache=True, inline='always')(add_particular_py)
+add_particular = kernel(inline='always')(add_particular_py)
 
 
 def input_derivs_py(u0, us, omegas, amps, t, tau, order, out):
@@ -123,7 +123,7 @@ def input_derivs_py(u0, us, omegas, amps, t, tau, order, out):
             fac *= 1j * omegas[h]
 
 
-input_derivs = njit(cache=True, inline='always')(input_derivs_py)
+input_derivs = kernel(inline='always')(input_derivs_py)
 
 
 def state_derivs_py(y, lam, W, uder, order, out):
@@ -150,10 +150,10 @@ def more_derivs_py(lam, W, uder, m_from, order, out):
             out[m, k] = acc
 
 
-more_derivs = njit(cache=True, inline='always')(more_derivs_py)
+more_derivs = kernel(inline='always')(more_derivs_py)
 
 
-state_derivs = njit(cache=True, inline='always')(state_derivs_py)
+state_derivs = kernel(inline='always')(state_derivs_py)
 
 
 def input_bounds_py(u_abs, us_abs, omegas, amps, order, ub):
@@ -176,7 +176,7 @@ def input_bounds_py(u_abs, us_abs, omegas, amps, order, ub):
                 p *= omegas[h]
 
 
-input_bounds = njit(cache=True, inline='always')(input_bounds_py)
+input_bounds = kernel(inline='always')(input_bounds_py)
 
 
 def derivative_chain_py(b, lam_abs, W, k, ub, order, wu, out):
@@ -195,7 +195,7 @@ def derivative_chain_py(b, lam_abs, W, k, ub, order, wu, out):
         out[m, k] = acc
 
 
-derivative_chain = njit(cache=True, inline='always')(derivative_chain_py)
+derivative_chain = kernel(inline='always')(derivative_chain_py)
 
 
 def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs, us_abs,
@@ -218,7 +218,7 @@ def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_a
         derivative_chain(b, cabs(lam[k]), W, k, ub, order, wu, out)
 
 
-derivative_bounds = njit(cache=True)(derivative_bounds_py)
+derivative_bounds = kernel()(derivative_bounds_py)
 
 
 def point_eval_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
@@ -234,7 +234,7 @@ def point_eval_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, u
     state_derivs(y_tau, lam, W, uder, order, yd)
 
 
-point_eval = njit(cache=True)(point_eval_py)
+point_eval = kernel()(point_eval_py)
 
 
 def row_derivs_py(rows, n_rows, yd, order, out):
@@ -248,7 +248,7 @@ def row_derivs_py(rows, n_rows, yd, order, out):
             out[m, r] = acc.real
 
 
-row_derivs = njit(cache=True, inline='always')(row_derivs_py)
+row_derivs = kernel(inline='always')(row_derivs_py)
 
 
 def row_bound_py(rows, n_rows, ybound, m):
@@ -262,7 +262,7 @@ def row_bound_py(rows, n_rows, ybound, m):
     return np.sqrt(total)
 
 
-row_bound = njit(cache=True)(row_bound_py)
+row_bound = kernel()(row_bound_py)
 
 
 def site_bounds_py(abs_rows, n_rows, ybound, order, exc, Eb):
@@ -295,8 +295,8 @@ def site_reach_py(abs_rows, n_rows, exc):
     return np.sqrt(reach)
 
 
-site_reach = njit(cache=True, inline='always')(site_reach_py)
-site_bounds = njit(cache=True)(site_bounds_py)
+site_reach = kernel(inline='always')(site_reach_py)
+site_bounds = kernel()(site_bounds_py)
 
 
 def housing_velocity_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t,
@@ -307,7 +307,7 @@ def housing_velocity_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps,
     row_derivs(rows, n_rows, yd, 1, X)
 
 
-housing_velocity = njit(cache=True)(housing_velocity_py)
+housing_velocity = kernel()(housing_velocity_py)
 
 
 def excursion_bounds_py(yh, lam, w0, ws, part_plus, part_minus, omegas, T, out):
@@ -327,7 +327,7 @@ def excursion_bounds_py(yh, lam, w0, ws, part_plus, part_minus, omegas, T, out):
         out[k] = b
 
 
-excursion_bounds = njit(cache=True)(excursion_bounds_py)
+excursion_bounds = kernel()(excursion_bounds_py)
 
 
 def search_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, S, u_abs, us_abs, omegas,
@@ -351,4 +351,4 @@ def search_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, S, u_abs, us_abs
         derivative_chain(b, lam_abs, W, k, ub, order, wu, out)
 
 
-search_bounds = njit(cache=True)(search_bounds_py)
+search_bounds = kernel()(search_bounds_py)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from . import kernel
 
 from .flow import _PHI1_SERIES, cabs, point_eval, propagate
 
@@ -78,7 +78,7 @@ def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
     return 4 * n_panels
 
 
-ledger_panel = njit(cache=True)(ledger_panel_py)
+ledger_panel = kernel(_nrt=True)(ledger_panel_py)   # allocates its nodes (a test reference)
 
 
 def row_pattern_py(V, cols, counts):
@@ -92,7 +92,7 @@ def row_pattern_py(V, cols, counts):
         counts[i] = c
 
 
-row_pattern = njit(cache=True)(row_pattern_py)
+row_pattern = kernel()(row_pattern_py)
 
 
 #: Relative size of the first dropped term of each coordinate's Taylor series in
@@ -138,7 +138,7 @@ def taylor_degree_py(z2):
     return N_TERMS - 1
 
 
-taylor_degree = njit(cache=True, inline='always')(taylor_degree_py)
+taylor_degree = kernel(inline='always')(taylor_degree_py)
 
 
 def panel_plan_py(lam_max, omegas, tau):
@@ -155,7 +155,7 @@ def panel_plan_py(lam_max, omegas, tau):
     return n_pan, width, deg_h
 
 
-panel_plan = njit(cache=True, inline='always')(panel_plan_py)
+panel_plan = kernel(inline='always')(panel_plan_py)
 
 
 def input_series_py(u0, us, amps, omegas, t0, s0, width, deg_u, deg_h, u_t):
@@ -177,7 +177,7 @@ def input_series_py(u0, us, amps, omegas, t0, s0, width, deg_u, deg_h, u_t):
                 a = a * zh * _INV[m + 1]
 
 
-input_series = njit(cache=True, inline='always')(input_series_py)
+input_series = kernel(inline='always')(input_series_py)
 
 
 def hilbert_dot_py(qd, i, di, b):
@@ -188,7 +188,7 @@ def hilbert_dot_py(qd, i, di, b):
     return x
 
 
-hilbert_dot = njit(cache=True, inline='always')(hilbert_dot_py)
+hilbert_dot = kernel(inline='always')(hilbert_dot_py)
 
 
 def damping_row_py(qd, Cmat, c_cols, c_counts, degs, n2, i, di, acc):
@@ -211,7 +211,7 @@ def damping_row_py(qd, Cmat, c_cols, c_counts, degs, n2, i, di, acc):
     return total
 
 
-damping_row = njit(cache=True, inline='always')(damping_row_py)
+damping_row = kernel(inline='always')(damping_row_py)
 
 
 def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
@@ -375,7 +375,7 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
     return n_pan
 
 
-ledger_taylor = njit(cache=True)(ledger_taylor_py)
+ledger_taylor = kernel()(ledger_taylor_py)
 
 
 def dense_row_sums_py(cr, ci, vt, part, m, n, n2, out):
@@ -390,7 +390,7 @@ def dense_row_sums_py(cr, ci, vt, part, m, n, n2, out):
             out[m, i] += vt[part, k, i] * a - vt[part + 1, k, i] * b
 
 
-dense_row_sums = njit(cache=True, inline='always')(dense_row_sums_py)
+dense_row_sums = kernel(inline='always')(dense_row_sums_py)
 
 
 def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
@@ -544,7 +544,7 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     return n_pan
 
 
-ledger_modal = njit(cache=True)(ledger_modal_py)
+ledger_modal = kernel()(ledger_modal_py)
 
 
 #: Largest ``(|c|^2 max(1, |e^(lam tau)|^2) + |a|^2 + |b tau|^2) / (|y0|^2 + |w0 tau|^2 +
@@ -566,7 +566,7 @@ def phi1_real_py(x):
     return np.expm1(x) / x
 
 
-phi1_real = njit(cache=True, inline='always')(phi1_real_py)
+phi1_real = kernel(inline='always')(phi1_real_py)
 
 
 #: Taylor coefficients of phi2: 1/(k+2)!, k = 0..11
@@ -597,7 +597,7 @@ def phis_from_py(z, ez):
     return f1, (f1 - 1.0) * inv
 
 
-phis_from = njit(cache=True, inline='always')(phis_from_py)
+phis_from = kernel(inline='always')(phis_from_py)
 
 
 def phi1_ledger_py(z, ez):
@@ -610,7 +610,7 @@ def phi1_ledger_py(z, ez):
     return (ez - 1.0) * np.conj(z) * (1.0 / r2)   # complex division is several times slower
 
 
-phi1_ledger = njit(cache=True, inline='always')(phi1_ledger_py)
+phi1_ledger = kernel(inline='always')(phi1_ledger_py)
 
 
 def piece_factors_py(lam, tau, e_tau, p1_tau, p2_tau, m_tau):
@@ -656,10 +656,10 @@ def harmonic_factors_py(omegas, t0, tau, harm):
             harm[4 + nh + h, g] = tau * f1
 
 
-harmonic_factors = njit(cache=True, inline='always')(harmonic_factors_py)
+harmonic_factors = kernel(inline='always')(harmonic_factors_py)
 
 
-piece_factors = njit(cache=True, inline='always')(piece_factors_py)
+piece_factors = kernel(inline='always')(piece_factors_py)
 
 
 
@@ -691,7 +691,7 @@ def row_series_py(y0, lk, w0k, wsk, v, tau, g0, g1, qd):
     return tau * damp, tau * force
 
 
-row_series = njit(cache=True, inline='always')(row_series_py)
+row_series = kernel(inline='always')(row_series_py)
 
 
 def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau, part_plus,
@@ -833,4 +833,4 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
     return 1
 
 
-ledger_closed = njit(cache=True)(ledger_closed_py)
+ledger_closed = kernel()(ledger_closed_py)

@@ -1,7 +1,7 @@
 """Numba kernels of the Newmark (average acceleration) integrator.
 
 Conventions (all kernels): float64 arrays only, no Python objects; times in seconds; state
-arrays passed in are updated in place. Every kernel ``name`` is ``njit(cache=True)`` of its
+arrays passed in are updated in place. Every kernel ``name`` is :func:`.kernel` of its
 plain Python/NumPy twin ``name_py`` defined beside it (``test/test_newmark.py`` runs both).
 
 The step is the average-acceleration method (``beta = 1/4``, ``gamma = 1/2``) written in the
@@ -27,7 +27,7 @@ Event screening inside :func:`run_steps` (the event logic itself is in Python,
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from . import kernel
 
 # status codes returned by run_steps()
 DONE = 0
@@ -62,7 +62,7 @@ def step_py(Sinv, C, K, f1, h, q0, v0, a0, q1, v1, a1, work):
         v1[i] += h2 * a1[i]
 
 
-step = njit(cache=True)(step_py)
+step = kernel()(step_py)
 
 
 def ledger_step_py(C, Kskew, f0, f1, q0, v0, q1, v1, h, ledger):
@@ -93,7 +93,7 @@ def ledger_step_py(C, Kskew, f0, f1, q0, v0, q1, v1, h, ledger):
     ledger[4] += h * p_circ
 
 
-ledger_step = njit(cache=True)(ledger_step_py)
+ledger_step = kernel()(ledger_step_py)
 
 
 def force_py(B, u, out):
@@ -105,7 +105,7 @@ def force_py(B, u, out):
         out[i] = acc
 
 
-force = njit(cache=True)(force_py)
+force = kernel()(force_py)
 
 
 def hermite_relative_py(z, vi, x0, xd0, x1, xd1, h, out):
@@ -124,7 +124,7 @@ def hermite_relative_py(z, vi, x0, xd0, x1, xd1, h, out):
     out[3] = -c3
 
 
-hermite_relative = njit(cache=True)(hermite_relative_py)
+hermite_relative = kernel()(hermite_relative_py)
 
 
 def cubic_range_py(c, h):
@@ -138,7 +138,8 @@ def cubic_range_py(c, h):
     a = 3.0 * c[3]
     b = 2.0 * c[2]
     cc = c[1]
-    roots = np.empty(2)
+    r0 = 0.0   # critical points: scalars, so the kernel allocates nothing
+    r1 = 0.0
     nr = 0
     if a != 0.0:
         disc = b * b - 4.0 * a * cc
@@ -147,17 +148,16 @@ def cubic_range_py(c, h):
             # numerically stable pair of roots
             qq = -0.5 * (b + sq) if b >= 0.0 else -0.5 * (b - sq)
             if qq != 0.0:
-                roots[0] = qq / a
-                roots[1] = cc / qq
+                r0 = qq / a
+                r1 = cc / qq
                 nr = 2
             else:
-                roots[0] = 0.0
                 nr = 1
     elif b != 0.0:
-        roots[0] = -cc / b
+        r0 = -cc / b
         nr = 1
     for i in range(nr):
-        s = roots[i]
+        s = r0 if i == 0 else r1
         if 0.0 < s < h:
             v = c[0] + s * (c[1] + s * (c[2] + s * c[3]))
             lo = min(lo, v)
@@ -165,7 +165,7 @@ def cubic_range_py(c, h):
     return lo, hi
 
 
-cubic_range = njit(cache=True)(cubic_range_py)
+cubic_range = kernel()(cubic_range_py)
 
 
 def release_force_py(rows_j, d, rel_T_j, normal_j, a):
@@ -190,7 +190,7 @@ def release_force_py(rows_j, d, rel_T_j, normal_j, a):
              + normal_j[1] * (rel_T_j[1, 0] * ah0 + rel_T_j[1, 1] * ah1))
 
 
-release_force = njit(cache=True)(release_force_py)
+release_force = kernel()(release_force_py)
 
 
 def event_flag_py(located, h, q0, v0, q1, v1, a1, rows, imp_dim, imp_limit, imp_z, imp_v,
@@ -261,7 +261,7 @@ def event_flag_py(located, h, q0, v0, q1, v1, a1, rows, imp_dim, imp_limit, imp_
     return -1
 
 
-event_flag = njit(cache=True)(event_flag_py)
+event_flag = kernel()(event_flag_py)
 
 
 def run_steps_py(k_start, k_stop, out_base, substeps, h, u_grid, B, Sinv, C, K, Kskew,
@@ -329,4 +329,4 @@ def run_steps_py(k_start, k_stop, out_base, substeps, h, u_grid, B, Sinv, C, K, 
     return DONE
 
 
-run_steps = njit(cache=True)(run_steps_py)
+run_steps = kernel(_nrt=True)(run_steps_py)   # allocates its step arrays once per call

@@ -6,7 +6,7 @@ A polynomial is an array of normalized Taylor coefficients ``a[m]``, ``p(s) = su
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from . import kernel
 
 def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
     """Largest ``s <= T`` with ``p(s) = g0 + g1 s + g2 s^2/2 - g3max s^3/6 > 0`` on ``[0, s)``.
@@ -71,7 +71,7 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
     return T
 
 
-cubic_safe_step = njit(cache=True, inline='always')(cubic_safe_step_py)
+cubic_safe_step = kernel(inline='always')(cubic_safe_step_py)
 
 
 def _binomials(n_max):
@@ -96,7 +96,7 @@ def horner_py(a, n, s):
     return acc
 
 
-horner = njit(cache=True, inline='always')(horner_py)
+horner = kernel(inline='always')(horner_py)
 
 
 def horner_d_py(a, n, s):
@@ -109,7 +109,7 @@ def horner_d_py(a, n, s):
     return p, d
 
 
-horner_d = njit(cache=True, inline='always')(horner_d_py)
+horner_d = kernel(inline='always')(horner_d_py)
 
 
 def bernstein_range_py(a, n, lo, hi, work):
@@ -142,7 +142,7 @@ def bernstein_range_py(a, n, lo, hi, work):
     return b_min, b_max
 
 
-bernstein_range = njit(cache=True)(bernstein_range_py)
+bernstein_range = kernel()(bernstein_range_py)
 
 
 def newton_bracket_py(a, n, lo, hi, tol):
@@ -180,7 +180,7 @@ def newton_bracket_py(a, n, lo, hi, tol):
     return s
 
 
-newton_bracket = njit(cache=True)(newton_bracket_py)
+newton_bracket = kernel()(newton_bracket_py)
 
 #: Outcomes of :func:`certified_first_root`.
 ROOT_NONE = 0
@@ -201,7 +201,7 @@ def positive_until_py(a, n, K, s_end, work):
     return b_min > 0.0
 
 
-positive_until = njit(cache=True)(positive_until_py)
+positive_until = kernel()(positive_until_py)
 
 
 def certified_first_root_py(a, n, K, Kd, S, s_start, work, out):
@@ -262,4 +262,4 @@ def certified_first_root_py(a, n, K, Kd, S, s_start, work, out):
     return ROOT_UNDECIDED
 
 
-certified_first_root = njit(cache=True)(certified_first_root_py)
+certified_first_root = kernel()(certified_first_root_py)

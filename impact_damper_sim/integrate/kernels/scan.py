@@ -12,7 +12,7 @@ Conventions as in :mod:`.flow`.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from . import kernel
 
 from .flow import derivative_bounds, point_eval, row_bound, row_derivs
 from .poly import cubic_safe_step
@@ -50,7 +50,7 @@ def fn_values_py(fid, X, z, v, tau, limit, normal):
             -(normal[0] * X[4, 0] + normal[1] * X[4, 1]))
 
 
-fn_values = njit(cache=True, inline='always')(fn_values_py)
+fn_values = kernel(inline='always')(fn_values_py)
 
 
 def fn_third_bound_py(fid, X, z, v, tau, limit, normal, ybound, rows, n_rows, T):
@@ -71,7 +71,7 @@ def fn_third_bound_py(fid, X, z, v, tau, limit, normal, ybound, rows, n_rows, T)
                                                                               ybound, 5)
 
 
-fn_third_bound = njit(cache=True)(fn_third_bound_py)
+fn_third_bound = kernel()(fn_third_bound_py)
 
 
 def fn_at_py(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us,
@@ -85,7 +85,7 @@ def fn_at_py(fid, tau, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas,
     return f0 + shift, f1, f2
 
 
-fn_at = njit(cache=True)(fn_at_py)
+fn_at = kernel()(fn_at_py)
 
 
 def refine_py(fid, a, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0,
@@ -123,7 +123,7 @@ def refine_py(fid, a, b, t_cur, yh, lam, W, w0, ws, part_plus, part_minus, omega
     return b
 
 
-refine = njit(cache=True)(refine_py)
+refine = kernel()(refine_py)
 
 
 def scan_multi_py(n_cand, cand_j, cand_fid, Th, t_cur, yh, lam, W, w0, ws, part_plus,
@@ -229,4 +229,4 @@ def scan_multi_py(n_cand, cand_j, cand_fid, Th, t_cur, yh, lam, W, w0, ws, part_
     return undecided
 
 
-scan_multi = njit(cache=True)(scan_multi_py)
+scan_multi = kernel()(scan_multi_py)
