@@ -43,6 +43,21 @@ def test_check_samples_reports_the_first_bad_sample(bad, what):
     check_samples(samples([0.0, MAX_DISPLACEMENT, -MAX_DISPLACEMENT]), ['a'])   # at the bound
 
 
+@pytest.mark.parametrize('field', ['velocity', 'acceleration'])
+@pytest.mark.parametrize('bad', [np.inf, -np.inf, np.nan])
+def test_check_samples_reports_a_bad_rate(field, bad):
+    # the clean-chunk test sums the rates: a NaN or inf anywhere must still be reported
+    s = samples([0.0, 1.0, 2.0, 3.0])
+    getattr(s, field)[2, 0] = bad
+    with pytest.raises(Divergence, match=f"sensor 'a' {field} is") as info:
+        check_samples(s, ['a'])
+    assert info.value.t == pytest.approx(3e-3)
+    huge = samples([0.0, 1.0])   # finite rates whose sum overflows are not a divergence
+    getattr(huge, field)[:, 0] = 1e308
+    check_samples(huge, ['a'])
+    check_samples(Samples(huge.t, np.zeros((2, 0)), np.zeros((2, 0)), np.zeros((2, 0))))
+
+
 def test_engine_errors_that_mean_divergence():
     assert isinstance(from_engine_error(FloatingPointError('x'), 1.0), Divergence)
     div = from_engine_error(RuntimeError('chatter not resolved at t = 1 s'), 1.0)
