@@ -26,6 +26,9 @@ QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
 
 
 def main(out, times_path, rate):
+    # Ctrl-C raises KeyboardInterrupt even if this process was started with SIGINT ignored
+    # (a child of a background job inherits that, and Python then installs no handler)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     recorder = AsyncRecorder(out)
 
     def on_sigterm(signum, frame):

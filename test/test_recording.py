@@ -358,9 +358,14 @@ def test_sigint_sigterm_finalize_the_file(tmp_path, signum):
     file has a summary and the rosbag2 record, and holds every message the child logged as
     written (at most one more)."""
     child, out, times_path = _start_child(tmp_path)
-    time.sleep(0.7)
-    child.send_signal(signum)
-    stdout, _ = child.communicate(timeout=10)
+    try:
+        time.sleep(0.7)
+        child.send_signal(signum)
+        stdout, _ = child.communicate(timeout=30)
+    finally:
+        if child.poll() is None:   # never leave a recording process behind
+            child.kill()
+            child.wait()
     assert child.returncode == 0
     stats = json.loads(stdout.strip().splitlines()[-1])
     written = _times(times_path)
