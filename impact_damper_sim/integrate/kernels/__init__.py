@@ -30,8 +30,8 @@ _STAMP = 'impact_damper_sim_kernels.fingerprint'
 #: How every kernel is compiled. ``_nrt=False`` turns off Numba's reference counting (NRT):
 #: the kernels allocate nothing (work arrays come from the caller), so counting references is
 #: pure cost, and an opaque call at every array argument, view and variable death also keeps
-#: LLVM from hoisting and vectorizing across them (hpotp 6 s, exact engine: 0.263 -> 0.222 s
-#: CPU, docs/impact-cost.md). A kernel that allocates fails to compile without it, so the
+#: LLVM from optimizing across them (hpotp 6 s, ledger off: 21-22 -> 26 x real time, side by
+#: side in docs/impact-cost.md). A kernel that allocates fails to compile without it, so the
 #: two that do (a test reference, and Newmark's step loop, once per call) say ``_nrt=True``.
 KERNEL_OPTIONS = {'cache': True, '_nrt': False}
 
