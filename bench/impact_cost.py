@@ -119,7 +119,6 @@ def stick_rules(names, repeat, duration):
     print(f"\nstick rule: cost and answer (ledger on), same run")
     print(f"{'scene':10s} {'rule':13s} {'impacts':>8s} {'sticks':>7s} {'imp/stick':>9s} "
           f"{'RTF':>6s}  sensor RMS acceleration (m/s^2) | peak displacement (um)")
-    ledger_rows = []
     for name in names:
         scene = load(name)
         T = duration or scene.scene['simulation']['duration']

@@ -470,6 +470,15 @@ def test_imu_packer_bytes_round_trip(ros_context):
             assert deserialize_message(serialize_message(msg), Imu) == msg
 
 
+def _wake(node):
+    """One wake-up of the stepping thread: its cycles until one asks to sleep (s)."""
+    for _ in range(100):
+        delay = node._cycle()
+        if delay > 0:
+            return delay
+    raise AssertionError('the stepping thread never sleeps')
+
+
 def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
     """The stepping thread's wake-ups, driven on a fake clock: each sends at most 2 samples of
     a 2 kHz accelerometer (a keep-last-5 reader is never overrun by the node), also after a
@@ -490,13 +499,10 @@ def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
     out.pub.publish = publish
 
     def wake():
-        """One wake-up: the cycles run until one asks to sleep; (samples sent, sleep)."""
+        """One wake-up (:func:`_wake`): (samples sent, sleep)."""
         n0 = len(sent)
-        for _ in range(100):
-            delay = node._cycle()
-            if delay > 0:
-                return len(sent) - n0, delay
-        raise AssertionError('the stepping thread never sleeps')
+        delay = _wake(node)
+        return len(sent) - n0, delay
 
     try:
         groups = []
@@ -529,15 +535,6 @@ def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
         assert out.count - count0 >= 190 and wakes <= 25
     finally:
         node.destroy_node()
-
-
-def _wake(node):
-    """One wake-up of the stepping thread: its cycles until one asks to sleep (s)."""
-    for _ in range(100):
-        delay = node._cycle()
-        if delay > 0:
-            return delay
-    raise AssertionError('the stepping thread never sleeps')
 
 
 def test_achieved_factor_is_the_delivered_stream_on_a_short_period(ros_context):

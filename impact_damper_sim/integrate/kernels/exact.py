@@ -768,9 +768,10 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
     """The work arrays of :func:`advance`, as the tuple its ``work`` argument takes.
 
     Made once per integrator by the caller, which keeps them alive while the kernel runs
-    (kernels hold no references: they compile without reference counting). Sizes: ``n2`` complex state coordinates,
-    ``nf`` inputs, ``ni`` impactors, ``nh`` harmonics, ``n`` modal coordinates, the Taylor
-    order, and whether the energy ledger is kept (its series arrays are empty otherwise).
+    (kernels hold no references: they compile without reference counting). Sizes: ``n2``
+    complex state coordinates, ``nf`` inputs, ``ni`` impactors, ``nh`` harmonics, ``n`` modal
+    coordinates, the Taylor order, and whether the energy ledger is kept (its series arrays
+    are empty otherwise).
     """
     order_max = taylor_order + 4
     terms = LEDGER_TERMS if ledger_on else 0
