@@ -104,7 +104,7 @@ def test_cubic_safe_step_is_safe_and_twin(rng):
     # is within 0.1 % of the first root when there is one. With s_exact = T (a root below it
     # is not bisected) the step is still safe, no longer than the exact one, and the same
     # when there is no root.
-    n_coarse = 0
+    n_coarse = n_clear = 0
     for _ in range(500):
         g0 = rng.uniform(1e-6, 1.0)
         g1, g2 = rng.normal(size=2) * [3.0, 30.0]
@@ -112,6 +112,10 @@ def test_cubic_safe_step_is_safe_and_twin(rng):
         T = rng.uniform(0.01, 1.0)
         s = PL.cubic_safe_step(g0, g1, g2, g3, T, 0.0)
         assert s == PL.cubic_safe_step_py(g0, g1, g2, g3, T, 0.0)
+        # the shortcut (each term at its least over [0, T] still positive) answers T
+        if g0 + T * min(g1, 0) + T ** 2 / 2 * min(g2, 0) - g3 * T ** 3 / 6 > 1e-12 * g0:
+            assert s == T
+            n_clear += 1
         coarse = PL.cubic_safe_step(g0, g1, g2, g3, T, T)
         assert coarse == PL.cubic_safe_step_py(g0, g1, g2, g3, T, T)
         assert coarse <= s
@@ -126,7 +130,7 @@ def test_cubic_safe_step_is_safe_and_twin(rng):
             assert abs(s - real.min()) <= 1e-3 * real.min()
         else:
             assert coarse == T
-    assert n_coarse > 50
+    assert n_coarse > 50 and n_clear > 50
 
 
 RUN = r'''

@@ -903,13 +903,18 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
             for f in range(nf):
                 u0[f] = u_grid[k, f] + us[f] * (t_cur - t_k)
             for i in range(n2):
-                acc0 = 0j
-                accs = 0j
+                # by real parts: a complex product would multiply by 0j
+                w0_r = 0.0
+                w0_i = 0.0
+                ws_r = 0.0
+                ws_i = 0.0
                 for f in range(nf):
-                    acc0 += W[i, f] * u0[f]
-                    accs += W[i, f] * us[f]
-                w0[i] = acc0
-                ws[i] = accs
+                    w0_r += W[i, f].real * u0[f]
+                    w0_i += W[i, f].imag * u0[f]
+                    ws_r += W[i, f].real * us[f]
+                    ws_i += W[i, f].imag * us[f]
+                w0[i] = complex(w0_r, w0_i)
+                ws[i] = complex(ws_r, ws_i)
             horizon = t_b - t_cur
             best_j = -1
             best_fid = -1

@@ -22,29 +22,58 @@ def cabs_py(z):
 cabs = kernel(inline='always')(cabs_py)
 
 
-#: Taylor coefficients of phi1 and phi2: 1/(k+1)! and 1/(k+2)!, k = 0..13
+#: Taylor coefficients of phi1: 1/(k+1)!, k = 0..13 (the ledger's real phi1)
 _PHI1_SERIES = np.array([1.0 / math.factorial(k + 1) for k in range(14)])
-_PHI2_SERIES = np.array([1.0 / math.factorial(k + 2) for k in range(14)])
+#: Taylor coefficients of phi2: 1/(k+2)!, k = 0..11
+_PHI2_SERIES = np.array([1.0 / math.factorial(k + 2) for k in range(12)])
+#: Largest |z|^2 at which degree 3, 5, 7, 9, 11 of the phi2 series leaves a first dropped
+#: term below 1e-17 of it (the terms are |z|^(d+1)/(d+3)! against 1/2)
+_PHI2_R2 = np.array([(0.5e-17 * math.factorial(d + 3)) ** (2.0 / (d + 1))
+                     for d in (3, 5, 7, 9, 11)])
+
+
+def phis_from_py(z, ez):
+    """``(phi1(z), phi2(z))`` of a complex ``z`` given ``ez = e^z``: below ``|z| = 0.2`` one
+    Horner chain for ``phi2`` of the degree ``|z|`` needs (3 to 11; ``ez`` unused), then
+    ``phi1 = 1 + z phi2``, which cancels nothing there; above, from ``ez``."""
+    r2 = z.real * z.real + z.imag * z.imag
+    if r2 < 0.04:
+        top = 11
+        for j in range(5):
+            if r2 <= _PHI2_R2[j]:
+                top = 3 + 2 * j
+                break
+        f2 = _PHI2_SERIES[top] + 0j
+        for m in range(top - 1, -1, -1):
+            f2 = f2 * z + _PHI2_SERIES[m]
+        return 1.0 + z * f2, f2
+    # 1/z by real arithmetic: complex division is several times slower
+    inv = np.conj(z) * (1.0 / r2)
+    f1 = (ez - 1.0) * inv
+    return f1, (f1 - 1.0) * inv
+
+
+phis_from = kernel(inline='always')(phis_from_py)
+
+
+def flow_factors_py(z):
+    """``(e^z, phi1(z), phi2(z))`` of a complex ``z``: below ``|z| = 0.2`` no exponential
+    (:func:`phis_from`, then ``e^z = 1 + z phi1``: one Horner chain for all three)."""
+    if z.real * z.real + z.imag * z.imag < 0.04:
+        f1, f2 = phis_from(z, 0j)
+        return 1.0 + z * f1, f1, f2
+    ez = np.exp(z)
+    f1, f2 = phis_from(z, ez)
+    return ez, f1, f2
+
+
+flow_factors = kernel(inline='always')(flow_factors_py)
 
 
 def phis_py(z):
     """Return ``((e^z - 1)/z, (e^z - 1 - z)/z^2)`` for complex ``z``, accurate near 0."""
-    r2 = z.real * z.real + z.imag * z.imag
-    if r2 < 0.04:
-        # Horner on the Taylor series, cut where the first dropped term is below 1e-21: degree
-        # 13 for |z| < 0.2, 7 for |z| <= 0.01, 3 for |z| <= 1e-5 (a loop with a convergence
-        # test costs a square root and a division per term, and runs on every short flow)
-        top = 13 if r2 > 1e-4 else (7 if r2 > 1e-10 else 3)
-        a = _PHI1_SERIES[top] + 0j
-        b = _PHI2_SERIES[top] + 0j
-        for k in range(top - 1, -1, -1):
-            a = a * z + _PHI1_SERIES[k]
-            b = b * z + _PHI2_SERIES[k]
-        return a, b
-    ez = np.exp(z)
-    # 1/z by real arithmetic: complex division is several times slower
-    inv = np.conj(z) * (1.0 / r2)
-    return (ez - 1.0) * inv, (ez - 1.0 - z) * inv * inv
+    _, f1, f2 = flow_factors(z)
+    return f1, f2
 
 
 phis = kernel(inline='always')(phis_py)
@@ -60,15 +89,8 @@ def propagate_py(yh, lam, tau, w0, ws, out):
             out[k] = yh[k]
         return
     for k in range(lam.size):
-        z = lam[k] * tau
-        if cabs(z) < 0.2:
-            f1, f2 = phis(z)
-            out[k] = np.exp(z) * yh[k] + tau * f1 * w0[k] + tau * tau * f2 * ws[k]
-        else:
-            ez = np.exp(z)
-            inv = np.conj(lam[k]) * (1.0 / (lam[k].real * lam[k].real + lam[k].imag * lam[k].imag))
-            em1 = (ez - 1.0) * inv  # tau phi1
-            out[k] = ez * yh[k] + em1 * w0[k] + (em1 - tau) * inv * ws[k]
+        ez, f1, f2 = flow_factors(lam[k] * tau)
+        out[k] = ez * yh[k] + tau * (f1 * w0[k] + tau * f2 * ws[k])
 
 
 propagate = kernel(inline='always')(propagate_py)
@@ -77,9 +99,7 @@ propagate = kernel(inline='always')(propagate_py)
 def step_factors_py(lam, h, e_h, p1_h, p2_h):
     """Factors of the flow over a full step ``h`` (s): ``exp(lam h)``, ``h phi1``, ``h^2 phi2``."""
     for k in range(lam.size):
-        z = lam[k] * h
-        f1, f2 = phis(z)
-        e_h[k] = np.exp(z)
+        e_h[k], f1, f2 = flow_factors(lam[k] * h)
         p1_h[k] = h * f1
         p2_h[k] = h * h * f2
 
@@ -145,8 +165,13 @@ def more_derivs_py(lam, W, uder, m_from, order, out):
         for k in range(n2):
             acc = lam[k] * out[m - 1, k]
             if forced:
+                # complex times real by real parts: a complex product would multiply by 0j
+                acc_r = 0.0
+                acc_i = 0.0
                 for f in range(nf):
-                    acc += W[k, f] * uder[m - 1, f]
+                    acc_r += W[k, f].real * uder[m - 1, f]
+                    acc_i += W[k, f].imag * uder[m - 1, f]
+                acc += complex(acc_r, acc_i)
             out[m, k] = acc
 
 

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from . import kernel
 
-from .flow import _PHI1_SERIES, cabs, point_eval, propagate
+from .flow import _PHI1_SERIES, cabs, flow_factors, phis_from, point_eval, propagate
 
 
 def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
@@ -569,37 +569,6 @@ def phi1_real_py(x):
 phi1_real = kernel(inline='always')(phi1_real_py)
 
 
-#: Taylor coefficients of phi2: 1/(k+2)!, k = 0..11
-_PHI2_SERIES = np.array([1.0 / math.factorial(k + 2) for k in range(12)])
-#: Largest |z|^2 at which degree 3, 5, 7, 9, 11 of the phi2 series leaves a first dropped
-#: term below 1e-17 of it (the terms are |z|^(d+1)/(d+3)! against 1/2)
-_PHI2_R2 = np.array([(0.5e-17 * math.factorial(d + 3)) ** (2.0 / (d + 1))
-                     for d in (3, 5, 7, 9, 11)])
-
-
-def phis_from_py(z, ez):
-    """``(phi1(z), phi2(z))`` of a complex ``z`` given ``ez = e^z``: below ``|z| = 0.2`` one
-    Horner chain for ``phi2`` of the degree ``|z|`` needs (3 to 11; ``ez`` unused), then
-    ``phi1 = 1 + z phi2``, which cancels nothing there; above, from ``ez``."""
-    r2 = z.real * z.real + z.imag * z.imag
-    if r2 < 0.04:
-        top = 11
-        for j in range(5):
-            if r2 <= _PHI2_R2[j]:
-                top = 3 + 2 * j
-                break
-        f2 = _PHI2_SERIES[top] + 0j
-        for m in range(top - 1, -1, -1):
-            f2 = f2 * z + _PHI2_SERIES[m]
-        return 1.0 + z * f2, f2
-    inv = np.conj(z) * (1.0 / r2)
-    f1 = (ez - 1.0) * inv
-    return f1, (f1 - 1.0) * inv
-
-
-phis_from = kernel(inline='always')(phis_from_py)
-
-
 def phi1_ledger_py(z, ez):
     """``phi1(z)`` given ``ez = e^z``, for the ledger's harmonic cross terms: ``(ez - 1)/z``
     down to ``|z| = 0.01`` (rounding about ``eps/|z|``, 2e-14, well inside the ledger's
@@ -619,16 +588,11 @@ def piece_factors_py(lam, tau, e_tau, p1_tau, p2_tau, m_tau):
     ``int_0^tau |e^(lam s)|^2 ds = tau phi1(2 Re(lam) tau)`` (s).
 
     One exponential per coordinate at ``|lam tau| >= 0.2``; below, none
-    (:func:`phis_from`, then ``e = 1 + z phi1``).
+    (:func:`.flow.flow_factors`).
     """
     for k in range(lam.size):
         z = lam[k] * tau
-        if z.real * z.real + z.imag * z.imag < 0.04:
-            f1, f2 = phis_from(z, 0j)
-            e = 1.0 + z * f1
-        else:
-            e = np.exp(z)
-            f1, f2 = phis_from(z, e)
+        e, f1, f2 = flow_factors(z)
         e_tau[k] = e
         p1_tau[k] = tau * f1
         p2_tau[k] = tau * tau * f2
