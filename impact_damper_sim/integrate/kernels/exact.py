@@ -34,6 +34,9 @@ Conventions as in :mod:`.flow`; ``counters`` (``CNT_*``) count the work done.
 """
 from __future__ import annotations
 
+import math
+from fractions import Fraction
+
 import numpy as np
 from . import kernel
 
@@ -85,6 +88,11 @@ SEGMENT_REACH = 1.5
 #: Largest |lambda| d of a correction taken by a Taylor step instead of a flow evaluation.
 TAYLOR_STEP_REACH = 1e-4
 _EPS = 2.220446049250313e-16
+#: 1/m! (m <= 16), to scale Taylor coefficients by products: a division per term was the
+#: event functions' hottest chain
+_INV_FACT = np.array([float(Fraction(1, math.factorial(m))) for m in range(17)])
+#: 1/m! rounded up (relative 1e-14), so that a derivative bound times it stays a bound
+_INV_FACT_UP = _INV_FACT * (1.0 + 1e-14)
 
 
 def grace_shift_py(fid, X, limit):
@@ -115,21 +123,17 @@ def fn_taylor_py(fid, X, z, v, limit, normal, P, Eb, S, shift, rw, a):
         sg = 1.0 if fid == FN_WALL_POS else -1.0
         a[0] = limit - sg * (z[0] - X[0, 0]) + shift
         a[1] = -sg * (v[0] - X[1, 0])
-        fact = 1.0
         for m in range(2, P + 1):
-            fact *= m
-            a[m] = sg * X[m, 0] / fact
+            a[m] = sg * X[m, 0] * _INV_FACT[m]
         return Eb[P + 1]
     if fid == FN_PLANAR:
         # g = c^2 - r.r with r = z + v s - x_h(s): Taylor coefficients of r, then of r.r
         for c in range(2):
             rw[c, 0] = z[c] - X[0, c]
             rw[c, 1] = v[c] - X[1, c]
-        fact = 1.0
         for m in range(2, P + 1):
-            fact *= m
             for c in range(2):
-                rw[c, m] = -X[m, c] / fact
+                rw[c, m] = -X[m, c] * _INV_FACT[m]
         for m in range(P + 1):
             acc = 0.0
             for i in range(m + 1):
@@ -149,11 +153,8 @@ def fn_taylor_py(fid, X, z, v, limit, normal, P, Eb, S, shift, rw, a):
             G += BINOM[n, i] * bi * bk
         return G
     # release: f = -n . a_h
-    fact = 1.0
     for m in range(P + 1):
-        if m > 0:
-            fact *= m
-        a[m] = -(normal[0] * X[m + 2, 0] + normal[1] * X[m + 2, 1]) / fact
+        a[m] = -(normal[0] * X[m + 2, 0] + normal[1] * X[m + 2, 1]) * _INV_FACT[m]
     a[0] += shift
     return np.sqrt(normal[0] * normal[0] + normal[1] * normal[1]) * Eb[P + 3]
 
@@ -431,12 +432,8 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
     n_slow = 0
     best_c = -1
     best_sb = S
-    # 1/(P + 1)!, rounded up so that G/(P + 1)! stays a bound (a chain of divisions per
-    # candidate was the search's hottest loop)
-    inv_fact = 1.0
-    for i in range(2, P + 2):
-        inv_fact /= i
-    inv_fact *= 1.0 + 1e-14
+    # 1/(P + 1)!, rounded up so that G/(P + 1)! stays a bound
+    inv_fact = _INV_FACT_UP[P + 1]
     sort_candidates(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv)
     for c in range(n_cand):
         j = cand_j[c]

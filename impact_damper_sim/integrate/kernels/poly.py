@@ -8,6 +8,10 @@ from __future__ import annotations
 import numpy as np
 from . import kernel
 
+#: 1/6 rounded up: the cubic term of a lower bound may only grow by rounding
+_SIXTH_UP = np.nextafter(1.0 / 6.0, 1.0)
+
+
 def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
     """Largest ``s <= T`` with ``p(s) = g0 + g1 s + g2 s^2/2 - g3max s^3/6 > 0`` on ``[0, s)``.
 
@@ -24,7 +28,7 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
         return 0.0
     # each term at its least over [0, T]: a bound clearly positive at T clears the whole
     # interval (the common case) without the square root and divisions below
-    if g0 + T * (min(g1, 0.0) + T * (0.5 * min(g2, 0.0) - T * g3max / 6.0)) > 1e-12 * g0:
+    if g0 + T * (min(g1, 0.0) + T * (0.5 * min(g2, 0.0) - T * g3max * _SIXTH_UP)) > 1e-12 * g0:
         return T
     # the cut points, ascending: at most two roots of dp/ds inside, then T; scalars, not an
     # array, since this runs once per impactor per search and must not allocate
