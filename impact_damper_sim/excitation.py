@@ -86,6 +86,11 @@ class _Knots:
     def angle(self, t):
         return self._raw_angle(t)
 
+    def state(self, t):
+        """``(angle, speed, acceleration)`` at ``t`` from one search of the knots."""
+        k, dt, s = self._locate(t)
+        return self.phi[k] + self.w[k] * dt + 0.5 * s * dt * dt, self.w[k] + s * dt, s
+
 
 class SpeedProfile:
     """Base class of rotor speed profiles: speed, acceleration and angle at times ``t``.
@@ -148,8 +153,8 @@ class SpeedProfile:
     def state(self, t):
         """Return ``(phi, omega, alpha)`` at times ``t`` (rad, rad/s, rad/s^2)."""
         t, out = _shaped(t)
-        knots = self._knots()
-        return out(knots.angle(t)), out(knots.speed(t)), out(knots.acceleration(t))
+        phi, omega, alpha = self._knots().state(t)
+        return out(phi), out(omega), out(alpha)
 
 
 class PiecewiseLinearSpeed(SpeedProfile):
@@ -391,7 +396,8 @@ class UnbalanceForce:
         phi, omega, alpha = self.profile.state(t)
         w2 = omega * omega
         for m_e, p, (iy, iz) in zip(self.m_e, self.phase, self.input_pairs):
-            c, s = np.cos(phi + p), np.sin(phi + p)
+            angle = phi + p
+            c, s = np.cos(angle), np.sin(angle)
             a = self._multiplier * m_e
             out[:, iy] += a * (w2 * c + alpha * s)
             out[:, iz] += a * (w2 * s - alpha * c)
