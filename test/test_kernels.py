@@ -113,7 +113,8 @@ def test_cubic_safe_step_is_safe_and_twin(rng):
         s = PL.cubic_safe_step(g0, g1, g2, g3, T, 0.0)
         assert s == PL.cubic_safe_step_py(g0, g1, g2, g3, T, 0.0)
         # the shortcut (each term at its least over [0, T] still positive) answers T
-        if g0 + T * min(g1, 0) + T ** 2 / 2 * min(g2, 0) - g3 * T ** 3 / 6 > 1e-12 * g0:
+        drop = -T * min(g1, 0) - T ** 2 / 2 * min(g2, 0) + g3 * T ** 3 / 6
+        if g0 - drop > 1e-12 * (g0 + drop):
             assert s == T
             n_clear += 1
         coarse = PL.cubic_safe_step(g0, g1, g2, g3, T, T)

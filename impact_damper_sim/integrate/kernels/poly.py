@@ -26,9 +26,11 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
     """
     if g0 <= 0.0:
         return 0.0
-    # each term at its least over [0, T]: a bound clearly positive at T clears the whole
-    # interval (the common case) without the square root and divisions below
-    if g0 + T * (min(g1, 0.0) + T * (0.5 * min(g2, 0.0) - T * g3max * _SIXTH_UP)) > 1e-12 * g0:
+    # each term at its least over [0, T]: a bound positive at T by more than its rounding
+    # (relative to the terms' sizes) clears the whole interval (the common case) without the
+    # square root and divisions below
+    drop = T * (-min(g1, 0.0) + T * (-0.5 * min(g2, 0.0) + T * g3max * _SIXTH_UP))
+    if g0 - drop > 1e-12 * (g0 + drop):
         return T
     # the cut points, ascending: at most two roots of dp/ds inside, then T; scalars, not an
     # array, since this runs once per impactor per search and must not allocate
