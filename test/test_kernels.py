@@ -17,15 +17,17 @@ def rng():
     return np.random.default_rng(20261121)
 
 
-def test_phis_twin_and_closed_form(rng):
-    # phi1 = (e^z - 1)/z, phi2 = (e^z - 1 - z)/z^2: series near 0, direct formula elsewhere.
-    # Twin vs JIT to 1e-15; vs a reference at a scale where the formula is well conditioned
-    # (|z| >= 0.2) and vs the series sum in extended precision near 0, 1e-13 relative.
+def test_flow_factors_twin_and_closed_form(rng):
+    # e^z, phi1 = (e^z - 1)/z, phi2 = (e^z - 1 - z)/z^2: one series near 0 (e^z = 1 + z phi1
+    # there), the exponential elsewhere. Twin vs JIT to 1e-15; e^z vs np.exp to 2 ulp; phi1,
+    # phi2 vs Simpson quadrature of their integrals, 1e-10.
     for z in list(rng.normal(size=20) * 0.1 + 1j * rng.normal(size=20) * 0.1) + \
             list(rng.normal(size=20) * 3 + 1j * rng.normal(size=20) * 30):
-        a, b = K.phis(z)
-        a_py, b_py = K.phis_py(z)
+        e, a, b = K.flow_factors(z)
+        e_py, a_py, b_py = K.flow_factors_py(z)
         assert abs(a - a_py) <= 1e-15 * abs(a) and abs(b - b_py) <= 1e-15 * abs(b)
+        assert abs(e - e_py) <= 1e-15 * abs(e)
+        assert abs(e - np.exp(z)) <= 4.5e-16 * abs(e)
         zl = complex(z)
         # reference by numerical quadrature of phi1 = int_0^1 e^{z s} ds, phi2 = int (1-s) e^{zs}
         s = np.linspace(0.0, 1.0, 20001)

@@ -70,14 +70,6 @@ def flow_factors_py(z):
 flow_factors = kernel(inline='always')(flow_factors_py)
 
 
-def phis_py(z):
-    """Return ``((e^z - 1)/z, (e^z - 1 - z)/z^2)`` for complex ``z``, accurate near 0."""
-    _, f1, f2 = flow_factors(z)
-    return f1, f2
-
-
-phis = kernel(inline='always')(phis_py)
-
 
 def propagate_py(yh, lam, tau, w0, ws, out):
     """Homogeneous-plus-first-order-hold flow over ``tau`` (s): ``out = yh(tau)``.

@@ -10,8 +10,6 @@ flow evaluations, is the independent reference the tests hold them to. Conventio
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from . import kernel
 
