@@ -55,6 +55,10 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
 #: Largest number of configurations kept as one table inside the kernel; a scene with more
 #: (many impactors on distinct housings) switches through Python instead.
 MAX_TABLE_SLOTS = 4096
+#: Largest table whose configurations are all built when the engine is made (about 1 ms
+#: each at 10 modes): the event loop then never returns to Python to build one, and a live
+#: node never stalls for a build in the middle of a run. Larger tables build on first use.
+PREBUILD_SLOTS = 64
 #: Degree of the Taylor models of the event search (see :mod:`.kernels.exact`).
 TAYLOR_ORDER = 6
 
@@ -250,6 +254,9 @@ class ExactPropagator(IntegratorBase):
         self.grazing_undecided = 0
         self.max_impacts_per_step = 0
         self._initial_energy = sum(self._energy_now())
+        if self._table_mode and self._n_slots <= PREBUILD_SLOTS:
+            for slot in range(self._n_slots):
+                self._table(self._key_of_slot(None, slot))
 
     # -- configuration ----------------------------------------------------------------------
     def _key(self):
