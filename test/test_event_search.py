@@ -1326,6 +1326,29 @@ def test_table_mode_equals_the_python_fallback(monkeypatch, fallback):
         assert getattr(e_o, name) == pytest.approx(getattr(e_t, name), rel=1e-12, abs=1e-18)
 
 
+def test_a_configuration_without_a_flow_is_left_to_first_use(monkeypatch):
+    # Building the table with the engine must not refuse a scene for a configuration its run
+    # may never reach: one that cannot be built (here every configuration with both SDOF
+    # impactors stuck) is left unbuilt, the others are built, and reaching it raises the
+    # builder's error as a first-use build always did.
+    real = exact_mod.build_flow
+
+    def no_flow_with_both_stuck(model, masses, *args, **kwargs):
+        if masses[0] > 0.0 and masses[1] > 0.0:
+            raise ValueError('no flow here')
+        return real(model, masses, *args, **kwargs)
+
+    monkeypatch.setattr(exact_mod, 'build_flow', no_flow_with_both_stuck)
+    model, forcing = table_scene()
+    prop = ExactPropagator(model, forcing, dt=5e-4)
+    built = prop._tables['all'].built
+    keys = [prop._key_of_slot(None, slot) for slot in range(built.size)]
+    assert [bool(b) for b in built] == [key[0] < 2 for key in keys]
+    assert not built.all() and built.any()
+    with pytest.raises(ValueError, match='no flow here'):
+        prop._table(next(key for key in keys if key[0] == 2))
+
+
 def test_events_do_not_depend_on_the_taylor_degree():
     # "A speed setting only": degrees 2, 4, 9 and 12 decide different functions by
     # certificate and by the fallback scan, and refine from different starting points, but
