@@ -72,6 +72,27 @@ def run(scene, duration, repeat, impacts=True, **options):
     return result
 
 
+def target_verdicts(measured):
+    """Issue 11's targets against this run's figures (``measured``: per scene,
+    ``us_per_impact`` (us), ``rtf_ledger`` and ``rtf_no_ledger`` (x real time))."""
+    def verdict(ok):
+        return 'met' if ok else 'NOT met'
+
+    lines = []
+    if 'hpotp' in measured:
+        m = measured['hpotp']
+        lines.append(f"  hpotp: {m['us_per_impact']:.2f} us per impact (<= 5: "
+                     f"{verdict(m['us_per_impact'] <= 5.0)}); {m['rtf_ledger']:.1f} x real time "
+                     f"with the ledger, as study simulate runs (>= 20: "
+                     f"{verdict(m['rtf_ledger'] >= 20.0)})")
+    if 'hpotp_x10' in measured:
+        m = measured['hpotp_x10']
+        lines.append(f"  hpotp_x10: {m['rtf_ledger']:.2f} x real time with the ledger (>= 3: "
+                     f"{verdict(m['rtf_ledger'] >= 3.0)}), {m['rtf_no_ledger']:.2f} x without "
+                     f"it, as the node runs (>= 3: {verdict(m['rtf_no_ledger'] >= 3.0)})")
+    return lines
+
+
 def scene_table(names, repeat, duration):
     print(f'exact engine, one process, CPU time best of {repeat}; load average '
           f'{os.getloadavg()[0]:.2f}')
@@ -79,6 +100,7 @@ def scene_table(names, repeat, duration):
           f"{'us/imp':>7s} {'marg.':>6s} {'us/step':>7s} | per impact: "
           f"{'search':>6s} {'taylor':>6s} {'evals':>6s} {'scan':>5s} {'switch':>6s} {'py':>5s}")
     ledger_rows = []
+    measured = {}
     for name in names:
         scene = load(name)
         T = duration or scene.scene['simulation']['duration']
@@ -98,6 +120,8 @@ def scene_table(names, repeat, duration):
               f"{marginal} {per_step} |             "
               + ' '.join(f'{c[k] / n_imp:{w}.2f}' for k, w in zip(COUNTERS, (6, 6, 6, 5, 6, 5))),
               flush=True)
+        measured[name] = dict(us_per_impact=1e6 * free['cpu'] / n_imp, rtf_ledger=T / led['cpu'],
+                              rtf_no_ledger=T / free['cpu'])
         lc = led['counters']
         ledger_rows.append((name, led['cpu'] - free['cpu'], lc['ledger_closed'],
                             lc['ledger_panels']))
@@ -106,6 +130,8 @@ def scene_table(names, repeat, duration):
           'impacts disabled; evals = flow evaluations outside the ledger; scan = fallback '
           'safe-step scans; py = returns to Python for a configuration change')
     print('targets: hpotp <= 5 us/impact and RTF >= 20; hpotp_x10 RTF >= 3')
+    for line in target_verdicts(measured):
+        print(line)
     print(f"\nenergy ledger: {'scene':10s} {'CPU s':>6s} {'closed':>8s} {'panels':>8s} "
           f"{'us/piece':>8s}")
     for name, cpu, closed, panels in ledger_rows:
@@ -244,7 +270,8 @@ def growth_law(rows):
         y = np.array([r['cpu_per_sim_s'] for r in sel])
         b, a = np.polyfit(x, y, 1)
         slopes.append(b)
-        print(f'{int(n_modes):3d} modes: CPU per simulated s = {a:.3f} + {1e6 * b:.1f} us x impacts/s')
+        print(f'{int(n_modes):3d} modes: CPU per simulated s = {a:.3f} + {1e6 * b:.1f} us x '
+              'impacts/s')
     p, log_c = np.polyfit(np.log(modes), np.log(slopes), 1)
     print(f'growth law: {1e6 * np.exp(log_c):.2f} us x modes^{p:.2f} per impact')
     return np.exp(log_c), p
