@@ -55,7 +55,7 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
 #: Largest number of configurations kept as one table inside the kernel; a scene with more
 #: (many impactors on distinct housings) switches through Python instead.
 MAX_TABLE_SLOTS = 4096
-#: Largest table whose configurations are all built when the engine is made (about 1 ms
+#: Largest table whose configurations are all built when the engine is made (0.5 to 1 ms
 #: each at 10 modes): the event loop then never returns to Python to build one, and a live
 #: node never stalls for a build in the middle of a run. Larger tables build on first use.
 PREBUILD_SLOTS = 64
