@@ -72,13 +72,17 @@ class _Knots:
         s = np.where(before, 0.0, self.s[k])   # held at w_0 before the first knot
         return k, dt, s
 
-    def _raw_angle(self, t):
-        k, dt, s = self._locate(t)
+    def _angle_at(self, k, dt, s):
         return self.phi[k] + self.w[k] * dt + 0.5 * s * dt * dt
 
-    def speed(self, t):
-        k, dt, s = self._locate(t)
+    def _speed_at(self, k, dt, s):
         return self.w[k] + s * dt
+
+    def _raw_angle(self, t):
+        return self._angle_at(*self._locate(t))
+
+    def speed(self, t):
+        return self._speed_at(*self._locate(t))
 
     def acceleration(self, t):
         return self._locate(t)[2]
@@ -89,7 +93,7 @@ class _Knots:
     def state(self, t):
         """``(angle, speed, acceleration)`` at ``t`` from one search of the knots."""
         k, dt, s = self._locate(t)
-        return self.phi[k] + self.w[k] * dt + 0.5 * s * dt * dt, self.w[k] + s * dt, s
+        return self._angle_at(k, dt, s), self._speed_at(k, dt, s), s
 
 
 class SpeedProfile:
