@@ -23,6 +23,7 @@ from sensor_msgs.msg import Imu, JointState  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
 from impact_damper_sim.ros import interface as itf  # noqa: E402
+from impact_damper_sim.ros import vibration_node  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode, main  # noqa: E402
 from impact_damper_sim.scene.schema import SceneError  # noqa: E402
 
@@ -375,9 +376,11 @@ def test_pacing_at_real_time_and_as_fast_as_possible(ros_context):
         _spin(ex, 1.0)
         pub.publish(Float64(data=1000.0))
         t_sent = time.monotonic()
-        while sim.live.profile.target != 1000.0 and time.monotonic() - t_sent < 1.0:
+        # served while stepping flat out; how promptly is a wall-clock figure, measured in
+        # bench/node_realtime.py and pinned in chunks by the hand-over test below
+        while sim.live.profile.target != 1000.0 and time.monotonic() - t_sent < 5.0:
             ex.spin_once(timeout_sec=0.01)
-        assert time.monotonic() - t_sent < 0.2   # served promptly while stepping flat out
+        assert sim.live.profile.target == 1000.0
         _spin(ex, 1.5)
         assert sim._state_pub.count >= n_state + 2   # the 1 s state timer kept firing
         sim.publish_diagnostics()
@@ -385,6 +388,41 @@ def test_pacing_at_real_time_and_as_fast_as_possible(ros_context):
     finally:
         sim.destroy_node()
         cmd.destroy_node()
+
+
+def test_a_waiting_callback_gets_the_lock_at_the_next_chunk():
+    """The stepping thread hands its lock over between chunks: a callback that waits for it
+    (a command, diagnostics) gets it after the chunk under way, in the median of 20 waits;
+    without the hand-over Python's unfair lock lets the stepper win again (measured: 60 to
+    900 chunks of 1 ms each, quiet or with both cores loaded; with it 1 to 4 at most, median
+    1). Counted in chunks, not seconds, so a loaded machine does not make it flaky."""
+    lock = vibration_node._HandoffLock()
+    stop = threading.Event()
+    chunks = [0]
+
+    def stepper():
+        while not stop.is_set():
+            with lock:
+                end = time.perf_counter() + 1e-3   # a chunk of physics, holding the lock
+                while time.perf_counter() < end:
+                    pass
+                chunks[0] += 1
+            lock.hand_over()
+
+    thread = threading.Thread(target=stepper, daemon=True)
+    thread.start()
+    waited = []
+    try:
+        time.sleep(0.02)
+        for _ in range(20):
+            before = chunks[0]
+            with lock:
+                waited.append(chunks[0] - before)
+            time.sleep(0.005)
+    finally:
+        stop.set()
+        thread.join()
+    assert sorted(waited)[10] <= 2, waited   # the median wait
 
 
 def test_recording_keeps_real_time(ros_context, tmp_path):
