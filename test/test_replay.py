@@ -200,9 +200,12 @@ def test_rate_1_count_order_payload_and_timing(ros_context, mixed_log):
     node.destroy_node()
     assert stats.messages == len(entries) and not stats.stopped
     assert len(arrivals) == len(entries)
-    # order and payloads: the raw CDR bytes arrive unchanged, in log order
-    assert [(a[0], a[2]) for a in arrivals] == [(e[1], data)
-                                                for e, data in zip(entries, payloads)]
+    # payloads and order: the raw CDR bytes arrive unchanged, each topic in log order (across
+    # topics DDS keeps no order: an executor that wakes late takes the topics in its own
+    # order, seen with the cores loaded; the player's own order is the fake-clock tests')
+    for topic in ('/accel/s1', '/impacts'):
+        assert [a[2] for a in arrivals if a[0] == topic] == [
+            data for e, data in zip(entries, payloads) if e[1] == topic], topic
     log_dt = [(b[0] - a[0]) * 1e-9 for a, b in zip(entries, entries[1:])]
     wall_dt = [b[1] - a[1] for a, b in zip(arrivals, arrivals[1:])]
     jitter = statistics.median(abs(w - g) for w, g in zip(wall_dt, log_dt))

@@ -425,6 +425,73 @@ def test_a_waiting_callback_gets_the_lock_at_the_next_chunk():
     assert sorted(waited)[10] <= 2, waited   # the median wait
 
 
+def test_shutdown_after_ctrl_c_does_not_race_the_sigint_handler(monkeypatch):
+    """rclpy's SIGINT handler shuts the context down on a thread of its own while the main
+    thread gets KeyboardInterrupt; a ``try_shutdown`` between the two raised ``rcl_shutdown
+    already called`` (exit 1 with a traceback: 2 of 60 SIGINTs to ``replay``, cores loaded).
+    ``settle_interrupt`` waits for that shutdown; ``shutdown_quietly`` takes the error as done
+    once the context is down, and raises it while the context is still up."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    RCLError = _rclpy.RCLError
+    from impact_damper_sim.ros.wire import settle_interrupt, shutdown_quietly
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    # the handler's shutdown, 50 ms after the interrupt: settle_interrupt waits for it
+    timer = threading.Timer(0.05, ctx.handle.shutdown)
+    timer.start()
+    start = time.monotonic()
+    settle_interrupt(ctx, timeout_s=5.0)
+    timer.join()
+    assert not ctx.ok() and time.monotonic() - start < 4.0
+    shutdown_quietly(ctx)   # already down: nothing to do
+
+    def racing_try_shutdown(context=None):   # the handler wins between check and call
+        context.handle.shutdown()
+        raise RCLError('failed to shutdown: rcl_shutdown already called on the given context')
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    monkeypatch.setattr(rclpy, 'try_shutdown', racing_try_shutdown)
+    shutdown_quietly(ctx)
+    assert not ctx.ok()
+
+    def failing_try_shutdown(context=None):   # a failure of our own: not hidden
+        raise RCLError('failed to shutdown: something else')
+
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    monkeypatch.setattr(rclpy, 'try_shutdown', failing_try_shutdown)
+    with pytest.raises(RCLError):
+        shutdown_quietly(ctx)
+    monkeypatch.undo()
+    rclpy.try_shutdown(context=ctx)
+
+
+def test_spin_guarded_ends_quietly_when_ctrl_c_shuts_the_context_under_it():
+    """A callback's exception is reported and spinning goes on; the error rclpy raises when
+    the SIGINT handler shuts the context down while a wait set is being made ("the given
+    context is not valid") ends the spin as a shutdown, not as a failed callback."""
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    from rclpy.executors import ExternalShutdownException
+    from impact_damper_sim.ros.wire import spin_guarded
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    reported, calls = [], []
+
+    def spin_once(timeout_sec=None):
+        calls.append(timeout_sec)
+        if len(calls) == 1:
+            raise ValueError('a malformed message')   # reported, spinning goes on
+        ctx.handle.shutdown()
+        raise _rclpy.RCLError('failed to initialize wait set: the given context is not valid')
+
+    executor.spin_once = spin_once
+    with pytest.raises(ExternalShutdownException):
+        spin_guarded(executor, reported.append)
+    assert len(calls) == 2 and [str(e) for e in reported] == ['a malformed message']
+
+
 def test_recording_keeps_real_time(ros_context, tmp_path):
     """Recording on (writer thread off the stepping path): still 1 +- 0.02 of real time."""
     sim = VibrationNode(context=ros_context, parameter_overrides=[

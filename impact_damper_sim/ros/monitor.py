@@ -51,7 +51,7 @@ from sensor_msgs.msg import Imu, JointState
 from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
 from .interface import (ACCEL_PREFIX, accel_topic, DIAGNOSTICS, DIAGNOSTICS_QOS, EVENT_QOS,
                         IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS, TYPES)
-from .wire import guard_services, spin_guarded
+from .wire import guard_services, settle_interrupt, shutdown_quietly, spin_guarded
 
 #: Samples (or impacts) queued on one stream before the batch goes to the report thread
 #: ahead of the report, so that memory stays bounded for long report periods.
@@ -414,11 +414,11 @@ def main(args=None):
         spin_guarded(executor, lambda exc: node.get_logger().error(
             f'callback failed: {type(exc).__name__}: {exc}', throttle_duration_sec=1.0))
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        settle_interrupt()
     finally:
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        shutdown_quietly()
 
 
 if __name__ == '__main__':

@@ -59,6 +59,7 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPro
 
 from ..studies.report import LogError, RosLog, type_name
 from .interface import CLOCK, CLOCK_QOS
+from .wire import settle_interrupt, shutdown_quietly
 
 EXIT_USAGE = 2
 DEFAULT_CLOCK_HZ = 100.0
@@ -779,7 +780,7 @@ def main(args=None):
             f'{stats.wall_s:.3f} s; lateness median {stats.median_lateness_s * 1e3:.3f} ms, '
             f'max {stats.max_lateness_s * 1e3:.3f} ms')
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        settle_interrupt()
     except LogError as exc:   # damage found while reading on
         _error(exc)
         status = EXIT_USAGE
@@ -790,18 +791,22 @@ def main(args=None):
             executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        shutdown_quietly()
         if spinner is not None:
             spinner.join(timeout=1.0)
     return status
 
 
 def _spin_quietly(executor):
-    """Spin until shutdown; Ctrl-C shuts the context down under the spin, which is no error."""
+    """Spin until shutdown; Ctrl-C shuts the context down under the spin, which is no error
+    (nor is the wait set rclpy was making at that moment: "the given context is not valid")."""
     try:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if executor.context.ok():
+            raise
 
 
 if __name__ == '__main__':

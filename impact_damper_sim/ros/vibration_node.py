@@ -33,7 +33,8 @@ from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
 from ..scene.schema import SceneError
 from . import interface as itf
 from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
-from .wire import ImuPacker, Outlet, StampedPacker, guard_services, spin_guarded, stamp
+from .wire import ImuPacker, Outlet, StampedPacker, guard_services, settle_interrupt, \
+    shutdown_quietly, spin_guarded, stamp
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
 RECORD_CHUNK_SIZE = 768 * 1024   # bytes, as rosbag2's MCAP storage
@@ -878,14 +879,14 @@ def main(args=None):
         spin_guarded(executor, lambda exc: node._log(
             'error', f'callback failed: {type(exc).__name__}: {exc}', 1.0, 'spin'))
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        settle_interrupt()
     except (SceneError, ParameterException) as exc:
         print(f'vibration_node: {exc}', file=sys.stderr)
         status = 2
     finally:
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        shutdown_quietly()
     return status
 
 

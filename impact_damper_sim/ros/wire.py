@@ -8,10 +8,14 @@
   the packer checks a packed message against rclpy (a round trip) before it is used.
 * :func:`guard_services` makes every service of a node answer (a refusal with the reason)
   instead of raising into the executor, which would stop the node.
+* :func:`spin_guarded`, :func:`settle_interrupt` and :func:`shutdown_quietly` spin and end a
+  ``main`` without racing rclpy's own SIGINT handler, which shuts the context down on another
+  thread.
 """
 from __future__ import annotations
 
 import struct
+import time
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -211,8 +215,8 @@ def guard_services(node, log):
         srv.callback = guarded
 
 
-__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'set_stamp', 'stamp',
-           'type_name']
+__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'set_stamp',
+           'settle_interrupt', 'shutdown_quietly', 'spin_guarded', 'stamp', 'type_name']
 
 
 def spin_guarded(executor, report):
@@ -229,12 +233,40 @@ def spin_guarded(executor, report):
     report : callable
         Called with the exception (e.g. a throttled error log).
     """
-    import rclpy
     from rclpy.executors import ExternalShutdownException
-    while rclpy.ok():
+    while executor.context.ok():
         try:
             executor.spin_once(timeout_sec=0.5)
         except (KeyboardInterrupt, ExternalShutdownException):
             raise
         except Exception as exc:   # a malformed message or request must not stop the node
+            if not executor.context.ok():
+                # Ctrl-C shut the context down under the wait ("context is not valid")
+                raise ExternalShutdownException() from exc
             report(exc)
+
+
+def settle_interrupt(context=None, timeout_s=1.0):
+    """After Ctrl-C, wait up to ``timeout_s`` (s) for rclpy's SIGINT handler to shut down.
+
+    That handler shuts the context down on a thread of its own while the main thread gets
+    ``KeyboardInterrupt``: tearing the nodes down, or calling ``try_shutdown``, at the same
+    moment raced it (``rcl_shutdown already called``, 2 of 60 SIGINTs to ``replay`` with the
+    cores loaded). Call this at the start of a ``main``'s clean-up when it was interrupted.
+    """
+    import rclpy
+    context = context or rclpy.get_default_context()
+    end = time.monotonic() + timeout_s
+    while context.ok() and time.monotonic() < end:
+        time.sleep(0.005)
+
+
+def shutdown_quietly(context=None):
+    """``rclpy.try_shutdown``, taking "already shut down" by the SIGINT handler as done."""
+    import rclpy
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    try:
+        rclpy.try_shutdown(context=context)
+    except _rclpy.RCLError:
+        if (context or rclpy.get_default_context()).ok():
+            raise   # a failure of our own, not the handler's shutdown
