@@ -428,7 +428,7 @@ def test_a_waiting_callback_gets_the_lock_at_the_next_chunk():
 def test_shutdown_after_ctrl_c_does_not_race_the_sigint_handler(monkeypatch):
     """rclpy's SIGINT handler shuts the context down on a thread of its own while the main
     thread gets KeyboardInterrupt; a ``try_shutdown`` between the two raised ``rcl_shutdown
-    already called`` (exit 1 with a traceback: 2 of 60 SIGINTs to ``replay``, cores loaded).
+    already called`` (exit 1 with a traceback: 3 of 60 SIGINTs to ``replay``, cores loaded).
     ``settle_interrupt`` waits for that shutdown; ``shutdown_quietly`` takes the error as done
     once the context is down, and raises it while the context is still up."""
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -489,6 +489,7 @@ def test_spin_guarded_ends_quietly_when_ctrl_c_shuts_the_context_under_it():
     executor.spin_once = spin_once
     with pytest.raises(ExternalShutdownException):
         spin_guarded(executor, reported.append)
+    executor.shutdown()
     assert len(calls) == 2 and [str(e) for e in reported] == ['a malformed message']
 
 

@@ -251,7 +251,7 @@ def settle_interrupt(context=None, timeout_s=1.0):
 
     That handler shuts the context down on a thread of its own while the main thread gets
     ``KeyboardInterrupt``: tearing the nodes down, or calling ``try_shutdown``, at the same
-    moment raced it (``rcl_shutdown already called``, 2 of 60 SIGINTs to ``replay`` with the
+    moment raced it (``rcl_shutdown already called``, 3 of 60 SIGINTs to ``replay`` with the
     cores loaded). Call this at the start of a ``main``'s clean-up when it was interrupted.
     """
     import rclpy
