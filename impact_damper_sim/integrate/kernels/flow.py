@@ -196,14 +196,15 @@ def input_bounds_py(u_abs, us_abs, omegas, amps, order, ub):
 input_bounds = kernel(inline='always')(input_bounds_py)
 
 
-def derivative_chain_py(b, lam_abs, W, k, ub, order, wu, out):
+def derivative_chain_py(b, lam_abs, W, k, ub, order, u_orders, wu, out):
     """``out[m, k]`` (m <= order) from the bound ``b`` on ``|y_k|`` and ``ub`` on the inputs:
-    ``B_m = |lam| B_(m-1) + |W u^(m-1)|_k``, ``B_0 = b``; ``wu`` is scratch."""
+    ``B_m = |lam| B_(m-1) + |W u^(m-1)|_k``, ``B_0 = b``; ``wu`` is scratch. Only the first
+    ``u_orders`` rows of ``ub`` may be nonzero (:func:`input_orders`)."""
     for j in range(order + 1):
         wu[j] = 0.0
     for f in range(W.shape[1]):
         w_abs = cabs(W[k, f])
-        for j in range(order + 1):
+        for j in range(u_orders):
             wu[j] += w_abs * ub[j, f]
     acc = b
     out[0, k] = acc
@@ -213,6 +214,16 @@ def derivative_chain_py(b, lam_abs, W, k, ub, order, wu, out):
 
 
 derivative_chain = kernel(inline='always')(derivative_chain_py)
+
+
+def input_orders_py(omegas, order):
+    """Rows of :func:`input_bounds` that may be nonzero: all ``order + 1`` with harmonics; the
+    held input and its slope without (a held input is linear, so its higher derivatives are
+    zero and the bounds' sums over them would add zeros)."""
+    return order + 1 if omegas.size > 0 else min(order + 1, 2)
+
+
+input_orders = kernel(inline='always')(input_orders_py)
 
 
 def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs, us_abs,
@@ -227,12 +238,13 @@ def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_a
     """
     T = Th - tau
     input_bounds(u_abs, us_abs, omegas, amps, order, ub)
+    u_orders = input_orders(omegas, order)
     for k in range(lam.size):
         grow = np.exp(lam[k].real * T) if lam[k].real > 0.0 else 1.0  # exp is the cost here
         b = grow * (cabs(yh[k]) + T * max(cabs(w0[k] + ws[k] * tau), cabs(w0[k] + ws[k] * Th)))
         for h in range(omegas.size):
             b += cabs(part_plus[h, k]) + cabs(part_minus[h, k])
-        derivative_chain(b, cabs(lam[k]), W, k, ub, order, wu, out)
+        derivative_chain(b, cabs(lam[k]), W, k, ub, order, u_orders, wu, out)
 
 
 derivative_bounds = kernel()(derivative_bounds_py)
@@ -353,6 +365,7 @@ def search_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, S, u_abs, us_abs
     over ``S`` into ``exc`` in one pass, with the same values: the moduli and growth factors
     both need are taken once (an event search needs both, and square roots are its cost)."""
     input_bounds(u_abs, us_abs, omegas, amps, order, ub)
+    u_orders = input_orders(omegas, order)
     for k in range(lam.size):
         grow = np.exp(lam[k].real * S) if lam[k].real > 0.0 else 1.0
         held = S * max(cabs(w0[k]), cabs(w0[k] + ws[k] * S))
@@ -365,7 +378,7 @@ def search_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, S, u_abs, us_abs
             b += part
             e += part * min(omegas[h] * S, 2.0)
         exc[k] = e
-        derivative_chain(b, lam_abs, W, k, ub, order, wu, out)
+        derivative_chain(b, lam_abs, W, k, ub, order, u_orders, wu, out)
 
 
 search_bounds = kernel()(search_bounds_py)
