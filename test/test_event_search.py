@@ -188,15 +188,15 @@ def test_row_derivs_row_bound_site_bounds_more_derivs_twins(rng):
     agree(part, yd, sy.scale(order))
 
 
-def test_sort_candidates_orders_by_safe_step_and_carries_each_row(rng):
-    # The search takes its candidates by safe step, so that one past the best bracket ends
-    # the work: the sort must be ascending, stable for equal steps, keep every row's fields
-    # together, and leave entries past n_cand alone (JIT and twin alike).
+def test_sort_candidates_orders_by_key_and_carries_each_row(rng):
+    # The search takes its candidates by estimated root (the key), so that the earliest
+    # bracket comes first: the sort must be ascending, stable for equal keys, keep every
+    # row's fields together, and leave entries past n_cand alone (JIT and twin alike).
     for n_cand in (0, 1, 2, 7, 13):
-        s0 = rng.choice([0.1, 0.2, 0.3, 0.5], 16)
-        rows = [np.arange(16), rng.integers(0, 4, 16), s0, rng.normal(size=16),
-                rng.integers(0, 2, 16)]
-        want = np.argsort(s0[:n_cand], kind='stable')
+        key = rng.choice([0.1, 0.2, 0.3, 0.5, np.inf], 16)
+        rows = [key, np.arange(16), rng.integers(0, 4, 16), rng.uniform(0, 0.1, 16),
+                rng.normal(size=16), rng.integers(0, 2, 16)]
+        want = np.argsort(key[:n_cand], kind='stable')
         for fn in (KE.sort_candidates, KE.sort_candidates_py):
             got = [r.copy() for r in rows]
             fn(n_cand, *got)
@@ -281,6 +281,65 @@ def test_horner_and_bernstein_twins(rng):
         b_py = KP.bernstein_range_py(a, n, lo, hi, np.empty(n + 1))
         mag = np.sum(np.abs(a) * (1 + max(abs(lo), abs(hi))) ** np.arange(n + 1)) * 2.0 ** n
         agree(b, b_py, mag)
+
+
+def test_bernstein_range_divides_out_nothing_new(rng):
+    # bernstein_range takes the weights C(k, i)/C(n, i) from a table: its results must be
+    # bit for bit those of dividing them out in the loop, as it did before (no tolerance).
+    for _ in range(200):
+        n = int(rng.integers(0, 13))
+        a = random_poly(rng, n)
+        lo, hi = (0.0, rng.uniform(0.1, 2.0)) if rng.uniform() < 0.5 else \
+            tuple(np.sort(rng.uniform(-1.0, 1.5, 2)))
+        work = a.copy()
+        if lo != 0.0:
+            for i in range(n):
+                for m in range(n - 1, i - 1, -1):
+                    work[m] += lo * work[m + 1]
+        scale = 1.0
+        for m in range(n + 1):
+            work[m] *= scale
+            scale *= hi - lo
+        b = [sum(KP.BINOM[k, i] / KP.BINOM[n, i] * work[i] for i in range(k + 1))
+             for k in range(n + 1)]
+        for fn in (KP.bernstein_range, KP.bernstein_range_py):
+            assert fn(a, n, lo, hi, np.empty(n + 1)) == (min(b), max(b))
+
+
+def test_quadratic_first_root_is_the_first_positive_root(rng):
+    # The candidates' order key: the first positive root of g0 + g1 s + g2 s^2/2 (of
+    # g1 + g2 s/2 for a function leaving zero), or inf when there is none. Checked against
+    # the model itself: a root of it (np.roots), the model positive at 400 points before it
+    # (and, when it reports none, up to 10 times its largest complex root), JIT and twin
+    # alike.
+    seen = set()
+    for _ in range(400):
+        g0 = 10.0 ** rng.uniform(-9, -3)
+        g1, g2 = rng.normal(size=2) * 10.0 ** rng.uniform(-6, 2, 2)
+        leaving = rng.uniform() < 0.2
+        if leaving:  # on zero and rising: g1 > 0 (the search's g1 = 0, g2 >= 0 has no root)
+            g1 = abs(g1)
+        r = KP.quadratic_first_root(g0, g1, g2, leaving)
+        assert r == KP.quadratic_first_root_py(g0, g1, g2, leaving)
+        c0, c1, c2 = (g1, 0.5 * g2, 0.0) if leaving else (g0, g1, 0.5 * g2)
+
+        def model(s):
+            return c0 + c1 * s + c2 * s * s
+
+        roots = np.roots([c2, c1, c0]) if c2 != 0.0 else np.roots([c1, c0])
+        real = roots[np.abs(roots.imag) <= 1e-9 * np.abs(roots)].real
+        far = 10.0 * max(np.abs(roots).max() if roots.size else 1.0, 1e-12)
+        if np.isinf(r):
+            seen.add('none')
+            assert np.all(model(np.linspace(0.0, far, 401)[1:]) > 0.0)
+            continue
+        seen.add('leaving' if leaving else 'root')
+        assert r > 0.0
+        assert np.all(model(np.linspace(0.0, r, 401)[:-1] * (1 - 1e-9)) > 0.0)
+        # a root of the model (1e-9; 1e-6 near a double root, where it is ill-conditioned)
+        separated = leaving or abs(c1 * c1 - 4 * c2 * c0) > 1e-6 * c1 * c1
+        assert np.any(np.abs(real - r) <= (1e-9 if separated else 1e-6) * r)
+    assert seen == {'none', 'leaving', 'root'}
 
 
 def test_positive_until_is_rigorous_and_twin(rng):
@@ -939,6 +998,7 @@ def search_args(sy, rng, P, S):
         Xs=np.zeros((ni + 1, P + 5, 2)), ybound=np.zeros((P + 6, n2)), u_abs=np.zeros(nf),
         us_abs=np.zeros(nf), ub=np.zeros((P + 6, nf)), wu=np.zeros(P + 6),
         exc=np.zeros(n2), Eb=np.zeros((ni + 1, P + 6)), reach=np.zeros(ni + 1),
+        cand_key=np.zeros(2 * ni + 1),
         cand_j=np.zeros(2 * ni + 1, np.int64), cand_fid=np.zeros(2 * ni + 1, np.int64),
         cand_s0=np.zeros(2 * ni + 1), cand_shift=np.zeros(2 * ni + 1),
         cand_lv=np.zeros(2 * ni + 1, np.int64), cand_out=np.zeros((2 * ni + 1, 3)),

@@ -15,7 +15,9 @@ shorter Taylor segment):
    at the start and a bound of its ``(P + 1)``-th derivative over the segment; Bernstein
    range tests then either clear it or certify its first root: positive before a small
    bracket, strictly decreasing inside it (:func:`.poly.certified_first_root`). This needs
-   no flow evaluation.
+   no flow evaluation. The functions are taken by the first root of their quadratic model
+   (:func:`.poly.quadratic_first_root`), an estimate: the earliest root tends to be
+   certified first, and one range bound up to its bracket then clears most of the others.
 3. *Refinement.* The earliest root is refined by Newton's method on the exact flow: one
    evaluation at the Taylor root, then, the correction being a few ulps, a third-order
    Taylor step of the state.
@@ -44,7 +46,7 @@ from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_de
 from .ledger import N_TERMS as LEDGER_TERMS, harmonic_factors, ledger_closed, ledger_modal, \
     ledger_taylor, piece_factors
 from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
-                   positive_until)
+                   positive_until, quadratic_first_root)
 from .scan import FN_PLANAR, FN_RELEASE, FN_WALL_NEG, FN_WALL_POS, fn_values, scan_multi
 
 # status codes returned by advance()
@@ -275,19 +277,22 @@ def out_of_reach_py(n_rows, reach, X, z, v, limit, T):
 out_of_reach = kernel(inline='always')(out_of_reach_py)
 
 
-def sort_candidates_py(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv):
-    """Order the first ``n_cand`` candidates by their safe step ``cand_s0`` (s), ascending
-    (insertion sort, stable: a handful of entries)."""
+def sort_candidates_py(n_cand, cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv):
+    """Order the first ``n_cand`` candidates by ``cand_key`` (s), ascending (insertion sort,
+    stable: a handful of entries), each row's fields together."""
     for c in range(1, n_cand):
         j, fid, s0, shift, lv = cand_j[c], cand_fid[c], cand_s0[c], cand_shift[c], cand_lv[c]
+        key = cand_key[c]
         d = c - 1
-        while d >= 0 and cand_s0[d] > s0:
+        while d >= 0 and cand_key[d] > key:
+            cand_key[d + 1] = cand_key[d]
             cand_j[d + 1] = cand_j[d]
             cand_fid[d + 1] = cand_fid[d]
             cand_s0[d + 1] = cand_s0[d]
             cand_shift[d + 1] = cand_shift[d]
             cand_lv[d + 1] = cand_lv[d]
             d -= 1
+        cand_key[d + 1] = key
         cand_j[d + 1] = j
         cand_fid[d + 1] = fid
         cand_s0[d + 1] = s0
@@ -301,8 +306,9 @@ sort_candidates = kernel()(sort_candidates_py)
 def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus, omegas, amps,
               u0, us, house, house_abs, imp_rep, imp_dim, imp_z, imp_v, imp_limit, imp_stuck,
               imp_grace, release_n, P, yh_tau, y_tau, uder, yd, Xs, ybound, u_abs, us_abs, ub,
-              wu, exc, Eb, reach, cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out,
-              active, shifts, rwork, coef, pwork, root_out, scan_result, counters, result):
+              wu, exc, Eb, reach, cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv,
+              cand_out, active, shifts, rwork, coef, pwork, root_out, scan_result, counters,
+              result):
     """First event of any impactor in ``(0, horizon]`` (s into the interval from ``t_cur``).
 
     Writes ``result[0]`` = time into the interval (s), ``result[1]`` = impactor (-1: none
@@ -386,6 +392,10 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
             cand_s0[n_cand] = s0
             cand_shift[n_cand] = shift
             cand_lv[n_cand] = 1 if leaving else 0
+            # stage 2 takes the earliest estimated root first: its bracket then clears most
+            # of the others by one range bound (by safe step, x10 certified 2 roots a search)
+            key = max(s0, quadratic_first_root(f0, f1, f2, leaving))
+            cand_key[n_cand] = key if key < S else S + s0
             if fid == FN_RELEASE:
                 any_release = True
             n_cand += 1
@@ -404,6 +414,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
                 cand_s0[n_keep] = cand_s0[c]
                 cand_shift[n_keep] = cand_shift[c]
                 cand_lv[n_keep] = cand_lv[c]
+                cand_key[n_keep] = cand_key[c]
                 n_keep += 1
         if n_keep == 0:
             counters[CNT_SEGMENTS] += 1
@@ -433,7 +444,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
     best_sb = S
     # 1/(P + 1)!, rounded up so that G/(P + 1)! stays a bound
     inv_fact = _INV_FACT_UP[P + 1]
-    sort_candidates(n_cand, cand_j, cand_fid, cand_s0, cand_shift, cand_lv)
+    sort_candidates(n_cand, cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv)
     for c in range(n_cand):
         j = cand_j[c]
         site = imp_rep[j]
@@ -441,7 +452,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
         cand_out[c, 0] = -1.0
         if best_c >= 0 and cand_s0[c] > best_sb:
             # positive up to its safe step, past the best bracket: it cannot hold the first
-            # event (nor can any later one: they come by safe step)
+            # event
             continue
         counters[CNT_CANDIDATES] += 1
         G = fn_taylor(cand_fid[c], Xs[site], imp_z[j], imp_v[j], imp_limit[j], release_n[j], P,
@@ -786,6 +797,7 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
         np.empty(nf),  # u_abs
         np.empty(nf),  # us_abs
         np.empty(n2),  # exc
+        np.empty(2 * ni + 1),  # cand_key
         np.empty(2 * ni + 1, dtype=np.int64),  # cand_j
         np.empty(2 * ni + 1, dtype=np.int64),  # cand_fid
         np.empty(2 * ni + 1),  # cand_s0
@@ -847,8 +859,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     sets ``slot_state`` and calls again.
     """
     (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
-     cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef, rwork,
-     pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
+     cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef,
+     rwork, pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
      w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac,
      led_m, led_harm, led_rg) = work
     Xs[...] = 0
@@ -925,9 +937,9 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                    tb_house_abs[slot], imp_rep, imp_dim, imp_z, imp_v,
                                    imp_limit, imp_stuck, imp_grace, release_n, P, yh_tau, y_tau,
                                    uder, yd, Xs, ybound, u_abs, us_abs, ub, wu, exc, Eb, reach,
-                                   cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out,
-                                   active, shifts, rwork, coef, pwork, root_out, scan_result,
-                                   counters, search_result)
+                                   cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv,
+                                   cand_out, active, shifts, rwork, coef, pwork, root_out,
+                                   scan_result, counters, search_result)
                 if undecided < 0:
                     t_state[0] = t_cur
                     info[0] = k

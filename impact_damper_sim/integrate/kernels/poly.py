@@ -84,6 +84,29 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
 cubic_safe_step = kernel(inline='always')(cubic_safe_step_py)
 
 
+def quadratic_first_root_py(g0, g1, g2, leaving):
+    """First positive root (s) of the quadratic model ``g0 + g1 s + g2 s^2/2`` of a function
+    from its value, slope and curvature at ``s = 0``; ``inf`` when the model has none.
+
+    With ``leaving`` the function starts on zero and rises (``g0`` is ignored): the root of
+    ``g(s)/s``, ``g1 + g2 s/2``. Each case in the form that cancels nothing (``g0 > 0``).
+    An estimate, not a bound: the event search orders its candidates by it.
+    """
+    if leaving:
+        return -2.0 * g1 / g2 if g2 < 0.0 else np.inf
+    disc = g1 * g1 - 2.0 * g2 * g0
+    if disc < 0.0:
+        return np.inf
+    if g1 <= 0.0:   # approaching: the smaller root
+        den = np.sqrt(disc) - g1
+        return 2.0 * g0 / den if den > 0.0 else np.inf
+    # receding: a root only when the curvature turns it back
+    return -(g1 + np.sqrt(disc)) / g2 if g2 < 0.0 else np.inf
+
+
+quadratic_first_root = kernel(inline='always')(quadratic_first_root_py)
+
+
 def _binomials(n_max):
     table = np.zeros((n_max + 1, n_max + 1))
     for n in range(n_max + 1):
@@ -96,6 +119,14 @@ def _binomials(n_max):
 #: Binomial coefficients C(n, k) for n <= MAX_DEGREE (read-only; a constant to Numba).
 MAX_DEGREE = 24
 BINOM = _binomials(MAX_DEGREE)
+#: ``C(k, i)/C(n, i)``, the weights of the power-to-Bernstein conversion, at ``[n, k, i]``:
+#: the same quotients the conversion would divide out, so its results stay bit for bit the
+#: same without its 36 divisions (degree 7), which were its cost
+BERNSTEIN_WEIGHTS = np.zeros((MAX_DEGREE + 1, MAX_DEGREE + 1, MAX_DEGREE + 1))
+for _n in range(MAX_DEGREE + 1):
+    for _k in range(_n + 1):
+        BERNSTEIN_WEIGHTS[_n, _k, :_k + 1] = BINOM[_k, :_k + 1] / BINOM[_n, :_k + 1]
+del _n, _k
 
 
 def horner_py(a, n, s):
@@ -146,7 +177,7 @@ def bernstein_range_py(a, n, lo, hi, work):
     for k in range(n + 1):
         b = 0.0
         for i in range(k + 1):
-            b += BINOM[k, i] / BINOM[n, i] * work[i]
+            b += BERNSTEIN_WEIGHTS[n, k, i] * work[i]
         b_min = min(b_min, b)
         b_max = max(b_max, b)
     return b_min, b_max
@@ -168,7 +199,15 @@ def newton_bracket_py(a, n, lo, hi, tol):
     if not (lo < s < hi):
         s = 0.5 * (lo + hi)
     for _ in range(100):
-        p, d = horner_d(a, n, s)
+        # p, p' and the scale of p's rounding error in one pass: three independent chains
+        p = a[n]
+        d = 0.0
+        size = abs(a[n])
+        s_abs = abs(s)
+        for m in range(n - 1, -1, -1):
+            d = d * s + p
+            p = p * s + a[m]
+            size = size * s_abs + abs(a[m])
         if p > 0.0:
             lo = s
         else:
@@ -181,9 +220,6 @@ def newton_bracket_py(a, n, lo, hi, tol):
             s_new = 0.5 * (lo + hi)
         if abs(s_new - s) <= tol or hi - lo <= tol:
             return s_new
-        size = abs(a[n])
-        for m in range(n - 1, -1, -1):
-            size = size * abs(s) + abs(a[m])
         if abs(p) <= 4.0 * n * 2.220446049250313e-16 * size:
             return s
         s = s_new
@@ -201,12 +237,19 @@ ROOT_UNDECIDED = 2
 def positive_until_py(a, n, K, s_end, work):
     """True if ``g > 0`` on ``[0, s_end]`` (s) is certified for every ``g`` with
     ``|g(s) - p(s)| <= K s^(n+1)``, ``p`` the degree-``n`` polynomial ``a``: the Bernstein
-    coefficients of the lower bound ``p - K s^(n+1)`` are all positive there. ``work`` needs
-    ``2 n + 4`` entries; its first ``n + 2`` hold that lower bound afterwards."""
+    coefficients of the lower bound ``p - K s^(n+1)`` are all positive there, or, first and
+    cheaper, its terms each at their least there. ``work`` needs ``2 n + 4`` entries; its first
+    ``n + 2`` hold that lower bound afterwards."""
     m = n + 1
     for i in range(n + 1):
         work[i] = a[i]
     work[m] = -K
+    drop = K
+    for i in range(n, 0, -1):
+        drop = drop * s_end - min(a[i], 0.0)
+    drop *= s_end
+    if a[0] - drop > 1e-12 * (abs(a[0]) + drop):
+        return True
     b_min, _ = bernstein_range(work[:m + 1], m, 0.0, s_end, work[m + 1:2 * m + 2])
     return b_min > 0.0
 
