@@ -268,8 +268,8 @@ def test_ledger_series_equal_fine_gauss_quadrature(rng, kind, nh, lam_top, tau):
     for kernel in (L.ledger_modal, L.ledger_modal_py):
         modal = np.zeros(5)
         kernel(yh, lam, w0, ws, pp, pm, omegas, amps, u0, us, t, tau, np.abs(lam).max(), Vv,
-               _pattern(Vv)[0], coupled, Kskew @ Vq, bool(np.any(Kskew)), C, B,
-               np.full((4, L.N_TERMS + 9, max(n, n2)), np.nan), np.full((4, n2, n), np.nan),
+               _pattern(Vv)[0], coupled, L.rows_transposed(Vv, Kskew @ Vq),
+               bool(np.any(Kskew)), C, B, np.full((4, L.N_TERMS + 9, max(n, n2)), np.nan),
                np.full((nf, L.N_TERMS), np.nan), np.empty(n2, complex), modal)
         np.testing.assert_allclose(modal[2:], ref, rtol=0, atol=1e-12 * scale)
         np.testing.assert_allclose(modal[2:], out[2:], rtol=0, atol=1e-13 * scale)

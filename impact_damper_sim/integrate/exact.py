@@ -104,10 +104,10 @@ class _Table:
         self.lam_max = np.zeros(n_slots)
         self.e_h, self.p1_h, self.p2_h = (np.zeros((n_slots, n2), complex) for _ in range(3))
         self.m_h = np.zeros((n_slots, n2 if ledger_on else 0))   # int |e^(lam s)|^2 over dt
-        # skew stiffness times the coordinate rows, for the ledger's circulatory work
+        # skew stiffness, for the ledger's circulatory work
         self.k_skew = k_skew if ledger_on and np.any(k_skew) else None
-        self.kvq = np.zeros((n_slots, n_q, n2) if self.k_skew is not None else (n_slots, 0, 0),
-                            complex)
+        # the ledger's dense rows, transposed (ledger_kernels.rows_transposed)
+        self.vt = np.zeros((n_slots, 4, n2, n_q) if ledger_on else (n_slots, 4, 0, 0))
         self.q_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
         self.q_counts = np.zeros((n_slots, n_q), dtype=np.int64)
         self.v_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
@@ -130,8 +130,8 @@ class _Table:
             self.v_modal[slot] = bool(np.all(self.v_counts[slot] == 1))
             for k in range(lam.size):   # int |e^(lam s)|^2 over a step, as piece_factors
                 self.m_h[slot, k] = self.dt * ledger_kernels.phi1_real(2.0 * lam[k].real * self.dt)
-            if self.k_skew is not None:
-                self.kvq[slot] = self.k_skew @ flow.V[:n]
+            kvq = self.k_skew @ flow.V[:n] if self.k_skew is not None else None
+            self.vt[slot] = ledger_kernels.rows_transposed(flow.V[n:], kvq)
         self.built[slot] = 1
 
     def kernel_args(self, ni):
@@ -141,7 +141,7 @@ class _Table:
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
                 self.house_abs[:, :ni], a['kick'][:, :ni], a['house_mobility'][:, :ni],
                 a['mobility'][:, :ni],
-                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.m_h, self.kvq,
+                a['release_map'][:, :ni], self.e_h, self.p1_h, self.p2_h, self.m_h, self.vt,
                 self.q_cols, self.q_counts, self.v_cols, self.v_counts, self.v_modal)
 
 

@@ -828,7 +828,6 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
         np.empty(n2 + n, dtype=np.int64),  # led_degs
         np.empty(n2, dtype=np.complex128),  # led_y0
         np.empty((4, terms + 9 if ledger_on else 0, max(n, n2))),  # led_soa
-        np.empty((4, n2, n) if ledger_on else (4, 0, 0)),  # led_vt
         np.empty((3, n2 if ledger_on else 0), dtype=np.complex128),  # led_fac
         np.empty(n2 if ledger_on else 0),  # led_m
         np.empty((4 + 2 * nh, nh) if ledger_on else (0, 0), dtype=np.complex128),  # led_harm
@@ -839,7 +838,7 @@ def advance_work(n2, nf, ni, nh, n, taylor_order, ledger_on):
 def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, slot_state,
                table_mode, tb_built, tb_lam, tb_lam_max, tb_V, tb_Vinv, tb_W, tb_pp, tb_pm,
                tb_sq, tb_sv, tb_house, tb_house_abs, tb_kick, tb_mob, tb_lawmob, tb_relmap, tb_eh,
-               tb_p1h, tb_p2h, tb_mh, tb_kvq, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts,
+               tb_p1h, tb_p2h, tb_mh, tb_vt, tb_qcols, tb_qcounts, tb_vcols, tb_vcounts,
                tb_vmodal,
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
@@ -861,7 +860,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
      cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef,
      rwork, pwork, root_out, scan_result, search_result, ub, wu, w0, ws, u0, us, release_n, u_max,
-     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_vt, led_fac,
+     w_max, w_zero, led_coef, led_rows, led_u, led_degs, led_y0, led_soa, led_fac,
      led_m, led_harm, led_rg) = work
     Xs[...] = 0
     X[...] = 0
@@ -989,8 +988,8 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                     counters[CNT_LEDGER_PANELS] += ledger_modal(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
                         piece, tb_lam_max[slot], tb_V[slot, n:], tb_vcols[slot],
-                        circulatory or not tb_vmodal[slot], tb_kvq[slot], circulatory, Cmat,
-                        Bmat, led_soa, led_vt, led_u, led_y0, ledger)
+                        circulatory or not tb_vmodal[slot], tb_vt[slot], circulatory, Cmat,
+                        Bmat, led_soa, led_u, led_y0, ledger)
                 else:
                     counters[CNT_LEDGER_PANELS] += ledger_taylor(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,

@@ -391,8 +391,22 @@ def dense_row_sums_py(cr, ci, vt, part, m, n, n2, out):
 dense_row_sums = kernel(inline='always')(dense_row_sums_py)
 
 
+def rows_transposed(Vv, KVq):
+    """The dense rows of :func:`ledger_modal`, transposed and split, for one configuration:
+    ``vt[0]``, ``vt[1]`` the real and imaginary parts of ``Vv.T`` (velocity rows), ``vt[2]``,
+    ``vt[3]`` those of ``KVq.T`` (skew stiffness force rows; zeros when ``KVq`` is None).
+    Shape ``(4, n2, n)``: the rows innermost, as the kernel sums them."""
+    vt = np.zeros((4,) + Vv.T.shape)
+    vt[0] = Vv.T.real
+    vt[1] = Vv.T.imag
+    if KVq is not None:
+        vt[2] = KVq.T.real
+        vt[3] = KVq.T.imag
+    return vt
+
+
 def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
-                    lam_max, Vv, v_cols, dense, KVq, circulatory, Cmat, Bmat, soa, vt, u_t, y0,
+                    lam_max, Vv, v_cols, dense, vt, circulatory, Cmat, Bmat, soa, u_t, y0,
                     ledger):
     """:func:`ledger_taylor` for diagonal damping.
 
@@ -404,9 +418,10 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     row reads every coordinate) it is kept per coordinate and the rows are sums of them.
     With ``circulatory`` (dense only) the skew stiffness force rows ``K_skew q`` are sums of
     the coordinates too, through ``KVq = K_skew Vq`` (N/m per modal unit, per configuration),
-    and their work goes to ``ledger[4]``. Work arrays: ``soa``
-    ``(4, N_TERMS + 9, max(n, n2))`` float, ``vt`` ``(4, n2, n)`` float (dense only),
-    ``u_t`` ``(nf, N_TERMS)`` float, ``y0`` ``n2`` complex. Returns the panels used.
+    and their work goes to ``ledger[4]``. ``vt`` holds the dense rows of the configuration
+    (:func:`rows_transposed` of ``Vv`` and ``KVq``, built with its table; unused when not
+    dense). Work arrays: ``soa`` ``(4, N_TERMS + 9, max(n, n2))`` float, ``u_t``
+    ``(nf, N_TERMS)`` float, ``y0`` ``n2`` complex. Returns the panels used.
     """
     if tau <= 0.0:
         return 0
@@ -433,14 +448,7 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     part = soa[0, N_TERMS + 6]
     bu = soa[0, N_TERMS + 7]
     for i in range(n):
-        if dense:
-            for k in range(n2):
-                vt[0, k, i] = Vv[i, k].real
-                vt[1, k, i] = Vv[i, k].imag
-                if circulatory:
-                    vt[2, k, i] = KVq[i, k].real
-                    vt[3, k, i] = KVq[i, k].imag
-        else:
+        if not dense:
             k = v_cols[i, 0]
             vr[i] = Vv[i, k].real
             vi[i] = Vv[i, k].imag
