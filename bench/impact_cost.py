@@ -8,9 +8,10 @@ For each scene (default ``sdof, rbs_kcc, hpotp, hpotp_x10``) over its default du
 * ``us/impact``: CPU time / impacts (the mean cost of the whole run per impact), and the
   marginal cost ``(CPU - CPU with impacts disabled) / impacts``;
 * ``us/step``: CPU per output step of the same scene with impacts disabled;
-* the kernel's work counters per impact: event searches, Taylor expansions, flow evaluations
-  (outside the ledger), fallback scans, in-kernel configuration switches, and the returns to
-  Python for a configuration change;
+* the kernel's work counters per impact: event searches, Taylor expansions, Taylor models
+  sent to root certification (``cert``), flow evaluations (outside the ledger), fallback
+  scans, in-kernel configuration switches, and the returns to Python for a configuration
+  change;
 * the energy ledger: its CPU (ledger-on run minus ledger-off run), the pieces of steps it
   integrated in closed form and the Taylor panels of the others, and the CPU per piece.
 
@@ -45,8 +46,8 @@ from impact_damper_sim.scene.schema import apply_overrides, load_yaml, validate
 from impact_damper_sim.scene.spec import SCHEMA
 
 SCENES = ('sdof', 'rbs_kcc', 'hpotp', 'hpotp_x10')
-COUNTERS = ('searches', 'taylor_expansions', 'flow_evaluations', 'fallback_scans',
-            'kernel_switches', 'python_switches')
+COUNTERS = ('searches', 'taylor_expansions', 'roots_certified', 'flow_evaluations',
+            'fallback_scans', 'kernel_switches', 'python_switches')
 
 
 def run(scene, duration, repeat, impacts=True, **options):
@@ -98,7 +99,8 @@ def scene_table(names, repeat, duration):
           f'{os.getloadavg()[0]:.2f}')
     print(f"{'scene':10s} {'sim s':>5s} {'impacts':>8s} {'RTF':>6s} {'RTF nl':>7s} "
           f"{'us/imp':>7s} {'marg.':>6s} {'us/step':>7s} | per impact: "
-          f"{'search':>6s} {'taylor':>6s} {'evals':>6s} {'scan':>5s} {'switch':>6s} {'py':>5s}")
+          f"{'search':>6s} {'taylor':>6s} {'cert':>5s} {'evals':>6s} {'scan':>5s} "
+          f"{'switch':>6s} {'py':>5s}")
     ledger_rows = []
     measured = {}
     for name in names:
@@ -118,7 +120,8 @@ def scene_table(names, repeat, duration):
         print(f"{name:10s} {T:5.2g} {free['impacts']:8d} {T / led['cpu']:6.1f} "
               f"{T / free['cpu']:7.1f} {1e6 * free['cpu'] / n_imp:7.2f} "
               f"{marginal} {per_step} |             "
-              + ' '.join(f'{c[k] / n_imp:{w}.2f}' for k, w in zip(COUNTERS, (6, 6, 6, 5, 6, 5))),
+              + ' '.join(f'{c[k] / n_imp:{w}.2f}'
+                         for k, w in zip(COUNTERS, (6, 6, 5, 6, 5, 6, 5))),
               flush=True)
         measured[name] = dict(us_per_impact=1e6 * free['cpu'] / n_imp, rtf_ledger=T / led['cpu'],
                               rtf_no_ledger=T / free['cpu'])
@@ -127,8 +130,9 @@ def scene_table(names, repeat, duration):
                             lc['ledger_panels']))
     print('RTF = simulated s / CPU s (RTF nl: energy ledger off); us/imp = CPU / impacts '
           '(ledger off); marg. = (CPU - CPU with impacts disabled) / impacts; us/step with '
-          'impacts disabled; evals = flow evaluations outside the ledger; scan = fallback '
-          'safe-step scans; py = returns to Python for a configuration change')
+          'impacts disabled; cert = Taylor models sent to root certification; evals = flow '
+          'evaluations outside the ledger; scan = fallback safe-step scans; py = returns to '
+          'Python for a configuration change')
     print('targets: hpotp <= 5 us/impact and RTF >= 20; hpotp_x10 RTF >= 3')
     for line in target_verdicts(measured):
         print(line)

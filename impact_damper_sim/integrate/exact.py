@@ -323,7 +323,7 @@ class ExactPropagator(IntegratorBase):
         """Work done so far, by kind: a dict of counts (see ``kernels.exact.CNT_*``)."""
         names = ('steps', 'searches', 'candidates', 'taylor_expansions', 'flow_evaluations',
                  'ledger_panels', 'fallback_scans', 'kernel_switches', 'segments',
-                 'quiet_steps', 'ledger_closed')
+                 'quiet_steps', 'ledger_closed', 'roots_certified')
         counts = dict(zip(names, (int(c) for c in self.counters)))
         counts['python_switches'] = self._python_switches
         return counts

@@ -79,7 +79,8 @@ CNT_SWITCHES = 7       # configuration switches inside the kernel
 CNT_SEGMENTS = 8       # sub-intervals cut short at a Taylor segment end
 CNT_QUIET = 9          # output steps certified event-free in advance (no search)
 CNT_LEDGER_CLOSED = 10  # pieces of a step whose ledger is in closed form (no series)
-N_COUNTERS = 11
+CNT_CERTIFIED = 11     # Taylor models sent to certified_first_root (after the range bounds)
+N_COUNTERS = 12
 
 #: Output steps ahead that a quiet-window certificate tries to cover.
 QUIET_STEPS = 8
@@ -468,6 +469,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
             Kd = Kd + K
         if best_c >= 0 and positive_until(coef, n, K, best_sb, pwork):
             continue   # certified positive up to the best bracket's end
+        counters[CNT_CERTIFIED] += 1
         status = certified_first_root(coef, n, K, Kd, S, cand_s0[c], pwork, root_out)
         if status == ROOT_NONE:
             continue
