@@ -657,14 +657,15 @@ def taylor_reference(sy, fid, z, v, limit, normal, P, shift, magnitude=False):
     return c
 
 
+@pytest.mark.parametrize('P', [KE.CUBIC_MODEL, 6])
 @pytest.mark.parametrize('fid', [FN_WALL_POS, FN_WALL_NEG, FN_PLANAR, FN_RELEASE])
-def test_fn_taylor_coefficients_and_remainder(rng, fid):
+def test_fn_taylor_coefficients_and_remainder(rng, fid, P):
     # fn_taylor against its twin (ULPS of the coefficients' magnitudes), against coefficients
     # built from independently computed derivatives (1e-12 of the magnitude of the terms),
     # and its remainder: |g(s) - p(s)| <= G s^(P+1)/(P+1)! for g the true event function on
     # 401 points of [0, S], plus round-off (64 ulps of sum |a_m| s^m and of g's own terms).
     # A wrong coefficient of order m <= P would show as an error ~ s^m beating the bound.
-    P = 6
+    # At the search's degree P = 6 and at the cubic model's, which clears candidates first.
     worst = 0.0
     for _ in range(6):
         sy, S, X, Eb, z, v, limit, normal = taylor_case(rng, fid, P)
@@ -955,15 +956,19 @@ def sample_functions(sy, house, dims, stuck, z, v, limit, normal, S, n=1201):
     return out
 
 
-def search_args(sy, rng, P, S):
-    """Arguments of :func:`search` for three impactors on their own random housings (SDOF,
-    planar, stuck SDOF), placed so that an event inside the segment is likely but not sure;
-    allocated as :func:`advance` does."""
-    ni, n2, nf = 3, sy.n2, sy.nf
-    dims = np.array([1, 2, 1], np.int64)
-    stuck = np.array([0, 0, 1], np.int64)
+def search_args(sy, rng, P, S, dims=(1, 2, 1), stuck=(0, 0, 1), one_site=False):
+    """Arguments of :func:`search` for impactors of ``dims`` (default three on their own
+    random housings: SDOF, planar, stuck SDOF; with ``one_site`` all in one housing, as
+    hpotp's), placed so that an event inside the segment is likely but not sure; allocated
+    as :func:`advance` does."""
+    ni, n2, nf = len(dims), sy.n2, sy.nf
+    dims = np.array(dims, np.int64)
+    stuck = np.array(stuck, np.int64)
     house = np.zeros((ni, 2, n2), complex)
     for j in range(ni):
+        if one_site and j > 0:
+            house[j] = house[0]
+            continue
         house[j, :dims[j]] = cplx(rng, dims[j], n2) * 1e-3
     z, v = np.zeros((ni, 2)), np.zeros((ni, 2))
     limit = np.ones(ni)
@@ -990,7 +995,9 @@ def search_args(sy, rng, P, S):
         t_cur=sy.t0, horizon=S * rng.choice([0.5, 1.0, 3.0]), yh=sy.yh, lam=sy.lam,
         lam_max=sy.lam_max, W=sy.W, w0=sy.w0, ws=sy.ws, part_plus=sy.pp, part_minus=sy.pm,
         omegas=sy.omegas, amps=sy.amps, u0=sy.u0, us=sy.us, house=house,
-        house_abs=np.abs(house), imp_rep=np.arange(ni, dtype=np.int64), imp_dim=dims,
+        house_abs=np.abs(house),
+        imp_rep=np.zeros(ni, np.int64) if one_site else np.arange(ni, dtype=np.int64),
+        imp_dim=dims,
         imp_z=z, imp_v=v, imp_limit=limit, imp_stuck=stuck,
         imp_grace=rng.integers(0, 2, ni).astype(np.int64), release_n=normal, P=P,
         yh_tau=np.zeros(n2, complex), y_tau=np.zeros(n2, complex),
@@ -1029,6 +1036,43 @@ def test_candidates_by_estimated_root_certify_about_one_root_a_search():
     assert counts['roots_certified'] <= 1.3 * counts['taylor_expansions'], counts
 
 
+def first_event_truth(sy, args, a, end):
+    """The first event of the search's arguments ``args`` on ``[0, end]``, from every event
+    function sampled at 1201 points and its first sign change refined by brentq on the flow
+    (grace shifts from the site rows ``a['Xs']`` of the search's run): ``(t, (j, fid))``,
+    ``(0.0, key)`` for a function on a wall now, ``(inf, None)`` for none."""
+    from scipy.optimize import brentq
+    shifts = {}
+    for j in range(len(args['imp_dim'])):
+        if args['imp_grace'][j]:
+            X = a['Xs'][args['imp_rep'][j]]  # the site's rows at the start (stage 1)
+            fid = FN_RELEASE if args['imp_stuck'][j] else (
+                FN_WALL_POS if args['imp_dim'][j] == 1 else FN_PLANAR)
+            for f in ((fid, FN_WALL_NEG) if fid == FN_WALL_POS else (fid,)):
+                shifts[(j, f)] = KE.grace_shift(f, X, args['imp_limit'][j])
+    samples = sample_functions(sy, args['house'], args['imp_dim'], args['imp_stuck'],
+                               args['imp_z'], args['imp_v'], args['imp_limit'],
+                               args['release_n'], end)
+    best = (np.inf, None)
+    for key, (s, g) in samples.items():
+        j, fid = key
+        g = g + shifts.get(key, 0.0)
+        if g[0] <= 0:
+            best = min(best, (0.0, key))  # on the wall now (or leaving: skip below)
+            continue
+        hit = np.flatnonzero(g <= 0)
+        if hit.size:
+            i = hit[0]
+
+            def fun(t, j=j, fid=fid, key=key):
+                return true_event(sy_site(sy, args['house'][j]), fid, t, args['imp_z'][j],
+                                  args['imp_v'][j], args['imp_limit'][j],
+                                  args['release_n'][j], shifts.get(key, 0.0))
+            t = brentq(fun, s[i - 1], s[i], xtol=1e-16, rtol=4 * EPS)
+            best = min(best, (t, key))
+    return best
+
+
 def test_search_twin_and_first_root(rng):
     # The whole four-stage search, compiled and as Python (whose stages are the compiled
     # kernels): the same return value, event (impactor, function, state flag) and counters,
@@ -1037,7 +1081,6 @@ def test_search_twin_and_first_root(rng):
     # first sign change refined by brentq on the flow; the search must report the earliest
     # one (impactor and function) at the same time to 1e-12 of the segment plus the root's
     # round-off (64 ulps of g's terms over |g'|), or no event when no sample is <= 0.
-    from scipy.optimize import brentq
     P = 6
     stats = dict(found=0, none=0, fallback=0, certified=0)
     for trial in range(24):
@@ -1054,36 +1097,7 @@ def test_search_twin_and_first_root(rng):
         if res[3] == 1.0:
             agree(a['yh_tau'], sy.eval(res[0], 0)[0], sy.scale(0)[0])
         stats['fallback'] += a['counters'][KE.CNT_FALLBACK] > 0
-        # the truth on [0, min(S, horizon)]
-        end = min(S, args['horizon'])
-        shifts = {}
-        for j in range(3):
-            if args['imp_grace'][j]:
-                X = a['Xs'][j]  # the site's rows at the start (stage 1)
-                fid = FN_RELEASE if args['imp_stuck'][j] else (
-                    FN_WALL_POS if args['imp_dim'][j] == 1 else FN_PLANAR)
-                for f in ((fid, FN_WALL_NEG) if fid == FN_WALL_POS else (fid,)):
-                    shifts[(j, f)] = KE.grace_shift(f, X, args['imp_limit'][j])
-        samples = sample_functions(sy, args['house'], args['imp_dim'], args['imp_stuck'],
-                                   args['imp_z'], args['imp_v'], args['imp_limit'],
-                                   args['release_n'], end)
-        best = (np.inf, None)
-        for key, (s, g) in samples.items():
-            j, fid = key
-            g = g + shifts.get(key, 0.0)
-            if g[0] <= 0:
-                best = min(best, (0.0, key))  # on the wall now (or leaving: skip below)
-                continue
-            hit = np.flatnonzero(g <= 0)
-            if hit.size:
-                i = hit[0]
-
-                def fun(t, j=j, fid=fid, key=key):
-                    return true_event(sy_site(sy, args['house'][j]), fid, t, args['imp_z'][j],
-                                      args['imp_v'][j], args['imp_limit'][j],
-                                      args['release_n'][j], shifts.get(key, 0.0))
-                t = brentq(fun, s[i - 1], s[i], xtol=1e-16, rtol=4 * EPS)
-                best = min(best, (t, key))
+        best = first_event_truth(sy, args, a, min(S, args['horizon']))
         if best[1] is None or (best[0] == 0.0):
             if best[1] is None:
                 assert res[1] < 0, (trial, res)
@@ -1095,6 +1109,42 @@ def test_search_twin_and_first_root(rng):
         stats['found'] += 1
         stats['certified'] += a['counters'][KE.CNT_FALLBACK] == 0
     assert stats['found'] >= 5 and stats['none'] >= 3 and stats['certified'] >= 3, stats
+
+
+def test_search_first_of_twelve_impactors_in_one_bore(rng):
+    # hpotp's layout: 12 planar impactors in one housing, most near a wall, so that a search
+    # takes many candidates with roots close together, and clears most of them against the
+    # first bracket it certifies (by a cubic model, then the degree-P one). Whatever order it
+    # takes them in, it must report the earliest event (the truth as in the test above: the
+    # same impactor and function, the time to 1e-12 of the segment), JIT and twin alike.
+    P = 6
+    found = 0
+    cleared = 0
+    for trial in range(16):
+        sy = System(rng, n2=4, nh=1)
+        S = KE.SEGMENT_REACH / sy.lam_max
+        args = search_args(sy, rng, P, S, dims=(2,) * 12, stuck=(0,) * 12, one_site=True)
+        ret, a = run_search(KE.search, args)
+        ret_py, a_py = run_search(KE.search_py, args)
+        assert ret == ret_py == 0
+        np.testing.assert_array_equal(a['counters'], a_py['counters'])
+        np.testing.assert_array_equal(a['result'][1:], a_py['result'][1:])
+        res = a['result']
+        t_ref, key = first_event_truth(sy, args, a, min(S, args['horizon']))
+        if key is None:
+            assert res[1] < 0, (trial, res)
+            continue
+        if t_ref == 0.0:
+            continue
+        assert (int(res[1]), int(res[2])) == key, (trial, res, t_ref, key)
+        assert abs(res[0] - t_ref) <= 1e-12 * S, (trial, res[0], t_ref)
+        found += 1
+        cleared += a['counters'][KE.CNT_CANDIDATES] - a['counters'][KE.CNT_CERTIFIED]
+    # not vacuous: events found, and candidates cleared against a bracket (not certified);
+    # measured 14 events and 123 cleared. Clearing with a negated remainder over 3 times the
+    # span, in the cubic model or the degree-P one, fails here (another impactor first); the
+    # test above, with three impactors on their own housings, misses the second.
+    assert found >= 8 and cleared >= 3 * found, (found, cleared)
 
 
 def sy_site(sy, house_rows):

@@ -85,6 +85,8 @@ N_COUNTERS = 12
 #: Output steps ahead that a quiet-window certificate tries to cover.
 QUIET_STEPS = 8
 
+#: Degree of the model that tries to clear a candidate up to the best bracket first.
+CUBIC_MODEL = 3
 #: Longest Taylor segment in units of the fastest mode's time constant (|lambda| S).
 SEGMENT_REACH = 1.5
 #: Largest |lambda| d of a correction taken by a Taylor step instead of a flow evaluation.
@@ -456,6 +458,14 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
             # event
             continue
         counters[CNT_CANDIDATES] += 1
+        if best_c >= 0 and cand_lv[c] == 0 and P > CUBIC_MODEL:
+            # over the short span up to the best bracket a cubic model clears most functions
+            # (a model of degree P costs P^2 for a cylinder)
+            G = fn_taylor(cand_fid[c], Xs[site], imp_z[j], imp_v[j], imp_limit[j],
+                          release_n[j], CUBIC_MODEL, Eb[site], S, cand_shift[c], rwork, coef)
+            if positive_until(coef, CUBIC_MODEL, G * _INV_FACT_UP[CUBIC_MODEL + 1], best_sb,
+                              pwork):
+                continue
         G = fn_taylor(cand_fid[c], Xs[site], imp_z[j], imp_v[j], imp_limit[j], release_n[j], P,
                       Eb[site], S, cand_shift[c], rwork, coef)
         n = P
