@@ -38,7 +38,9 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
     cut0 = T
     cut1 = T
     a2 = -0.5 * g3max  # dp/ds = g1 + g2 s + a2 s^2
-    if a2 != 0.0:
+    if g1 <= 0.0 and g2 <= 0.0:
+        pass  # dp/ds <= 0 for s >= 0 (g3max >= 0): one monotone piece, no cut to look for
+    elif a2 != 0.0:
         disc = g2 * g2 - 4.0 * a2 * g1
         if disc >= 0.0:
             r = np.sqrt(disc)
