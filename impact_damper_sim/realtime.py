@@ -71,6 +71,24 @@ def default_sample_rate(scene_model):
     return f_step / k
 
 
+#: Growth rates below this fraction of the largest eigenvalue modulus are rounding, not
+#: instability (dimensionless): the eigensolver's error is ~1e-16 of it, and at the largest
+#: modulus of the shipped scenes (~1e4 rad/s) the threshold is a time constant of hours.
+GROWTH_RATE_NOISE = 1e-8
+
+#: Highest default rate of the live per-sample ``Imu`` stream (Hz). The full-rate signal goes
+#: in batches; the per-sample stream is for clients that take one message at a time, and a
+#: stock Python subscriber takes about 2,000 messages a second on a busy core
+#: (bench/stream_formats.py).
+LIVE_IMU_MAX_RATE = 2000.0
+
+
+def default_imu_rate(sample_rate, limit=LIVE_IMU_MAX_RATE):
+    """The live per-sample rate for an output rate: the highest ``sample_rate / k`` (k a
+    whole number) not above ``limit`` (Hz)."""
+    return sample_rate / max(1, math.ceil(sample_rate / limit - 1e-9))
+
+
 class CommandError(ValueError):
     """A rejected command; the message names the command and its allowed range."""
 
@@ -113,6 +131,11 @@ class Batch:
         Impacts, sticks and releases in the chunk (times in s).
     states_changed : bool
         Some impactor changed between stuck and free during the chunk.
+    imu_t : ndarray, shape (j,)
+        Times (s) of the live per-sample stream's samples completed in this chunk: the
+        decimated signal, a filter delay behind ``t`` (see :class:`StreamingDecimator`).
+    imu_linear_acceleration, imu_angular_velocity : ndarray, shape (j, n_acc, 3)
+        The decimated readings (m/s^2, rad/s).
     """
 
     t: np.ndarray
@@ -120,6 +143,9 @@ class Batch:
     angular_velocity: np.ndarray
     events: np.ndarray
     states_changed: bool
+    imu_t: np.ndarray = None
+    imu_linear_acceleration: np.ndarray = None
+    imu_angular_velocity: np.ndarray = None
 
 
 def live_scene(scene, overrides=(), *, speed_rate_limit=None):
@@ -147,10 +173,14 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
     Raises
     ------
     SceneError
-        Any scene problem, naming the key.
+        Any scene problem, naming the key; a scene whose ``offline_only`` says why it
+        cannot run live.
     """
     from .scene.build import load
     model = load(scene, overrides=list(overrides))
+    if model.scene['offline_only']:
+        raise SceneError(f"scene {model.name!r} is for offline studies only: "
+                         f"{model.scene['offline_only']}", model.source)
     rotor = model.scene['rotor']
     if rotor is None:
         return model, None
@@ -175,11 +205,12 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
 
 
 def accelerometers(scene_model, sample_rate):
-    """The accelerometers of a scene: one per sensor frame.
+    """The accelerometers of a scene: one per instrumented node.
 
-    Scene sensors sharing a ``frame_id`` (several DOFs of one node) form one triaxial
-    accelerometer named by that frame; a sensor without ``frame_id`` gets
-    ``<scene>_<sensor>``.
+    An accelerometer reads all three axes of its node, so scene sensors at one node (several
+    DOFs of it) are one accelerometer and one stream, never two streams of the same data. It
+    is named by the sensors' shared ``frame_id``, or ``<scene>_<sensor>`` for a single
+    sensor without one, or ``<scene>_node<N>`` for several sensors without one.
 
     Parameters
     ----------
@@ -191,21 +222,38 @@ def accelerometers(scene_model, sample_rate):
     Returns
     -------
     list of Accelerometer
+
+    Raises
+    ------
+    SceneError
+        One ``frame_id`` at two nodes, or two ``frame_id`` at one node.
     """
-    groups = {}
+    by_node = {}
     for s in scene_model.scene['sensors']:
-        frame = s['frame_id'] or f"{scene_model.name}_{s['name']}"
-        fc = s['lowpass'] if s['lowpass'] is not None else DEFAULT_LOWPASS_FRACTION * sample_rate
-        if frame in groups:
-            prev = groups[frame]
-            if prev.node != s['node']:
-                raise SceneError(f"scene key 'sensors': frame_id {frame!r} is used at nodes "
-                                 f"{prev.node} and {s['node']}; one frame is one node",
-                                 scene_model.source)
-            groups[frame] = dataclasses.replace(prev, lowpass_hz=min(prev.lowpass_hz, fc))
+        by_node.setdefault(s['node'], []).append(s)
+    out, frames = [], {}
+    for node, sensors in by_node.items():
+        named = sorted({s['frame_id'] for s in sensors if s['frame_id']})
+        if len(named) > 1:
+            raise SceneError(f"scene key 'sensors': node {node} has sensors with frame_id "
+                             f"{' and '.join(map(repr, named))}; one node is one triaxial "
+                             'accelerometer: give its sensors one frame_id',
+                             scene_model.source)
+        if named:
+            frame = named[0]
+        elif len(sensors) == 1:
+            frame = f"{scene_model.name}_{sensors[0]['name']}"
         else:
-            groups[frame] = Accelerometer(frame, frame, s['node'], float(fc))
-    return list(groups.values())
+            frame = f'{scene_model.name}_node{node}'
+        if frame in frames:
+            raise SceneError(f"scene key 'sensors': frame_id {frame!r} is used at nodes "
+                             f'{frames[frame]} and {node}; one frame is one node',
+                             scene_model.source)
+        frames[frame] = node
+        cutoffs = [s['lowpass'] if s['lowpass'] is not None
+                   else DEFAULT_LOWPASS_FRACTION * sample_rate for s in sensors]
+        out.append(Accelerometer(frame, frame, node, float(min(cutoffs))))
+    return out
 
 
 class LiveSimulation:
@@ -219,6 +267,10 @@ class LiveSimulation:
         Output sample rate (Hz), > 2 x every anti-alias cutoff; default
         :func:`default_sample_rate`. The integrator step is the largest step not above the
         scene's ``simulation.dt`` that divides the output period.
+    imu_rate : float, optional
+        Rate of the decimated per-sample stream (Hz), ``sample_rate / k`` for a whole
+        number k; default :func:`default_imu_rate`. Decimated through a linear-phase
+        anti-alias FIR (flat to 0.4 x ``imu_rate``, 80 dB from 0.5 x ``imu_rate`` on).
     initial_target : float, optional
         Rotor speed commanded at t = 0 (rad/s).
     max_speed : float, optional
@@ -239,10 +291,10 @@ class LiveSimulation:
         live stream does not report it).
     """
 
-    def __init__(self, scene_model, *, sample_rate=None, initial_target=None,
+    def __init__(self, scene_model, *, sample_rate=None, imu_rate=None, initial_target=None,
                  max_speed=None, max_unbalance=100.0, noise_std=0.0, seed=0,
                  dampers_enabled=True, method=None, ledger=False):
-        from .filters import StreamingLowpass
+        from .filters import StreamingDecimator, StreamingLowpass
         sample_rate = (default_sample_rate(scene_model) if sample_rate is None
                        else float(sample_rate))
         if not (math.isfinite(sample_rate) and sample_rate > 0):
@@ -269,6 +321,15 @@ class LiveSimulation:
         n_acc = len(self.accelerometers)
         self._filters = [StreamingLowpass(a.lowpass_hz, 1.0 / self.dt, 3)
                          for a in self.accelerometers]
+        imu_rate = default_imu_rate(sample_rate) if imu_rate is None else float(imu_rate)
+        factor = sample_rate / imu_rate if math.isfinite(imu_rate) and imu_rate > 0 else 0.0
+        if not (factor >= 1 - 1e-9 and abs(factor - round(factor)) < 1e-6 * factor):
+            raise SceneError(f"parameter 'imu_rate': must be the sample rate "
+                             f'{sample_rate:g} Hz divided by a whole number (e.g. '
+                             f'{default_imu_rate(sample_rate):g} Hz), got {imu_rate:g} Hz')
+        self.imu_rate = sample_rate / round(factor)
+        self._decimator = StreamingDecimator(round(factor), sample_rate, 6 * n_acc)
+        self._t_first = None       # time of the first one (s)
         self._v_prev = np.zeros(6 * n_acc)
         self.max_unbalance = float(max_unbalance)
         self.profile = scene_model.speed_profile
@@ -446,25 +507,38 @@ class LiveSimulation:
             ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
         if self.noise_std > 0:
             lin += self._rng.normal(0.0, self.noise_std, lin.shape)
+        t = samples.t[pick]
+        if self._t_first is None and t.size:
+            self._t_first = float(t[0])
+        # the sensor's noise passes through the DAQ's decimation filter, as in hardware
+        index, dec = self._decimator.apply(
+            np.concatenate([lin, ang], axis=2).reshape(t.size, 6 * n_acc))
+        dec = dec.reshape(index.size, n_acc, 6)
+        imu_t = (self._t_first or 0.0) + index / self.sample_rate
         events = self.sim.take_events()
         stuck = self._stuck_flags()
         changed = stuck != self._stuck
         self._stuck = stuck
         self.steps += n_steps
-        return Batch(samples.t[pick], lin, ang, events, changed)
+        return Batch(t, lin, ang, events, changed, imu_t, dec[:, :, :3], dec[:, :, 3:])
 
     def linear_growth_rate(self):
         """Largest real part of the free structure's eigenvalues now (1/s); > 0 = unstable.
 
         Impactors can bound an unstable linear system's response, which is why the paper
-        used them; this is the rate the response grows at without them.
+        used them; this is the rate the response grows at without them. A real part within
+        :data:`GROWTH_RATE_NOISE` x the largest eigenvalue modulus is rounding in the
+        eigensolver (a conservative rotor, ``ross_rotor``, gave 1.1e-13 1/s at modes of
+        1e3 rad/s), not growth: it is reported as 0.
         """
         from scipy.linalg import eigvals
         model = self.sim.integrator.model
         n = model.n
         A = np.block([[np.zeros((n, n)), np.eye(n)],
                       [-np.linalg.solve(model.M, model.K), -np.linalg.solve(model.M, model.C)]])
-        return float(np.max(eigvals(A).real))
+        lam = eigvals(A)
+        rate = float(np.max(lam.real))
+        return rate if rate > GROWTH_RATE_NOISE * float(np.max(np.abs(lam))) else 0.0
 
 
 def _checked(value, name, low, high, unit):

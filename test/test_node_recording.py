@@ -19,6 +19,7 @@ from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
+from sensor_msgs.msg import PointCloud2  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
@@ -53,9 +54,7 @@ def test_recorded_file_matches_what_was_published(ros_context, tmp_path):
     # raw subscriber: the bytes as they went on the wire
     wire = []
     tap = Node('tap', context=ros_context)
-    tap.create_subscription(__import__('geometry_msgs.msg', fromlist=['WrenchStamped'])
-                            .WrenchStamped, '/rig/impacts', wire.append, itf.EVENT_QOS,
-                            raw=True)
+    tap.create_subscription(PointCloud2, '/rig/impacts', wire.append, itf.EVENT_QOS, raw=True)
     cmd = tap.create_publisher(Float64, '/rig/rotor/speed_command', itf.COMMAND_QOS)
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(node)
@@ -82,6 +81,13 @@ def test_recorded_file_matches_what_was_published(ros_context, tmp_path):
         assert channels[topic].metadata['topic_type_hash'].startswith('RIHS01_')
     types = {m[0]: m[1] for m in msgs}
     assert types['/rig/accel/sdof_primary'] == 'sensor_msgs/msg/Imu'
+    assert types['/rig/accel/sdof_primary/batch'] == 'sensor_msgs/msg/PointCloud2'
+    assert types['/rig/impacts'] == 'sensor_msgs/msg/PointCloud2'
+    # the full-rate signal is all in the log: every sample stepped, once
+    batches = [m[3] for m in msgs if m[0] == '/rig/accel/sdof_primary/batch']
+    assert sum(b.width for b in batches) == node.stats_total['samples']
+    assert sum(m[3].width for m in msgs if m[0] == '/rig/impacts') == \
+        node.stats_total['impacts'] > 10
     assert types['/rig/rotor/speed_command'] == 'std_msgs/msg/Float64'
     assert counts['/rig/rotor/speed_command'] == 1
     # payloads round-trip exactly: the recorded impact bytes are the bytes on the wire

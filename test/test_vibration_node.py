@@ -13,15 +13,16 @@ import pytest
 
 rclpy = pytest.importorskip('rclpy')
 
-from geometry_msgs.msg import Vector3Stamped, WrenchStamped  # noqa: E402
+from geometry_msgs.msg import Vector3Stamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from sensor_msgs.msg import Imu, JointState  # noqa: E402
+from sensor_msgs.msg import Imu, JointState, PointCloud2  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
+from impact_damper_sim.recording.batches import rows_of  # noqa: E402
 from impact_damper_sim.ros import interface as itf  # noqa: E402
 from impact_damper_sim.ros import vibration_node  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode, main  # noqa: E402
@@ -95,29 +96,41 @@ def test_unbalance_command_scales_a_linear_scene_exactly(ros_context):
 
 
 def test_dampers_enabled_switches_impacts(ros_context):
+    """Impacts come as one PointCloud2 batch per chunk (empty while the dampers are off)."""
     node = make_node(ros_context, 'sdof')
     published = []
     from rclpy.serialization import deserialize_message
     node._impact_pub.has_subscribers = lambda: True
     node._impact_pub.publish_raw = (   # what would go on the wire
         lambda data, ns=None, wire=True: published.append(deserialize_message(data,
-                                                                               WrenchStamped)))
+                                                                               PointCloud2)))
+
+    def impacts():
+        return sum(m.width for m in published)
+
     try:
         run_for(node, 1.0)
-        on = len(published)
+        on = impacts()
         assert on > 20   # ~2 impacts per 40 ms cycle
+        assert len(published) == 100   # one batch per 10 ms chunk, empty ones too
         result = node.set_parameters([Parameter('dampers_enabled', value=False)])[0]
         assert result.successful
         run_for(node, 1.0)
-        assert len(published) == on
+        assert impacts() == on and len(published) == 200
         node.set_parameters([Parameter('dampers_enabled', value=True)])
         run_for(node, 1.0)
-        assert len(published) > on + 20
-        assert all(isinstance(m, WrenchStamped) for m in published)
-        m = published[-1]
-        assert m.header.frame_id.endswith('/damper')
-        assert m.wrench.torque.x > 0 and m.wrench.torque.y == pytest.approx(
-            0.5 * m.wrench.torque.x, rel=1e-6)   # COR 0.5 on relative normal velocity
+        assert impacts() > on + 20
+        # the batches tile sim time: each starts where the chunk before ended (<= 10 ms)
+        starts = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+                           for m in published])
+        assert starts[0] == 0 and np.all((np.diff(starts) > 0) & (np.diff(starts) <= 10**7))
+        m = next(m for m in reversed(published) if m.width)
+        rows = rows_of(m)
+        assert m.header.frame_id == 'sdof_primary'   # the housing's accelerometer frame
+        assert np.all((rows['t'] >= 0) & (rows['t'] <= 0.01)) and np.all(rows['impactor'] == 0)
+        assert np.all(rows['v_approach'] > 0)
+        np.testing.assert_allclose(rows['v_separation'], 0.5 * rows['v_approach'],
+                                   rtol=1e-6)   # COR 0.5 on relative normal velocity
     finally:
         node.destroy_node()
 
@@ -227,7 +240,8 @@ class Collector(Node):
         # bursts arrive on a loaded machine (best effort drops what overflows the queue)
         deep = QoSProfile(depth=20000, reliability=ReliabilityPolicy.BEST_EFFORT)
         topics = [(itf.accel_topic(s), Imu, deep) for s in sensors] + [
-            (itf.IMPACTS, WrenchStamped, itf.EVENT_QOS),
+            (itf.accel_batch_topic(s), PointCloud2, itf.BATCH_QOS) for s in sensors] + [
+            (itf.IMPACTS, PointCloud2, itf.EVENT_QOS),
             (itf.IMPACTOR_STATE, JointState, itf.LATCHED_QOS),
             (itf.ROTOR_SPEED, Vector3Stamped, itf.COMMAND_QOS),
             (itf.CLOCK, Clock, itf.CLOCK_QOS)]
@@ -279,8 +293,21 @@ def test_in_process_subscriber_gets_every_topic(ros_context):
         assert {m.header.frame_id for m in imu} == {sensor.frame_id}
         assert all(m.orientation_covariance[0] == -1.0 for m in imu[:10])
         impacts = sub.got[itf.IMPACTS]
-        assert len(impacts) > 20
+        assert sum(m.width for m in impacts) > 20
         assert np.all(np.diff([_sec(m.header.stamp) for m in impacts]) > 0)
+        # the full-rate batches carry the same samples as the Imu stream (no decimation at
+        # 2 kHz), contiguous: every sample once, on the 2 kHz grid
+        batches = sub.got[itf.accel_batch_topic(sensor.name)]
+        rows = np.concatenate([rows_of(m) for m in batches])
+        tb = np.concatenate([_sec(m.header.stamp) + rows_of(m)['t'] for m in batches])
+        np.testing.assert_allclose(np.diff(tb), 1 / 2000.0, rtol=0, atol=2e-9)
+        assert sim._batch_pubs[0].count * 20 == published   # 20 samples per 10 ms chunk
+        by_time = {round(x * 2000): m for x, m in zip(t, imu)}
+        for x, r in zip(tb[:50], rows[:50]):
+            m = by_time.get(round(x * 2000))
+            if m is not None:
+                assert (m.linear_acceleration.x, m.linear_acceleration.y,
+                        m.linear_acceleration.z) == (r['ax'], r['ay'], r['az'])
         assert sub.got[itf.IMPACTOR_STATE][0].name == ['damper/uy']
         clock = [_sec(m.clock) for m in sub.got[itf.CLOCK]]
         # one /clock per chunk of at most 10 ms; keep last 1, so a busy reader sees only some
@@ -289,6 +316,7 @@ def test_in_process_subscriber_gets_every_topic(ros_context):
         # QoS as documented
         for topic, qos in [(itf.accel_topic(sensor.name), itf.SENSOR_QOS),
                            (itf.IMPACTOR_STATE, itf.LATCHED_QOS),
+                           (itf.accel_batch_topic(sensor.name), itf.BATCH_QOS),
                            (itf.IMPACTS, itf.EVENT_QOS)]:
             info = sim.get_publishers_info_by_topic('/rig/' + topic)
             assert len(info) == 1, topic
@@ -524,6 +552,12 @@ SHIPPED_SCENES = sorted(p.stem for p in (
 def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
     """Default parameters only: the sample rate follows the scene's sensors' low-pass."""
     from impact_damper_sim.realtime import SAMPLE_RATE_OVER_CUTOFF
+    from impact_damper_sim.scene.build import load
+    reason = load(scene).scene['offline_only']
+    if reason:   # an offline stress test: refused in one line that says why
+        with pytest.raises(SceneError, match=f'scene {scene!r} is for offline studies only: '):
+            make_node(ros_context, scene)
+        return
     node = make_node(ros_context, scene)
     try:
         live = node.live
@@ -532,10 +566,19 @@ def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
         # the scene's integrator step is kept (the rate is a submultiple of 1/dt)
         assert live.dt == pytest.approx(float(node.scene.scene['simulation']['dt']),
                                         rel=1e-12)
+        # one stream per measurement: one accelerometer per instrumented node
+        nodes = [acc.node for acc in live.accelerometers]
+        assert sorted(nodes) == sorted({s['node'] for s in node.scene.scene['sensors']})
         run_for(node, 0.05)
         assert node.live.failure is None
-        assert node.stats_total['samples'] == round(0.05 * live.sample_rate)
-        assert all(out.count == node.stats_total['samples'] for out in node._accel_pubs)
+        n = node.stats_total['samples']
+        assert n == round(0.05 * live.sample_rate)
+        assert all(out.count == 5 for out in node._batch_pubs)   # one per 10 ms chunk
+        # the decimated stream has every output whose filter window is complete
+        factor, delay = live._decimator.factor, live._decimator.delay
+        assert live.imu_rate * factor == pytest.approx(live.sample_rate, rel=1e-12)
+        assert live.imu_rate <= 2000.0
+        assert all(out.count == (n - 1 - delay) // factor + 1 for out in node._accel_pubs)
     finally:
         node.destroy_node()
 
@@ -957,3 +1000,24 @@ def test_slow_start_up_says_what_it_is_doing():
     time.sleep(0.15)
     assert elapsed >= 0.3 and n >= 3 and len(said) == n   # and quiet once stopped
     assert all(s.startswith('still compiling (') for s in said)
+
+
+def test_diagnostics_say_behind_only_when_short_of_the_requested_factor(ros_context):
+    """A period at the requested factor is OK (it said 'behind ... 1 of 1' before); a stall
+    that drops a deficit is WARN with the achieved factor."""
+    node = make_node(ros_context, 'sdof')
+    try:
+        node.publish_diagnostics()   # opens a period
+        run_for(node, 1.0)
+        node.publish_diagnostics()
+        d = node.last_diagnostics
+        assert d['real_time_factor_achieved'] == pytest.approx(1.0, abs=0.011)
+        assert d['level'] == 0 and 'behind' not in d['message']
+        node._wall.now += 0.5   # a 0.5 s stall: over max_lag, the deficit is dropped
+        run_for(node, 0.5)
+        node.publish_diagnostics()
+        d = node.last_diagnostics
+        assert d['real_time_factor_achieved'] < 0.98
+        assert d['level'] == 1 and 'behind real time: achieved 0.' in d['message']
+    finally:
+        node.destroy_node()

@@ -6,24 +6,41 @@ Topic names without a leading slash are relative (the node can be namespaced); `
 
 Encodings in ``common_interfaces`` types (no custom message package):
 
-``accel/<sensor>`` -- ``sensor_msgs/Imu``, one message per output sample
-    ``header.stamp`` sample time (sim time); ``header.frame_id`` the sensor's frame.
-    ``linear_acceleration`` (m/s^2): the acceleration of the sensor's node along the frame's
-    x, y, z (the global axes), as an AC-coupled vibration accelerometer reads it (no static
-    1 g), averaged over each integrator step and passed through the scene's anti-alias
-    low-pass, plus the configured noise. ``angular_velocity`` (rad/s): the node's rotational
-    DOF rates. Orientation is not measured: ``orientation_covariance[0] = -1`` (REP-145).
-    ``linear_acceleration_covariance`` is diagonal with the noise variance (all zeros when
-    noise is off: unknown); ``angular_velocity_covariance`` is all zeros (unknown).
+One stream per accelerometer location (a triaxial accelerometer at one node of the
+structure), in two forms, as drivers of high-rate sensors publish:
 
-``impacts`` -- ``geometry_msgs/WrenchStamped``, one message per impact
-    ``header.stamp`` the impact time (located inside the step, sim time);
-    ``header.frame_id`` ``<housing frame>/<impactor name>``, so the impactor id is the last
-    path component. ``wrench.force`` (N s): the impulse on the impactor, ``J n``, where ``n``
-    is the unit contact normal in the frame (its direction is the normal, its length the
-    impulse). ``wrench.torque.x`` (m/s): normal relative velocity of approach before the
-    impact (> 0); ``torque.y`` (m/s): normal relative velocity of separation after it;
-    ``torque.z`` (J): the kinetic energy the impact dissipated.
+``accel/<accelerometer>/batch`` -- ``sensor_msgs/PointCloud2``, the full-rate signal
+    One message per stepped chunk (``tick_period``, 10 ms): ``header.stamp`` the first
+    sample's time, ``header.frame_id`` the accelerometer frame, one row per sample with
+    fields ``t`` (s, the sample's time minus ``header.stamp``), ``ax ay az`` (m/s^2) and
+    ``wx wy wz`` (rad/s), all float64 (layout: :mod:`impact_damper_sim.recording.batches`).
+    At 20 kHz that is 100 messages a second of 200 samples, which a Python client reads with
+    ``np.frombuffer`` (``batches.rows_of``). Always recorded.
+
+``accel/<accelerometer>`` -- ``sensor_msgs/Imu``, one message per sample of the live rate
+    ``imu_rate`` (at most 2 kHz by default): the full-rate signal decimated through a
+    linear-phase anti-alias FIR (flat to 0.4 x ``imu_rate``, 80 dB from 0.5 x ``imu_rate``
+    on). ``header.stamp`` is the time the sample stands for; it is sent when the filter has
+    it, a filter delay later (12.9 ms for 20 kHz to 2 kHz; none when ``imu_rate`` equals
+    ``sample_rate``, as on hpotp). ``header.frame_id`` the accelerometer frame.
+
+In both, the acceleration is that of the accelerometer's node along the frame's x, y, z (the
+global axes), as an AC-coupled vibration accelerometer reads it (no static 1 g), averaged
+over each integrator step and passed through the scene's anti-alias low-pass, plus the
+configured noise; the angular velocity is the node's rotational DOF rates. In the Imu,
+orientation is not measured: ``orientation_covariance[0] = -1`` (REP-145);
+``linear_acceleration_covariance`` is diagonal with the noise variance (all zeros when
+noise is off: unknown); ``angular_velocity_covariance`` is all zeros (unknown).
+
+``impacts`` -- ``sensor_msgs/PointCloud2``, one batch per stepped chunk
+    ``header.stamp`` the start of the interval the batch covers (an empty batch says nothing
+    hit in it); ``header.frame_id`` the housing's frame. One row per impact: ``t`` (s, the
+    impact time, located inside the step, minus ``header.stamp``), ``impactor`` (uint32,
+    index of the impactor in ``impactor_state`` order), ``jx jy jz`` (N s, the impulse on
+    the impactor: its direction is the contact normal, its length the impulse),
+    ``v_approach`` (m/s, normal approach speed before, > 0), ``v_separation`` (m/s, normal
+    separation speed after) and ``energy`` (J, the kinetic energy dissipated). Batched because
+    impacts come by thousands a second (14,700 at the HPOTP ramp's peak).
 
 ``impactor_state`` -- ``sensor_msgs/JointState``, on change and every ``state_period``
     ``name``: ``<impactor>/y`` and ``<impactor>/z`` for planar impactors (the plane's two
@@ -45,10 +62,10 @@ Encodings in ``common_interfaces`` types (no custom message package):
     one stamped message that ``study report`` reads for its waterfall and that existing logs
     hold.
 
-Why ``impacts`` is a ``WrenchStamped``: no common_interfaces type describes an impact, and a
-custom message package would not show up in every tool. The wrench's force is the impulse
-vector (its direction is the contact normal, as a force's is), so RViz and PlotJuggler draw
-it meaningfully; the torque slots carry the scalars of the impact law.
+Why PointCloud2 for batches: no common_interfaces type carries a batch of stamped samples,
+a custom message package would not show up in every tool, and LiDAR drivers set the
+precedent of a per-point time field ``t`` in a PointCloud2 (bench/stream_formats.py
+measures the options).
 
 ``rotor/speed_command``, ``rotor/unbalance_command`` -- ``std_msgs/Float64`` subscriptions
     Target speed (rad/s, applied under the scene's rate limit) and multiplier X (>= 0).
@@ -58,6 +75,7 @@ from __future__ import annotations
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 
 ACCEL_PREFIX = 'accel/'
+BATCH_SUFFIX = '/batch'
 IMPACTS = 'impacts'
 IMPACTOR_STATE = 'impactor_state'
 ROTOR_SPEED = 'rotor/speed'
@@ -70,7 +88,8 @@ DIAGNOSTICS = '/diagnostics'
 #: ROS type names of each topic (``pkg/msg/Type``); ``accel/<sensor>`` under ACCEL_PREFIX.
 TYPES = {
     ACCEL_PREFIX: 'sensor_msgs/msg/Imu',
-    IMPACTS: 'geometry_msgs/msg/WrenchStamped',
+    BATCH_SUFFIX: 'sensor_msgs/msg/PointCloud2',
+    IMPACTS: 'sensor_msgs/msg/PointCloud2',
     IMPACTOR_STATE: 'sensor_msgs/msg/JointState',
     ROTOR_SPEED: 'geometry_msgs/msg/Vector3Stamped',
     ROTOR_JOINT_STATES: 'sensor_msgs/msg/JointState',
@@ -86,10 +105,14 @@ TYPES = {
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                         reliability=ReliabilityPolicy.BEST_EFFORT,
                         durability=DurabilityPolicy.VOLATILE)
-#: Impact events: reliable (every impact counts), volatile.
-EVENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+#: Batches (full-rate samples, impacts): reliable, volatile, keep last 100 (1 s of 10 ms
+#: batches). A reliable writer also feeds best-effort readers; with keep-last it never
+#: blocks on a slow one.
+BATCH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
+#: Impact batches: every impact counts.
+EVENT_QOS = BATCH_QOS
 #: Impactor state: reliable and transient_local (latched), so late joiners get it.
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
@@ -111,11 +134,16 @@ G0 = 9.80665   # standard gravity (m/s^2), for reports in g
 
 
 def accel_topic(sensor):
-    """Return the relative topic name of a sensor's accelerometer stream (str)."""
+    """Return the relative topic name of an accelerometer's per-sample stream (str)."""
     return ACCEL_PREFIX + sensor
 
 
-__all__ = ['ACCEL_PREFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS', 'DIAGNOSTICS',
+def accel_batch_topic(sensor):
+    """Return the relative topic name of an accelerometer's full-rate batches (str)."""
+    return ACCEL_PREFIX + sensor + BATCH_SUFFIX
+
+
+__all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS', 'DIAGNOSTICS',
            'DIAGNOSTICS_QOS', 'EVENT_QOS', 'G0', 'IMPACTS', 'IMPACTOR_STATE', 'LATCHED_QOS',
            'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES',
-           'UNBALANCE_COMMAND', 'accel_topic']
+           'UNBALANCE_COMMAND', 'accel_batch_topic', 'accel_topic']

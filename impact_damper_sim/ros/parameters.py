@@ -28,11 +28,17 @@ PARAMETERS = {
                    "scene's simulation.method", None, True),
     'real_time_factor': (1.0, 'sim seconds per wall second; 0 = as fast as possible '
                               '(dimensionless)', (0.0, 1000.0), False),
-    'sample_rate': (0.0, 'accelerometer output sample rate (Hz), >= 100 and above twice every '
-                         "sensor's anti-alias cutoff; 0 = from the scene: the lowest "
+    'sample_rate': (0.0, 'full-rate accelerometer sample rate (Hz) of accel/<name>/batch, '
+                         ">= 100 and above twice every sensor's anti-alias cutoff; 0 = from "
+                         'the scene: the lowest '
                          'submultiple of 1/simulation.dt at least 2.5 x the highest sensor '
                          'lowpass (hpotp 2000 Hz, rbs 20000 Hz), 2000 Hz without one',
                     (0.0, 100000.0), True),
+    'imu_rate': (0.0, 'rate of the per-sample Imu stream accel/<name> (Hz): the full-rate '
+                      'signal (accel/<name>/batch) decimated through an anti-alias FIR, '
+                      'sample_rate / k for a whole number k; 0 = the highest such rate not '
+                      'above 2000 Hz (hpotp 2000 Hz, rbs 2000 Hz from 20000 Hz)',
+                 (0.0, 100000.0), True),
     'dampers_enabled': (True, 'impact dampers act (dynamic: compare with and without live)',
                         None, False),
     'noise_std': (0.0, 'white noise added to each acceleration sample, standard deviation '

@@ -19,22 +19,24 @@ import time
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu, JointState, PointCloud2
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool
 
 from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
+from ..recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS,
+                                 IMPACT_POINT_STEP, BatchEncoder)
 from ..scene.schema import SceneError
 from . import interface as itf
 from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
-from .wire import ImuPacker, Outlet, StampedPacker, guard_services, settle_interrupt, \
-    shutdown_quietly, spin_guarded, stamp
+from .wire import ImuPacker, Outlet, guard_services, settle_interrupt, shutdown_quietly, \
+    spin_guarded, stamp
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
 RECORD_CHUNK_SIZE = 768 * 1024   # bytes, as rosbag2's MCAP storage
@@ -119,6 +121,9 @@ class VibrationNode(Node):
     BURST = 2
     #: wall time (s) between the wake-ups that send a backlog (twice the sample rate or more)
     CATCH_UP = 5e-4
+    #: a diagnostics period is "behind" when its achieved real-time factor falls short of
+    #: the requested one by more than this fraction (the goal is >= 0.98 in every 1 s)
+    RTF_TOLERANCE = 0.02
 
     def __init__(self, node_name='vibration_node', *, clock=time.monotonic,
                  start_stepping=True, **kwargs):
@@ -142,7 +147,8 @@ class VibrationNode(Node):
             scene, target = live_scene(p['scene'], p['overrides'] or (),
                                        speed_rate_limit=rate_limit)
             self.live = LiveSimulation(
-                scene, sample_rate=p['sample_rate'] or None, initial_target=target,
+                scene, sample_rate=p['sample_rate'] or None, imu_rate=p['imu_rate'] or None,
+                initial_target=target,
                 max_speed=p['max_speed'] or None, max_unbalance=p['max_unbalance'],
                 noise_std=p['noise_std'], seed=p['noise_seed'],
                 dampers_enabled=p['dampers_enabled'], method=p['method'] or None)
@@ -175,7 +181,8 @@ class VibrationNode(Node):
         self.get_logger().info(
             f'scene {scene.name!r}: {scene.basis.n_modes} modes, '
             f'{len(scene.impactors)} impactors, integrator dt {self.live.dt:g} s, '
-            f'{len(self.live.accelerometers)} accelerometers at {self.live.sample_rate:g} Hz, '
+            f'{len(self.live.accelerometers)} accelerometers at {self.live.sample_rate:g} Hz '
+            f'(per-sample Imu at {self.live.imu_rate:g} Hz), '
             f"real_time_factor {p['real_time_factor']:g}")
         guard_services(self, lambda text: self._log('warning', text, 1.0, 'service'))
         if start_stepping:
@@ -184,16 +191,22 @@ class VibrationNode(Node):
     # -- set-up ---------------------------------------------------------------------------
     def _make_interfaces(self, p):
         self._imu = []
-        self._accel_pubs = []
+        self._accel_pubs = []    # per-sample Imu, decimated to imu_rate
+        self._batch_pubs = []    # full-rate batches
+        self._batch_encoders = []
         for acc in self.live.accelerometers:
             self._accel_pubs.append(Outlet(self, Imu, itf.accel_topic(acc.name),
                                            itf.SENSOR_QOS))
+            self._batch_pubs.append(Outlet(self, PointCloud2, itf.accel_batch_topic(acc.name),
+                                           itf.BATCH_QOS))
+            self._batch_encoders.append(BatchEncoder(acc.frame_id, ACCEL_FIELDS,
+                                                     ACCEL_POINT_STEP))
             msg = Imu()
             msg.header.frame_id = acc.frame_id
             msg.orientation_covariance[0] = -1.0   # orientation not measured (REP-145)
             self._imu.append(msg)
         self._set_noise_covariance()
-        self._impact_pub = Outlet(self, WrenchStamped, itf.IMPACTS, itf.EVENT_QOS)
+        self._impact_pub = Outlet(self, PointCloud2, itf.IMPACTS, itf.EVENT_QOS)
         self._state_pub = Outlet(self, JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
         self._speed_pub = Outlet(self, Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
         self._joint_pub = Outlet(self, JointState, itf.ROTOR_JOINT_STATES, itf.COMMAND_QOS)
@@ -209,25 +222,17 @@ class VibrationNode(Node):
         # per modal-model impactor (a zero-mass scene entry has none), matched by name
         spec_of = {spec['name']: spec for spec in self.scene.scene['impactors']}
         specs = [spec_of[imp.name] for imp in self.scene.impactors]
-        self._impactor_frames = [f"{self._frame_of_node(spec['node'])}/{spec['name']}"
-                                 for spec in specs]
         dofs_of = [[spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
                    for spec in specs]
         axis_of = {'ux': 0, 'uy': 1, 'uz': 2}
         self._impactor_axes = [[axis_of[d] for d in dofs] for dofs in dofs_of]
         self._joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
                              for d in dofs]
-        self._impact_packers = []
-        for frame in self._impactor_frames:
-            template = WrenchStamped()
-            template.header.frame_id = frame
-            try:
-                self._impact_packers.append(StampedPacker(template,
-                                                          ('wrench.force', 'wrench.torque')))
-            except RuntimeError as exc:   # another CDR layout: message by message
-                self.get_logger().warning(f'{exc}; falling back to serialize_message',
-                                          once=True)
-                self._impact_packers.append(None)
+        # the housings' frame; with housings at several nodes, the scene's (axes are global)
+        housings = sorted({spec['node'] for spec in specs})
+        impact_frame = (self._frame_of_node(housings[0]) if len(housings) == 1
+                        else self.scene.name)
+        self._impact_encoder = BatchEncoder(impact_frame, IMPACT_FIELDS, IMPACT_POINT_STEP)
         self._tick_period = p['tick_period']
         self._diag_timer = self.create_timer(p['diagnostics_period'], self.publish_diagnostics)
         self._state_timer = self.create_timer(p['state_period'], self.publish_state)
@@ -235,6 +240,8 @@ class VibrationNode(Node):
         self._chunk = max(1, int(round(p['tick_period'] * self.live.sample_rate)))
         self._lookahead = p['tick_period']
         self._t_published = self.live.t
+        # the start of the interval the next impact batch covers (ns)
+        self._impacts_from = int(round(self.live.t * 1e9))
 
     def _frame_of_node(self, node):
         for acc in self.live.accelerometers:
@@ -344,7 +351,8 @@ class VibrationNode(Node):
     @property
     def outlets(self):
         """list of _Outlet: Every publisher of the node (``topic``, ``type_name``, ``count``)."""
-        return [*self._accel_pubs, self._impact_pub, self._state_pub, self._speed_pub,
+        return [*self._accel_pubs, *self._batch_pubs, self._impact_pub, self._state_pub,
+                self._speed_pub,
                 self._joint_pub, self._diag_pub] + ([self._clock_pub] if self._clock_pub else [])
 
     # -- recording ------------------------------------------------------------------------
@@ -482,6 +490,8 @@ class VibrationNode(Node):
             try:
                 delay = self._cycle()
             except Exception as exc:   # a bug must not kill the node silently
+                if not self.context.ok():
+                    break   # Ctrl-C shut the context down under a publish: not a failure
                 with self._lock:
                     self.live.failure = f'{type(exc).__name__}: {exc}'
                 delay = self._tick_period
@@ -621,37 +631,50 @@ class VibrationNode(Node):
         return False
 
     def _queue_batch(self, batch):
+        """Queue a stepped chunk: per accelerometer one full-rate batch (sent at its last
+        sample's time) and the decimated samples one by one (each sent when the filter has
+        it, a filter delay after its stamp); the chunk's impacts as one batch."""
         # the per-sample work is one NumPy pass per accelerometer (ImuPacker), no Python
-        # message objects; samples are interleaved across accelerometers in time order
-        t_ns = np.rint(batch.t * 1e9).astype(np.int64)
-        k = t_ns.size
-        columns = []
+        # message objects; items are queued in the order of their send times
+        delay_ns = int(round(self.live._decimator.delay / self.live.sample_rate * 1e9))
+        imu_ns = np.rint(batch.imu_t * 1e9).astype(np.int64)
+        items = []
         for a, (pub, msg, packer) in enumerate(zip(self._accel_pubs, self._imu, self._packers)):
-            lin, ang = batch.linear_acceleration[:, a, :], batch.angular_velocity[:, a, :]
+            lin = batch.imu_linear_acceleration[:, a, :]
+            ang = batch.imu_angular_velocity[:, a, :]
             wire = pub.has_subscribers()
             if packer is not None:
-                data = packer.pack(t_ns, lin, ang)
+                data = packer.pack(imu_ns, lin, ang)
             else:
                 data = []
-                for ns, la, av in zip(t_ns.tolist(), lin.tolist(), ang.tolist()):
+                for ns, la, av in zip(imu_ns.tolist(), lin.tolist(), ang.tolist()):
                     msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
                     (msg.linear_acceleration.x, msg.linear_acceleration.y,
                      msg.linear_acceleration.z) = la
                     msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = av
                     data.append(serialize_message(msg))
-            columns.append((pub, data, wire))
+            items += [(ns + delay_ns, a, pub, d, wire) for ns, d in zip(imu_ns.tolist(), data)]
+        t_ns = np.rint(batch.t * 1e9).astype(np.int64)
+        k = t_ns.size
+        if k:
+            for a, (pub, encoder) in enumerate(zip(self._batch_pubs, self._batch_encoders)):
+                rows = np.empty(k, encoder.dtype)
+                rows['t'] = (t_ns - t_ns[0]) * 1e-9
+                for name, column in zip(('ax', 'ay', 'az'), batch.linear_acceleration[:, a].T):
+                    rows[name] = column
+                for name, column in zip(('wx', 'wy', 'wz'), batch.angular_velocity[:, a].T):
+                    rows[name] = column
+                items.append((int(t_ns[-1]), a, pub, encoder.encode(t_ns[0], rows),
+                              pub.has_subscribers()))
         ev = batch.events
         impacts = ev[ev['kind'] == _IMPACT]
-        impact_items = self._impact_items(impacts)
-        j = 0
-        pending = self._pending
-        for i, ns in enumerate(t_ns.tolist()):
-            while j < len(impact_items) and impact_items[j][0] <= ns:
-                pending.append(impact_items[j])
-                j += 1
-            for pub, data, wire in columns:
-                pending.append((ns, pub, data[i], wire))
-        pending.extend(impact_items[j:])
+        end_ns = int(round(self.live.t * 1e9))
+        if self.scene.impactors:
+            items.append((end_ns, len(self._accel_pubs), self._impact_pub,
+                          self._impact_batch(impacts), self._impact_pub.has_subscribers()))
+        self._impacts_from = end_ns
+        items.sort(key=lambda item: item[:2])   # by send time, then accelerometer
+        self._pending.extend((ns, pub, data, wire) for ns, _, pub, data, wire in items)
         self.stats.samples += k
         self.stats_total['samples'] += k
         lin = batch.linear_acceleration
@@ -664,43 +687,27 @@ class VibrationNode(Node):
         if batch.states_changed:
             self._queue_state()
 
-    def _impact_items(self, impacts):
-        """Queue items (ns, outlet, bytes, wire) of a chunk's impacts, in time order."""
-        if impacts.size == 0:
-            return []
-        t_ns = np.rint(impacts['t'] * 1e9).astype(np.int64)
-        force = np.zeros((impacts.size, 3))
-        which = impacts['impactor'].astype(np.int64)
-        for j in np.unique(which).tolist():   # plane DOFs -> x, y, z of the frame
-            rows = which == j
-            for k, axis in enumerate(self._impactor_axes[j]):
-                force[rows, axis] = impacts['impulse'][rows] * impacts['normal'][rows, k]
-        torque = np.column_stack([np.abs(impacts['v_n']), np.abs(impacts['v_n_after']),
-                                  impacts['loss']])
-        items = []
-        wire = self._impact_pub.has_subscribers()
-        for j in np.unique(which).tolist():
-            rows = np.flatnonzero(which == j)
-            packer = self._impact_packers[j]
-            if packer is not None:
-                data = packer.pack(t_ns[rows], force[rows], torque[rows])
-            else:
-                data = [serialize_message(self._impact_message(j, t_ns[r], force[r], torque[r]))
-                        for r in rows]
-            items += [(ns, self._impact_pub, d, wire)
-                      for ns, d in zip(t_ns[rows].tolist(), data)]
-        if len(items) > 1:
-            items.sort(key=lambda item: item[0])
-        return items
-
-    def _impact_message(self, j, ns, force, torque):
-        msg = WrenchStamped()
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 1_000_000_000)
-        msg.header.frame_id = self._impactor_frames[j]
-        f, tq = msg.wrench.force, msg.wrench.torque
-        f.x, f.y, f.z = (float(v) for v in force)
-        tq.x, tq.y, tq.z = (float(v) for v in torque)
-        return msg
+    def _impact_batch(self, impacts):
+        """The CDR bytes of the impact batch covering the chunk just stepped."""
+        encoder = self._impact_encoder
+        rows = np.zeros(impacts.size, encoder.dtype)
+        if impacts.size:
+            t_ns = np.rint(impacts['t'] * 1e9).astype(np.int64)
+            rows['t'] = (t_ns - self._impacts_from) * 1e-9
+            which = impacts['impactor'].astype(np.int64)
+            rows['impactor'] = which
+            impulse = np.zeros((impacts.size, 3))
+            for j in np.unique(which).tolist():   # plane DOFs -> x, y, z of the frame
+                hit = which == j
+                for k, axis in enumerate(self._impactor_axes[j]):
+                    impulse[hit, axis] = impacts['impulse'][hit] * impacts['normal'][hit, k]
+            rows['jx'], rows['jy'], rows['jz'] = impulse.T
+            rows['v_approach'] = np.abs(impacts['v_n'])
+            rows['v_separation'] = np.abs(impacts['v_n_after'])
+            rows['energy'] = impacts['loss']
+            order = np.argsort(t_ns, kind='stable')
+            rows = rows[order]
+        return encoder.encode(self._impacts_from, rows)
 
     def _queue_time(self):
         # like the samples, a topic nobody subscribes to (volatile: no late joiner gets it)
@@ -780,9 +787,10 @@ class VibrationNode(Node):
             level = DiagnosticStatus.ERROR
             messages.append(f'stopped: {live.failure}')
         else:
-            if rtf > 0 and st.lag > self.pacer.max_lag:
+            if rtf > 0 and achieved < rtf * (1.0 - self.RTF_TOLERANCE):
                 level = DiagnosticStatus.WARN
-                messages.append(f'behind real time: achieved {achieved:.3g} of {rtf:g}')
+                messages.append(f'behind real time: achieved {achieved:.3f} of {rtf:g} '
+                                f'(tolerance {100 * self.RTF_TOLERANCE:g} %)')
                 self.get_logger().warning(messages[-1], throttle_duration_sec=5.0)
             if self._growth_rate > 0:
                 level = max(level, DiagnosticStatus.WARN)

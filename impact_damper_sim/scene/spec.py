@@ -6,8 +6,8 @@ table is generated from it (``test/test_readme.py`` keeps the two equal).
 
 Layout
 ------
-``name``, ``description``
-    Identification.
+``name``, ``description``, ``offline_only``
+    Identification, and whether the live node may run the scene.
 ``structure``
     ``kind: sdof`` (one mass on a spring, built as a one-node finite-element model so that it
     runs through exactly the same machinery as a beam model) or ``kind: beam`` (3D beam
@@ -579,6 +579,9 @@ def _check_scene(values):
 SCHEMA = Section({
     'name': String(pattern=r'[A-Za-z0-9][A-Za-z0-9_.-]*', doc='scene name'),
     'description': String(default='', allow_empty=True, doc='free text'),
+    'offline_only': String(default='', allow_empty=True,
+                           doc='why the scene is meant only for offline studies (the live '
+                               'node refuses it with this reason); empty = live too'),
     'structure': _STRUCTURE,
     'modal': _MODAL,
     'sensors': ListOf(_SENSOR, default=[], doc='displacement outputs'),
