@@ -23,7 +23,6 @@ from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 from std_msgs.msg import Float64
@@ -34,6 +33,7 @@ from ..recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS,
                                  IMPACT_POINT_STEP, BatchEncoder)
 from ..scene.schema import SceneError
 from . import interface as itf
+from .cdr import serialize
 from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
 from .wire import ImuPacker, Outlet, guard_services, settle_interrupt, shutdown_quietly, \
     spin_guarded, stamp
@@ -259,7 +259,7 @@ class VibrationNode(Node):
         try:
             return ImuPacker(msg)
         except RuntimeError as exc:   # another CDR layout: serialize message by message
-            self.get_logger().warning(f'{exc}; falling back to serialize_message', once=True)
+            self.get_logger().warning(f'{exc}; falling back to serializing message by message', once=True)
             return None
 
     def _log(self, level, text, throttle=None, key=None):
@@ -298,7 +298,7 @@ class VibrationNode(Node):
                 if self.recorder is not None and isinstance(msg, Float64):
                     # every command received is recorded, the rejected ones too
                     self._record(self._command_subs[which].topic_name, 'std_msgs/msg/Float64',
-                                 itf.COMMAND_QOS, serialize_message(msg))
+                                 itf.COMMAND_QOS, serialize(msg))
                 apply(value)
         except CommandError as exc:
             self.rejected += 1
@@ -652,7 +652,7 @@ class VibrationNode(Node):
                     (msg.linear_acceleration.x, msg.linear_acceleration.y,
                      msg.linear_acceleration.z) = la
                     msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = av
-                    data.append(serialize_message(msg))
+                    data.append(serialize(msg))
             items += [(ns + delay_ns, a, pub, d, wire) for ns, d in zip(imu_ns.tolist(), data)]
         t_ns = np.rint(batch.t * 1e9).astype(np.int64)
         k = t_ns.size

@@ -1,11 +1,12 @@
 """What goes on the wire: publishers that serialize once, a vectorised ``Imu`` packer, guards.
 
 * :class:`Outlet` publishes serialized bytes (rclpy sends ``bytes`` as they are) and gives
-  the same bytes to the recorder, so a message is serialized once for both.
+  the same bytes to the recorder, so a message is serialized once for both, by
+  :func:`.cdr.serialize` (canonical CDR: zero pads, no trailing bytes, readable by rosbags).
 * :class:`StampedPacker` (and :class:`ImuPacker`) writes a whole chunk of stamped messages
-  (``sensor_msgs/Imu`` samples, ``geometry_msgs/WrenchStamped`` impacts) as CDR in one NumPy
-  pass from a template serialized by rclpy; the field offsets are found in that template, and
-  the packer checks a packed message against rclpy (a round trip) before it is used.
+  (``sensor_msgs/Imu`` samples) as CDR in one NumPy pass from a canonical template; the field
+  offsets are found in that template, and the packer checks a packed message against rclpy
+  (a round trip) before it is used.
 * :func:`guard_services` makes every service of a node answer (a refusal with the reason)
   instead of raising into the executor, which would stop the node.
 * :func:`spin_guarded`, :func:`settle_interrupt` and :func:`shutdown_quietly` spin and end a
@@ -19,7 +20,9 @@ import time
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
+
+from .cdr import serialize
 
 
 def type_name(msg_type):
@@ -66,7 +69,7 @@ class Outlet:
     def publish(self, msg, ns=None, wire=True):
         """Serialize ``msg`` once, publish (if ``wire``) and record the bytes (``ns``: log
         time, ns)."""
-        self.publish_raw(serialize_message(msg), ns, wire)
+        self.publish_raw(serialize(msg), ns, wire)
 
     def publish_raw(self, data, ns=None, wire=True):
         """Publish (if ``wire``) and record serialized bytes ``data`` (``ns``: log time)."""
@@ -99,19 +102,19 @@ class StampedPacker:
     ------
     RuntimeError
         The packed bytes do not deserialize to the message they should be (the CDR layout is
-        not the one assumed); the caller then falls back to ``serialize_message``.
+        not the one assumed); the caller then serializes message by message.
     """
 
     def __init__(self, template, paths):
         msg_type = type(template)
         self.paths = tuple(paths)
-        probe = deserialize_message(serialize_message(template), msg_type)
+        probe = deserialize_message(serialize(template), msg_type)
         sentinels = [tuple(float(v) * (i + 1) * 1.0e-300 for v in (3.0, 7.0, 11.0))
                      for i in range(len(self.paths))]
         for path, values in zip(self.paths, sentinels):
             _set_vector(probe, path, values)
         probe.header.stamp.sec, probe.header.stamp.nanosec = 0x5EC0CAFE, 0x0DDBA11
-        raw = serialize_message(probe)
+        raw = serialize(probe)
         offsets = [raw.find(struct.pack('<3d', *values)) for values in sentinels]
         stamp_at = raw.find(struct.pack('<iI', 0x5EC0CAFE, 0x0DDBA11))
         if min(offsets + [stamp_at]) < 0 or raw[:2] != b'\x00\x01':   # little-endian CDR
@@ -123,13 +126,9 @@ class StampedPacker:
                                'offsets': [stamp_at, stamp_at + 4, *offsets],
                                'itemsize': self.size})
         self._names = names
-        self._template = np.frombuffer(serialize_message(template), np.uint8).copy()
-        # rclpy leaves the alignment padding after frame_id uninitialized: zero it, so that
-        # equal messages are equal bytes
-        end = 4 + 8 + 4 + len(template.header.frame_id.encode()) + 1
-        self._template[end:4 + -(-(end - 4) // 8) * 8] = 0
+        self._template = np.frombuffer(serialize(template), np.uint8).copy()
         # the round trip: a packed message must read back as the one rclpy would send
-        check = deserialize_message(serialize_message(template), msg_type)
+        check = deserialize_message(serialize(template), msg_type)
         check.header.stamp.sec, check.header.stamp.nanosec = 12, 345678901
         values = [(0.25 * (i + 1), -1.5e5, 2.0 ** -40) for i in range(len(self.paths))]
         for path, v in zip(self.paths, values):
