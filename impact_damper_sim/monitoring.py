@@ -1,8 +1,9 @@
 """Rolling vibration statistics for the ``monitor`` node: the ROS-free core.
 
 :class:`RollingVibrationStats` is fed batches of accelerometer samples (time in s,
-acceleration in m/s^2 along x, y, z), impact times (s) and impactor stuck/free updates, and
-reports over a rolling window of the most recent ``window`` seconds:
+acceleration in m/s^2 along x, y, z), impact times (s), optionally with the interval a batch
+of them covers, and impactor stuck/free updates, and reports over a rolling window of the
+most recent ``window`` seconds:
 
 * per sensor, RMS and peak acceleration in g (``G0`` = 9.80665 m/s^2) along each axis and of
   the vector magnitude ``|a| = sqrt(ax^2 + ay^2 + az^2)``;
@@ -111,8 +112,9 @@ class VibrationReport:
         Window length (s).
     span : float
         Part of the window covered by input since the start or the last time reset (s):
-        ``min(window, t - first sample or impact stamp)``; rates are per this span (stuck/free
-        updates do not count: a latched one may be old).
+        ``min(window, t - first sample or impact stamp)``, where the start of an impact batch
+        counts as an impact stamp; rates are per this span (stuck/free updates do not count:
+        a latched one may be old).
     sensors : dict of str to SensorStats
         Per-sensor statistics, in the order the sensors were added.
     impacts : int
@@ -472,17 +474,69 @@ class RollingVibrationStats:
         self._saw(float(t.min()), float(t.max()))
         return int(t.size)
 
-    def add_impacts(self, times):
-        """Add impacts at stamps ``times`` (array_like, s); return how many were accepted."""
+    def add_impacts(self, times, start=None):
+        """Add impacts.
+
+        Parameters
+        ----------
+        times : array_like, shape (n,)
+            Impact stamps (s); non-finite ones are rejected and counted.
+        start : float, optional
+            Start of the interval a batch of impacts covers (s): the batch says that nothing
+            else hit from ``start`` to its last impact, so the interval counts in the span of
+            the impact rate even when ``times`` is empty. None for impacts that come one by
+            one (each covers only its own stamp).
+
+        Returns
+        -------
+        int
+            Impacts accepted.
+        """
         t = np.asarray(times, dtype=float).reshape(-1)
         good = np.isfinite(t)
         self._rejected_impacts += int(t.size - np.count_nonzero(good))
         t = t[good]
-        if t.size == 0:
-            return 0
-        self._impacts.append(t, np.empty((t.size, 0)))
-        self._saw(float(t.min()), float(t.max()))
+        if t.size:
+            self._impacts.append(t, np.empty((t.size, 0)))
+        covered = t if start is None else np.append(t, float(start))
+        covered = covered[np.isfinite(covered)]
+        if covered.size:
+            self._saw(float(covered.min()), float(covered.max()))
         return int(t.size)
+
+    def reject_samples(self, sensor, count):
+        """Count samples rejected before they reached :meth:`add_samples`.
+
+        Parameters
+        ----------
+        sensor : str
+            Sensor name.
+        count : int
+            Samples rejected (samples), e.g. the rows of a malformed batch message.
+        """
+        self.add_sensor(sensor)
+        self._sensors[sensor].rejected += int(count)
+
+    def reject_impacts(self, count):
+        """Count impacts rejected before they reached :meth:`add_impacts`.
+
+        Parameters
+        ----------
+        count : int
+            Impacts rejected (impacts), e.g. the rows of a malformed batch message.
+        """
+        self._rejected_impacts += int(count)
+
+    def clear_sensor(self, sensor):
+        """Drop the sample history of a sensor whose source changed; keep its rejections.
+
+        Parameters
+        ----------
+        sensor : str
+            Sensor name.
+        """
+        self.add_sensor(sensor)
+        self._sensors[sensor].buffer.clear()
 
     def update_stuck(self, time, stuck):
         """Record the stuck/free state of every impactor from stamp ``time`` on.

@@ -1,9 +1,12 @@
 """The ``monitor`` node, launch-free: synthetic topics in, /diagnostics values out.
 
 Each test has its own rclpy context (the ``ros_context`` fixture). A publisher node in the
-same context plays the simulator; the monitor is spun with ``spin_once`` until a condition
-holds. Diagnostic values are text with 6 significant digits, hence ``rel=1e-5``.
+same context plays the simulator, in the node's format (full-rate ``accel/<name>/batch`` and
+``impacts`` PointCloud2 batches, their CDR from ``BatchEncoder``) or the old one (one Imu per
+sample, one WrenchStamped per impact); the monitor is spun with ``spin_once`` until a
+condition holds. Diagnostic values are text with 6 significant digits, hence ``rel=1e-5``.
 """
+from dataclasses import astuple
 import math
 import os
 import signal
@@ -21,8 +24,11 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
-from sensor_msgs.msg import Imu, JointState  # noqa: E402
+from sensor_msgs.msg import Imu, JointState, PointCloud2  # noqa: E402
 
+from impact_damper_sim.recording.batches import (  # noqa: E402
+    ACCEL_DTYPE, ACCEL_FIELDS, ACCEL_POINT_STEP, BATCH_SUFFIX, BatchEncoder, FLOAT64,
+    IMPACT_DTYPE, IMPACT_FIELDS, IMPACT_POINT_STEP)
 from impact_damper_sim.ros import interface  # noqa: E402
 from impact_damper_sim.ros.monitor import VibrationMonitor  # noqa: E402
 
@@ -33,6 +39,7 @@ pytestmark = pytest.mark.ros
 G0 = interface.G0
 FS = 1000.0        # synthetic sample rate (Hz)
 T0 = 50            # sim time of the first sample (s)
+CHUNK = 10         # samples per batch: the node's 10 ms chunk at FS
 TEXT_REL = 1e-5    # diagnostics carry 6 significant digits
 
 
@@ -42,21 +49,43 @@ def stamp(t):
     return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)))
 
 
-class Simulator:
-    """A publisher node with the simulator's topics, and a /diagnostics listener."""
+def ns_of(t):
+    """Stamps (ns, int64) of times ``t`` (s), rounded as :func:`stamp` rounds them."""
+    return np.array([stamp(x).sec * 1_000_000_000 + stamp(x).nanosec
+                     for x in np.atleast_1d(t)], dtype=np.int64)
 
-    def __init__(self, ctx, namespace='/', sensors=('tip',)):
+
+class Simulator:
+    """A publisher node with the simulator's topics, and a /diagnostics listener.
+
+    ``batch`` sensors publish ``accel/<name>/batch``, ``imu`` sensors ``accel/<name>`` (a
+    name may be in both); ``impacts`` is ``'batch'`` (PointCloud2) or ``'wrench'``.
+    """
+
+    def __init__(self, ctx, namespace='/', batch=('tip',), imu=(), impacts='batch'):
         self.node = rclpy.create_node('fake_sim', context=ctx, namespace=namespace)
-        self.accel = {name: self.node.create_publisher(Imu, interface.accel_topic(name),
-                                                       interface.SENSOR_QOS)
-                      for name in sensors}
-        self.impacts = self.node.create_publisher(WrenchStamped, interface.IMPACTS,
-                                                  interface.EVENT_QOS)
+        self.batches, self.encoders, self.imus = {}, {}, {}
+        for name in batch:
+            self.add_batch(name)
+        for name in imu:
+            self.imus[name] = self.node.create_publisher(Imu, interface.accel_topic(name),
+                                                         interface.SENSOR_QOS)
+        self.impact_format = impacts
+        self.impacts = self.node.create_publisher(
+            PointCloud2 if impacts == 'batch' else WrenchStamped, interface.IMPACTS,
+            interface.EVENT_QOS)
+        self.impact_encoder = BatchEncoder('housing', IMPACT_FIELDS, IMPACT_POINT_STEP)
         self.state = self.node.create_publisher(JointState, interface.IMPACTOR_STATE,
                                                 interface.LATCHED_QOS)
         self.arrays = []
         self.node.create_subscription(DiagnosticArray, interface.DIAGNOSTICS,
                                       self.arrays.append, interface.DIAGNOSTICS_QOS)
+
+    def add_batch(self, name):
+        """Start publishing ``accel/<name>/batch``."""
+        self.batches[name] = self.node.create_publisher(
+            PointCloud2, interface.accel_topic(name) + BATCH_SUFFIX, interface.BATCH_QOS)
+        self.encoders[name] = BatchEncoder(f'{name}_frame', ACCEL_FIELDS, ACCEL_POINT_STEP)
 
     def imu(self, sensor, t, acc):
         msg = Imu()
@@ -65,7 +94,14 @@ class Simulator:
         msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = (
             float(v) for v in acc)
         msg.orientation_covariance[0] = -1.0
-        self.accel[sensor].publish(msg)
+        self.imus[sensor].publish(msg)
+
+    def batch(self, sensor, ns, acc):
+        """One batch of samples stamped ``ns`` (ns) with accelerations ``acc`` (m/s^2)."""
+        rows = np.zeros(len(ns), ACCEL_DTYPE)
+        rows['t'] = (ns - ns[0]) * 1e-9
+        rows['ax'], rows['ay'], rows['az'] = np.asarray(acc, dtype=float).T
+        self.batches[sensor].publish(self.encoders[sensor].encode(int(ns[0]), rows))
 
     def impact(self, t):
         msg = WrenchStamped()
@@ -73,6 +109,13 @@ class Simulator:
         msg.header.frame_id = 'housing/i0'
         msg.wrench.force.x = 1e-3
         self.impacts.publish(msg)
+
+    def impact_batch(self, start_ns, ns):
+        """The impacts at ``ns`` (ns) of the interval from ``start_ns`` (ns), maybe none."""
+        rows = np.zeros(len(ns), IMPACT_DTYPE)
+        rows['t'] = (np.asarray(ns, dtype=np.int64) - start_ns) * 1e-9
+        rows['jx'] = 1e-3
+        self.impacts.publish(self.impact_encoder.encode(start_ns, rows))
 
     def stuck(self, t, names, efforts):
         msg = JointState()
@@ -90,6 +133,17 @@ def spin_until(executor, condition, timeout=5.0):
     while not condition():
         assert time.monotonic() < deadline, 'condition not met in time'
         executor.spin_once(timeout_sec=0.01)
+
+
+def reading(monitor, sim, *sensors):
+    """Condition: the monitor reads the sensors' published topics and the impacts, matched
+    at both ends (a reliable message sent before the reader matched the writer is lost)."""
+    def condition():
+        publishers = [sim.batches.get(s) or sim.imus[s] for s in sensors] + [sim.impacts]
+        streams = [monitor._accel_streams[s] for s in sensors] + [monitor._impact_stream]
+        return (all(p.get_subscription_count() == 1 for p in publishers)
+                and all(s.subscription.get_publisher_count() == 1 for s in streams))
+    return condition
 
 
 def received(monitor, stream, count):
@@ -126,14 +180,20 @@ def setup(ros_context):
         sim.node.destroy_node()
 
 
-def test_diagnostics_match_the_synthetic_input(setup):
-    """1.5 s of a 2 g circular 40 Hz vibration, 25 impacts/s and a known stuck schedule."""
+@pytest.mark.parametrize('fmt', ['batch', 'message'])
+def test_diagnostics_match_the_synthetic_input(setup, fmt):
+    """1.5 s of a 2 g circular 40 Hz vibration, 25 impacts/s and a known stuck schedule,
+    in the node's batches and in the old per-sample messages: the same closed-form values."""
     a_g, hz, window = 2.0, 40.0, 1.0
+    batches = fmt == 'batch'
     monitor, sim, executor = setup(
         dict(namespace='/hpotp', parameter_overrides=[
             Parameter('sensors', value=['tip']), Parameter('window', value=window),
             Parameter('report_period', value=0.1), Parameter('log_reports', value=False)]),
-        namespace='/hpotp')
+        namespace='/hpotp', batch=('tip',) if batches else (), imu=() if batches else ('tip',),
+        impacts='batch' if batches else 'wrench')
+    # best effort: nothing sent before the monitor reads the right topic would arrive
+    spin_until(executor, reading(monitor, sim, 'tip'))
     names = ['i0/y', 'i0/z', 'i1/x']
     # stuck/free efforts from ms after T0 on: i0 sticks at 0.8 s, i1 at 1.2 s, i0 frees at 1.4 s
     schedule = [(800, [1, 1, 0]), (1200, [1, 1, 1]), (1400, [0, 0, 1])]
@@ -141,26 +201,41 @@ def test_diagnostics_match_the_synthetic_input(setup):
     states = 1
     spin_until(executor, received(monitor, 'impactor_state', states))
     impacts = T0 + 0.013 + np.arange(38) / 25.0      # 25 a second, the last at T0 + 1.493
+    impact_ns = ns_of(impacts)
     next_impact = 0
     n_samples, chunk = 1500, 50                       # 1.5 s at FS, in 50 ms chunks
+    sent = {'accel': 0, 'impacts': 0}
     for start in range(0, n_samples, chunk):
         end = start + chunk                           # ms after T0
-        for k in range(start, end):
-            t = T0 + (k + 0.5) / FS
-            t = stamp(t).sec + 1e-9 * stamp(t).nanosec        # as the monitor reads it
-            phase = 2 * np.pi * hz * t
-            sim.imu('tip', t, [a_g * G0 * np.sin(phase), a_g * G0 * np.cos(phase), 0.0])
-        while next_impact < impacts.size and impacts[next_impact] < T0 + end / FS:
-            sim.impact(impacts[next_impact])
-            next_impact += 1
+        ns = ns_of(T0 + (np.arange(start, end) + 0.5) / FS)
+        t = ns // 1_000_000_000 + 1e-9 * (ns % 1_000_000_000)     # as the monitor reads it
+        phase = 2 * np.pi * hz * t
+        acc = np.column_stack([a_g * G0 * np.sin(phase), a_g * G0 * np.cos(phase),
+                               np.zeros(t.size)])
+        if batches:
+            for k in range(0, chunk, CHUNK):
+                sim.batch('tip', ns[k:k + CHUNK], acc[k:k + CHUNK])
+                # the impacts of the node's chunk [k, k + CHUNK) ms, often none
+                lo, hi = ns_of(T0 + (start + np.array([k, k + CHUNK])) / FS)
+                sim.impact_batch(lo, impact_ns[(impact_ns >= lo) & (impact_ns < hi)])
+            sent['accel'] += chunk // CHUNK
+            sent['impacts'] += chunk // CHUNK
+        else:
+            for x, a in zip(t, acc):
+                sim.imu('tip', x, a)
+            sent['accel'] += chunk
+            while next_impact < impacts.size and impacts[next_impact] < T0 + end / FS:
+                sim.impact(impacts[next_impact])
+                next_impact += 1
+                sent['impacts'] += 1
         while schedule and schedule[0][0] < end:
             ms, efforts = schedule.pop(0)
             sim.stuck(T0 + ms / 1000, names, efforts)
             states += 1    # latched depth 1: let each state in before the next
             spin_until(executor, received(monitor, 'impactor_state', states))
         # best-effort samples: let the monitor take each chunk before its queue would overflow
-        spin_until(executor, received(monitor, 'accel', end))
-    spin_until(executor, received(monitor, 'impacts', impacts.size))
+        spin_until(executor, received(monitor, 'accel', sent['accel']))
+    spin_until(executor, received(monitor, 'impacts', sent['impacts']))
     spin_until(executor, lambda: latest_status(sim, 'monitor: /hpotp/impacts')[1].get(
         'window_end_s') == f'{T0 + 1.4995:.6g}')
 
@@ -192,6 +267,7 @@ def test_diagnostics_match_the_synthetic_input(setup):
     assert imp.hardware_id == 'housing'
     value = {key: float(text) for key, text in values.items()}
     assert value['impacts_in_window'] == 25
+    assert value['span_s'] == pytest.approx(window, rel=TEXT_REL)
     assert value['impacts_per_s'] == pytest.approx(25.0, rel=TEXT_REL)
     # window (T0 + 0.4995, T0 + 1.4995]: stuck fraction 0 for 0.3005 s, 1/2 for 0.4 s,
     # 1 for 0.2 s, 1/2 for 0.0995 s
@@ -199,18 +275,116 @@ def test_diagnostics_match_the_synthetic_input(setup):
     assert (value['impactors'], value['stuck_impactors']) == (2, 1)
 
 
+def test_same_samples_as_imu_or_as_batches_give_the_same_statistics(setup):
+    """Sensor ``a`` gets Imu messages, ``b`` batches of the same samples (noise, a tone, a
+    20-sample gap): every statistic of the two is the same to 1e-12."""
+    window = 0.5
+    monitor, sim, executor = setup(
+        dict(parameter_overrides=[
+            Parameter('sensors', value=['a', 'b']), Parameter('window', value=window),
+            Parameter('report_period', value=0.05), Parameter('log_reports', value=False)]),
+        batch=('b',), imu=('a',))
+    spin_until(executor, reading(monitor, sim, 'a', 'b'))
+    keep = np.ones(700, dtype=bool)
+    keep[300:320] = False                                    # dropped samples
+    ns = ns_of(T0 + np.flatnonzero(keep) / FS + 1.3e-7)      # off the ms grid
+    t = ns // 1_000_000_000 + 1e-9 * (ns % 1_000_000_000)
+    rng = np.random.default_rng(24)
+    acc = rng.normal(0.0, 0.3 * G0, (t.size, 3))
+    acc[:, 0] += 2 * G0 * np.sin(2 * np.pi * 77.3 * t)
+    for start in range(0, t.size, 50):
+        part = slice(start, start + 50)
+        for x, a in zip(t[part], acc[part]):
+            sim.imu('a', x, a)
+        for k in range(start, min(start + 50, t.size), CHUNK):
+            sim.batch('b', ns[k:k + CHUNK], acc[k:k + CHUNK])
+        done = min(start + 50, t.size)             # samples sent to each sensor so far
+        spin_until(executor, received(monitor, 'accel', done + math.ceil(done / CHUNK)))
+    monitor.report()
+    a, b = monitor.last_report.sensors['a'], monitor.last_report.sensors['b']
+    inside = t > t[-1] - window
+    assert a.samples == b.samples == np.count_nonzero(inside)
+    assert a.rms_g == pytest.approx(
+        np.sqrt(np.mean(np.sum(acc[inside] ** 2, axis=1))) / G0, rel=1e-12)
+    # every field but the name: counts, rate, RMS, peaks, frequencies, last stamp
+    numbers = [np.hstack([np.ravel(v) for v in astuple(s)[1:]]).astype(float) for s in (a, b)]
+    np.testing.assert_allclose(numbers[1], numbers[0], rtol=1e-12, atol=0.0)
+    assert math.isfinite(a.dominant_hz) and abs(a.dominant_hz_axes[0] - 77.3) <= a.resolution_hz
+
+
+def test_reads_the_batch_when_published_else_the_imu(setup):
+    """Discovered ``tip`` has a decimated Imu and a full-rate batch: the batch is read, and
+    ``tip`` is one sensor. ``old`` has only an Imu: it is read, until a batch appears; then
+    the batch is read and the Imu history is dropped."""
+    monitor, sim, executor = setup(
+        dict(parameter_overrides=[Parameter('window', value=1.0),
+                                  Parameter('report_period', value=0.05),
+                                  Parameter('log_reports', value=False)]),
+        batch=('tip',), imu=('tip', 'old'))
+    spin_until(executor, lambda: monitor.topics == {
+        'tip': 'accel/tip/batch', 'old': 'accel/old', 'impacts': 'impacts'})
+    spin_until(executor, lambda: (sim.batches['tip'].get_subscription_count(),
+                                  sim.imus['tip'].get_subscription_count(),
+                                  sim.imus['old'].get_subscription_count()) == (1, 0, 1))
+    assert sorted(monitor.sensors) == ['old', 'tip']
+    ns = ns_of(T0 + (np.arange(20) + 0.5) / FS)
+    sim.batch('tip', ns[:10], np.tile([G0, 0.0, 0.0], (10, 1)))
+    sim.batch('tip', ns[10:], np.tile([G0, 0.0, 0.0], (10, 1)))
+    for k in range(0, 20, 2):                      # the decimated stream, 3 g: not read
+        sim.imu('tip', T0 + (k + 0.5) / FS, [3 * G0, 0.0, 0.0])
+    for k in range(20):
+        sim.imu('old', T0 + (k + 0.5) / FS, [G0, 0.0, 0.0])
+    spin_until(executor, received(monitor, 'accel', 22))
+    monitor.report()
+    tip, old = monitor.last_report.sensors['tip'], monitor.last_report.sensors['old']
+    assert (tip.samples, old.samples) == (20, 20)
+    assert tip.peak_g == pytest.approx(1.0, rel=1e-12)
+
+    sim.add_batch('old')
+    spin_until(executor, lambda: monitor.topics['old'] == 'accel/old/batch'
+               and sim.batches['old'].get_subscription_count() == 1)
+    later = ns_of(T0 + (np.arange(20, 35) + 0.5) / FS)
+    sim.batch('old', later, np.tile([0.0, 2 * G0, 0.0], (later.size, 1)))
+    spin_until(executor, received(monitor, 'accel', 23))
+    monitor.report()
+    old = monitor.last_report.sensors['old']
+    assert old.samples == 15                       # the Imu's 20 samples were dropped
+    assert old.peak_g == pytest.approx(2.0, rel=1e-12)
+
+
+def test_empty_impact_batches_count_in_the_impact_rate(setup):
+    """Batches every 10 ms for 1 s, 10 impacts all within 0.2 s of it: 10 impacts/s (the
+    empty batches say that nothing hit the rest of the time), not 10 / 0.2 s."""
+    monitor, sim, executor = setup(
+        dict(parameter_overrides=[Parameter('sensors', value=['tip']),
+                                  Parameter('window', value=2.0),
+                                  Parameter('report_period', value=3600.0),
+                                  Parameter('log_reports', value=False)]))
+    spin_until(executor, reading(monitor, sim, 'tip'))
+    impact_ns = ns_of(T0 + 0.4 + 0.02 * np.arange(10) + 0.001)
+    for k in range(101):                           # stamps T0 .. T0 + 1 s
+        lo, hi = ns_of(T0 + np.array([k, k + 1]) * CHUNK / FS)
+        sim.impact_batch(lo, impact_ns[(impact_ns >= lo) & (impact_ns < hi)])
+        spin_until(executor, received(monitor, 'impacts', k + 1))    # keep last 100
+    _, values = status(monitor.report(), 'monitor: /impacts')
+    assert values['impacts_in_window'] == '10'
+    assert float(values['span_s']) == pytest.approx(1.0, rel=TEXT_REL)
+    assert float(values['impacts_per_s']) == pytest.approx(10.0, rel=TEXT_REL)
+
+
 def test_discovers_sensors_and_flags_stale_ones(setup):
     """Empty ``sensors``: accel/* topics are found at start and later; silence gives WARN."""
     monitor, sim, executor = setup(
         dict(parameter_overrides=[Parameter('window', value=0.1),
                                   Parameter('report_period', value=0.05)]),
-        sensors=('a',))
+        batch=('a',))
     assert monitor.sensors == ('a',)
-    late = sim.node.create_publisher(Imu, interface.accel_topic('b'), interface.SENSOR_QOS)
+    late = sim.node.create_publisher(PointCloud2, interface.accel_topic('b') + BATCH_SUFFIX,
+                                     interface.BATCH_QOS)
     spin_until(executor, lambda: monitor.sensors == ('a', 'b'))
-    assert late.get_subscription_count() == 1
-    for k in range(20):
-        sim.imu('a', 1.0 + k / FS, [G0, 0.0, 0.0])
+    spin_until(executor, lambda: late.get_subscription_count() == 1
+               and reading(monitor, sim, 'a')())
+    sim.batch('a', ns_of(1.0 + np.arange(20) / FS), np.tile([G0, 0.0, 0.0], (20, 1)))
     spin_until(executor, lambda: latest_status(sim, 'monitor: /a')[1].get(
         'samples_in_window') == '20')
     a, _ = latest_status(sim, 'monitor: /a')
@@ -227,25 +401,36 @@ def test_bad_messages_are_counted_not_fatal(setup):
     monitor, sim, executor = setup(
         dict(parameter_overrides=[Parameter('sensors', value=['tip']),
                                   Parameter('report_period', value=0.05)]))
+    spin_until(executor, reading(monitor, sim, 'tip'))
     bad = [[math.nan, 0.0, 0.0], [0.0, math.inf, 0.0], [0.0, 0.0, -math.inf], [1e300, 0, 0]]
-    good = 0
-    for k in range(40):
-        acc = bad[k // 10] if k % 10 == 9 else [0.5 * G0, 0.0, 0.0]
-        good += k % 10 != 9
-        sim.imu('tip', 2.0 + k / FS, acc)
+    acc = np.array([bad[k // 10] if k % 10 == 9 else [0.5 * G0, 0.0, 0.0]
+                    for k in range(40)])
+    good = 36
+    ns = ns_of(2.0 + np.arange(40) / FS)
+    for k in range(0, 40, CHUNK):
+        sim.batch('tip', ns[k:k + CHUNK], acc[k:k + CHUNK])
+    # a batch of 3 rows without ax, ay, az (the impact layout), on the accelerometer topic
+    wrong = np.zeros(3, IMPACT_DTYPE)
+    sim.batches['tip'].publish(BatchEncoder('tip_frame', IMPACT_FIELDS, IMPACT_POINT_STEP)
+                               .encode(int(ns[-1]), wrong))
+    # an impact batch of 2 rows without the time field t
+    sim.impacts.publish(BatchEncoder('housing', (('x', 0, FLOAT64),), 8).encode(
+        int(ns[0]), np.zeros(2, [('x', '<f8')])))
     sim.stuck(2.0, ['i0/x', 'i1/x'], [math.nan, 0.0])   # non-finite flag
     spin_until(executor, received(monitor, 'impactor_state', 1))
     sim.stuck(2.01, ['i0/x', 'i1/x'], [1.0])            # fewer efforts than names
     spin_until(executor, received(monitor, 'impactor_state', 2))
-    spin_until(executor, received(monitor, 'accel', 40))
+    spin_until(executor, received(monitor, 'accel', 5))
+    spin_until(executor, received(monitor, 'impacts', 1))
     spin_until(executor, lambda: latest_status(sim, 'monitor: /tip')[1].get(
-        'rejected_samples') == '4')
+        'rejected_samples') == '7')
     tip, values = latest_status(sim, 'monitor: /tip')
     assert tip.level == DiagnosticStatus.WARN and 'rejected' in tip.message
     assert int(values['samples_in_window']) == good
     assert float(values['peak_g']) == pytest.approx(0.5, rel=TEXT_REL)
     imp, values = latest_status(sim, 'monitor: /impacts')
     assert values['rejected_states'] == '2'
+    assert values['rejected_impacts'] == '2'
     assert values['stuck_fraction'] == 'nan'
     # still alive and reporting: a later report has no new rejections, so tip is OK
     count = len(sim.arrays)
@@ -289,7 +474,8 @@ def test_main_runs_and_stops_on_sigint(tmp_path):
             process.kill()
             process.wait()
     output += rest
-    assert 'watching /rbs/accel/tip' in output
+    # no publisher: the node's format, the batch, is read
+    assert 'watching /rbs/accel/tip/batch' in output
     assert 'impacts:' in output
     assert process.returncode == 0, output
     assert 'Traceback' not in output

@@ -132,6 +132,42 @@ def test_impacts_per_second_of_a_known_train():
     assert report.impacts_per_s == pytest.approx(25.0, rel=1e-12)
 
 
+def test_impact_batches_cover_their_interval_even_when_empty():
+    """Batches every 10 ms over 1 s, 10 impacts all in 0.4..0.58 s: 10 impacts/s over the
+    covered second, where the same impacts one by one cover only 0.18 s."""
+    impacts = 0.4 + 0.02 * np.arange(10)
+    batched = RollingVibrationStats(2.0)
+    starts = 0.01 * np.arange(101)                          # the last batch at 1.0 s
+    for start in starts:
+        inside = impacts[(impacts >= start) & (impacts < start + 0.01)]
+        assert batched.add_impacts(inside, start=start) == inside.size
+    report = batched.report()
+    assert report.impacts == 10
+    assert report.t == pytest.approx(1.0, abs=1e-12)
+    assert report.span == pytest.approx(1.0, abs=1e-12)
+    assert report.impacts_per_s == pytest.approx(10.0, rel=1e-12)
+    single = RollingVibrationStats(2.0)
+    single.add_impacts(impacts)
+    assert single.report().impacts_per_s == pytest.approx(10 / 0.18, rel=1e-12)
+
+
+def test_rejections_counted_outside_and_a_sensor_cleared():
+    """A malformed batch's rows count as rejected; a sensor that changes source starts over."""
+    t = stamps(1.0)
+    stats = RollingVibrationStats(1.0)
+    stats.add_samples('s', t, np.full((t.size, 3), G0))
+    stats.reject_samples('s', 7)
+    stats.reject_impacts(3)
+    stats.clear_sensor('s')
+    later = stamps(0.2, t0=1.0)
+    stats.add_samples('s', later, np.full((later.size, 3), 2 * G0))
+    report = stats.report()
+    assert (report.rejected_samples, report.sensors['s'].rejected_samples) == (7, 7)
+    assert report.rejected_impacts == 3
+    assert report.sensors['s'].samples == later.size == 200
+    assert report.sensors['s'].peak_g == pytest.approx(2 * np.sqrt(3), rel=1e-12)
+
+
 def test_stuck_fraction_of_a_known_schedule():
     """Two impactors: free, then 0 stuck at 1.0 s, 1 stuck at 1.5 s, 0 free at 2.2 s."""
     stats = RollingVibrationStats(2.0)

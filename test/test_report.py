@@ -2,7 +2,9 @@
 
 The fixture logs are written with ``mcap_ros2.writer.Writer`` (its own CDR encoder, no
 rclpy) with schemas concatenated by rosbag2's rule from the installed ``.msg`` files, so the
-report reads them the way it reads a rosbag2 log.
+report reads them the way it reads a rosbag2 log. Logs in the node's batch format are written
+with the project's writer (``Rosbag2McapWriter``), the PointCloud2 payloads by
+``BatchEncoder`` and the other messages copied byte for byte from a ``Log`` file.
 """
 import json
 import math
@@ -14,8 +16,13 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.cli.study import main as study
-from impact_damper_sim.studies.report import (G0, analyze, impact_rate, stuck_fractions,
-                                              welch)
+from impact_damper_sim.recording import Rosbag2McapWriter
+from impact_damper_sim.recording.batches import (ACCEL_DTYPE, ACCEL_FIELDS,
+                                                 ACCEL_POINT_STEP, BatchEncoder, IMPACT_DTYPE,
+                                                 IMPACT_FIELDS, IMPACT_POINT_STEP,
+                                                 POINTCLOUD2)
+from impact_damper_sim.studies.report import (G0, analyze, csv_rows, impact_rate,
+                                              stuck_fractions, welch)
 
 mcap_ros2_writer = pytest.importorskip('mcap_ros2.writer')
 
@@ -55,6 +62,75 @@ class Log:
         for name, data in (metadata or {}).items():
             self.w.add_metadata(name, data)
         self.w.finish()
+
+
+class BatchLog:
+    """Write CDR payloads with the project's writer; log_time = T0 + stamp + LATENCY."""
+
+    def __init__(self, path):
+        self.w = Rosbag2McapWriter(path)
+
+    def write(self, topic, data, t_ns):
+        """Write one PointCloud2 payload (CDR bytes) stamped ``t_ns`` (ns)."""
+        self.w.write(topic, POINTCLOUD2, None, data, T0 + t_ns + LATENCY, T0 + t_ns)
+
+    def copy(self, path, topics):
+        """Write the messages of ``topics`` of the log at ``path``: bytes and times as they are."""
+        from mcap.reader import make_reader
+        with open(path, 'rb') as fh:
+            for schema, channel, message in make_reader(fh).iter_messages(topics=topics):
+                self.w.write(channel.topic, schema.name, None, message.data,
+                             message.log_time, message.publish_time)
+
+    def accel(self, topic, t_ns, acc, chunk, frame='s1'):
+        """Write accelerometer samples as batches.
+
+        Parameters
+        ----------
+        topic : str
+            ``.../accel/<name>/batch``.
+        t_ns : ndarray of int64, shape (n,)
+            Sample stamps (ns).
+        acc : ndarray, shape (n, 3)
+            Accelerations (m/s^2).
+        chunk : int
+            Samples a batch (samples).
+        frame : str
+            ``header.frame_id``.
+        """
+        encoder = BatchEncoder(frame, ACCEL_FIELDS, ACCEL_POINT_STEP)
+        for k in range(0, len(t_ns), chunk):
+            rows = np.zeros(len(t_ns[k:k + chunk]), ACCEL_DTYPE)
+            rows['t'] = (t_ns[k:k + chunk] - t_ns[k]) * 1e-9
+            rows['ax'], rows['ay'], rows['az'] = np.asarray(acc[k:k + chunk]).T
+            self.write(topic, encoder.encode(int(t_ns[k]), rows), int(t_ns[k]))
+
+    def impacts(self, topic, starts_ns, t_ns, impactor):
+        """Write impacts as one batch per interval, empty when nothing hit in it.
+
+        Parameters
+        ----------
+        topic : str
+            ``.../impacts``.
+        starts_ns : sequence of int
+            Interval starts (ns): each interval runs to the next start, the last one on.
+        t_ns : sequence of int
+            Impact stamps (ns).
+        impactor : sequence of int
+            Impactor index of each impact.
+        """
+        encoder = BatchEncoder('housing', IMPACT_FIELDS, IMPACT_POINT_STEP)
+        t_ns, impactor = np.asarray(t_ns, dtype=np.int64), np.asarray(impactor)
+        for start, stop in zip(starts_ns, list(starts_ns[1:]) + [np.iinfo(np.int64).max]):
+            inside = (t_ns >= start) & (t_ns < stop)
+            rows = np.zeros(np.count_nonzero(inside), IMPACT_DTYPE)
+            rows['t'] = (t_ns[inside] - start) * 1e-9
+            rows['impactor'] = impactor[inside]
+            rows['jx'] = 1e-3
+            self.write(topic, encoder.encode(int(start), rows), int(start))
+
+    def close(self):
+        self.w.close()
 
 
 def _imu(t_ns, ax, ay, az):
@@ -263,6 +339,153 @@ def test_streamed_file_without_summary(tmp_path):
     assert {t['topic']: t['count'] for t in report['topics']}['/accel/s1'] == N
     assert report['sensors'][0]['rms_g']['x'] == pytest.approx(AX / math.sqrt(2), rel=1e-6)
     assert report['metadata']['impact_damper_sim']['scene'] == 'cantilever'
+
+
+# --- logs in the node's batch format ---------------------------------------------------------
+
+FSB = 20000.0                    # full-rate sample rate of the batch logs (Hz)
+NB = 40000                       # full-rate samples (2 s)
+CHUNK = 200                      # samples a batch: the node's 10 ms chunk at FSB
+FX_B, AY_B, FY_B = 1000.0, 0.5, 7000.0   # x: AX at 1 kHz; y: AY_B g cosine at 7 kHz
+BATCH_IMPACTS = [(0.105, 0), (0.3, 1), (0.5, 0), (0.505, 1), (1.25, 0), (1.5, 1), (1.7, 1),
+                 (1.9, 2)]       # (s, impactor index); index 2 is not in impactor_state
+STATE_NAMES = ['imp_a/y', 'imp_a/z', 'imp_b/x']
+
+
+def _state_and_imu_log(path, imu_fs):
+    """A ``Log`` file with one ``impactor_state`` at 0 s and a decimated ``/accel/s1`` Imu at
+    ``imu_fs`` Hz reading 3 g on z (which a report that reads the batch must not show)."""
+    log = Log(path)
+    log.write('/impactor_state', 'sensor_msgs/msg/JointState',
+              {'header': {'stamp': stamp(0)}, 'name': STATE_NAMES, 'position': [0.0] * 3,
+               'velocity': [0.0] * 3, 'effort': [0.0] * 3}, 0)
+    for k in range(int(2 * imu_fs)):
+        t_ns = round(k * 1e9 / imu_fs)
+        log.write('/accel/s1', 'sensor_msgs/msg/Imu', _imu(t_ns, 0.0, 0.0, 3.0), t_ns)
+    log.close()
+
+
+def write_batch_log(path, tmp_path):
+    """The node's format: 2 s of full-rate batches (x 2 g at 1 kHz, y 0.5 g cosine at 7 kHz:
+    above the 1 kHz Nyquist of the decimated Imu), the decimated Imu of the same sensor,
+    impact batches every 10 ms with BATCH_IMPACTS, one impactor_state."""
+    scratch = tmp_path / 'messages.mcap'
+    _state_and_imu_log(scratch, 2000.0)
+    log = BatchLog(path)
+    log.copy(scratch, ['/impactor_state', '/accel/s1'])
+    t_ns = np.arange(NB, dtype=np.int64) * 50_000                 # 1 / FSB in ns
+    t = np.arange(NB) / FSB
+    acc = np.column_stack([AX * np.sin(2 * np.pi * FX_B * t), AY_B * np.cos(2 * np.pi * FY_B * t),
+                           np.zeros(NB)]) * G0
+    log.accel('/accel/s1/batch', t_ns, acc, CHUNK)
+    log.impacts('/impacts', np.arange(200, dtype=np.int64) * 10_000_000,
+                [round(s * 1e9) for s, _ in BATCH_IMPACTS], [i for _, i in BATCH_IMPACTS])
+    log.close()
+    return t, acc / G0
+
+
+def test_batches_are_the_sensor_and_impacts_per_impactor(tmp_path):
+    path = tmp_path / 'batches.mcap'
+    t, a_g = write_batch_log(path, tmp_path)
+    report, _ = analyze(path)
+    assert report['warnings'] == []
+    counts = {x['topic']: (x['type'], x['count']) for x in report['topics']}
+    assert counts == {'/accel/s1/batch': ('sensor_msgs/msg/PointCloud2', NB // CHUNK),
+                      '/accel/s1': ('sensor_msgs/msg/Imu', 4000),
+                      '/impacts': ('sensor_msgs/msg/PointCloud2', 200),
+                      '/impactor_state': ('sensor_msgs/msg/JointState', 1)}
+    # one sensor, read from the batches at full rate (not also from its decimated Imu)
+    (s,) = report['sensors']
+    assert (s['topic'], s['sensor'], s['samples'], s['gaps']) == ('/accel/s1/batch', 's1', NB, 0)
+    assert s['sample_rate_hz'] == pytest.approx(FSB, rel=1e-9)
+    assert s['duration_s'] == pytest.approx((NB - 1) / FSB, abs=1e-12)
+    # x peaks on a sample (1 kHz at 20 kHz), y at t = 0; both run whole periods (14,000 of
+    # y: 2 f / fs is not an integer, so sum cos^2 = n/2 exactly): RMS = A / sqrt(2)
+    assert s['peak_g']['x'] == pytest.approx(AX, rel=1e-12)
+    assert s['peak_g']['y'] == pytest.approx(AY_B, rel=1e-12)
+    assert s['peak_g']['z'] == 0.0 and s['rms_g']['z'] == 0.0
+    assert s['rms_g']['x'] == pytest.approx(AX / math.sqrt(2), rel=1e-9)
+    assert s['rms_g']['y'] == pytest.approx(AY_B / math.sqrt(2), rel=1e-9)
+    assert s['rms_g']['magnitude'] == pytest.approx(math.hypot(AX, AY_B) / math.sqrt(2),
+                                                    rel=1e-9)
+    assert s['peak_g']['magnitude'] == pytest.approx(np.hypot(a_g[:, 0], a_g[:, 1]).max(),
+                                                     rel=1e-12)
+    spec = s['spectrum']
+    assert spec['resolution_hz'] == pytest.approx(FSB / spec['segment_samples'], rel=1e-12)
+    assert abs(spec['dominant_hz']['x'] - FX_B) <= spec['resolution_hz']
+    assert abs(spec['dominant_hz']['y'] - FY_B) <= spec['resolution_hz']
+    assert abs(spec['dominant_hz']['total'] - FX_B) <= spec['resolution_hz']
+    # impacts: named through impactor_state (imp_a, imp_b), index 2 as impactor2; the stamped
+    # span ends at the last sample, 1.99995 s, so the second 1 s bin is 0.99995 s wide
+    (imp,) = report['impacts']
+    end = (NB - 1) / FSB
+    assert imp['count'] == len(BATCH_IMPACTS)
+    assert imp['per_impactor'] == {'imp_a': 3, 'imp_b': 4, 'impactor2': 1}
+    assert [b['count'] for b in imp['bins']] == [4, 4]
+    assert [b['width_s'] for b in imp['bins']] == pytest.approx([1.0, end - 1.0], abs=1e-12)
+    assert [b['rate_hz'] for b in imp['bins']] == pytest.approx([4.0, 4 / (end - 1.0)],
+                                                                rel=1e-9)
+    assert imp['mean_rate_hz'] == pytest.approx(8 / end, rel=1e-9)
+    assert imp['peak_rate_hz'] == pytest.approx(4.0, rel=1e-12)
+
+
+def test_impact_batches_without_impactor_state_and_empty_ones(tmp_path):
+    """No impactor_state: impactors named by index. Empty batches extend the stamped span:
+    batches from 0 to 0.99 s, impacts only in 0.2..0.29 s, mean = count / 0.99 s."""
+    path = tmp_path / 'impacts.mcap'
+    log = BatchLog(path)
+    hits = [(0.2, 0), (0.21, 3), (0.25, 3), (0.29, 0), (0.29, 3)]
+    log.impacts('/rig/impacts', np.arange(100, dtype=np.int64) * 10_000_000,
+                [round(s * 1e9) for s, _ in hits], [i for _, i in hits])
+    log.close()
+    report, _ = analyze(path)
+    assert report['warnings'] == [] and report['sensors'] == []
+    assert report['stamped_span_s'] == pytest.approx(0.99, abs=1e-12)
+    (imp,) = report['impacts']
+    assert (imp['topic'], imp['count']) == ('/rig/impacts', 5)
+    assert imp['per_impactor'] == {'impactor0': 2, 'impactor3': 3}
+    assert imp['mean_rate_hz'] == pytest.approx(5 / 0.99, rel=1e-9)
+
+
+def test_same_signal_as_imu_or_as_batches_gives_the_same_report(synthetic, tmp_path):
+    """The synthetic log again, its samples in 10-sample batches and its impacts in 10 ms
+    batches (impactor_state copied): the sensor and impact numbers agree to 1e-12."""
+    path, events = synthetic
+    samples = [(t_ns, msg['linear_acceleration']) for t_ns, topic, _, msg in events
+               if topic == '/accel/s1']
+    t_ns = np.array([t for t, _ in samples], dtype=np.int64)
+    acc = np.array([[a['x'], a['y'], a['z']] for _, a in samples])
+    order = ['imp_a', 'imp_b']                        # impactor_state's order
+    hits = [(t, order.index(msg['header']['frame_id'].rsplit('/', 1)[-1]))
+            for t, topic, _, msg in events if topic == '/impacts']
+    batched = tmp_path / 'batched.mcap'
+    log = BatchLog(batched)
+    log.copy(path, ['/impactor_state'])
+    log.accel('/accel/s1/batch', t_ns, acc, 10)
+    log.impacts('/impacts', np.arange(200, dtype=np.int64) * 10_000_000,
+                [t for t, _ in hits], [i for _, i in hits])
+    log.close()
+    per_sample, _ = analyze(path)
+    per_batch, _ = analyze(batched)
+    (a,), (b,) = per_sample['sensors'], per_batch['sensors']
+    assert b['topic'] == '/accel/s1/batch' and a['sensor'] == b['sensor'] == 's1'
+    for key in ('samples', 'gaps'):
+        assert a[key] == b[key]
+    for key in ('sample_rate_hz', 'duration_s'):
+        assert b[key] == pytest.approx(a[key], rel=1e-12)
+    # peaks, RMS, rate and dominant frequencies, as flattened for the CSV
+    quantities = [{q: v for section, _, q, v, _ in csv_rows(r) if section == 'sensor'}
+                  for r in (per_sample, per_batch)]
+    assert len(quantities[0]) == 13
+    assert quantities[1] == pytest.approx(quantities[0], rel=1e-12)
+    (i,), (j,) = per_sample['impacts'], per_batch['impacts']
+    assert (i['count'], i['per_impactor']) == (j['count'], j['per_impactor']) == (
+        8, {'imp_a': 5, 'imp_b': 3})
+    assert [x['count'] for x in i['bins']] == [x['count'] for x in j['bins']]
+    assert [x['rate_hz'] for x in j['bins']] == pytest.approx([x['rate_hz'] for x in i['bins']],
+                                                              rel=1e-12)
+    assert j['mean_rate_hz'] == pytest.approx(i['mean_rate_hz'], rel=1e-12)
+    assert per_batch['impactor_state'] == per_sample['impactor_state']
 
 
 # --- the command ------------------------------------------------------------------------------

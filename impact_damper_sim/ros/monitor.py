@@ -1,18 +1,33 @@
 """``monitor``: rolling vibration statistics of a running ``vibration_node``, on /diagnostics.
 
 A thin adapter over :class:`impact_damper_sim.monitoring.RollingVibrationStats`: it
-subscribes to ``accel/<sensor>`` (sensor_msgs/Imu), ``impacts`` (geometry_msgs/WrenchStamped)
-and ``impactor_state`` (sensor_msgs/JointState, latched) with the QoS of
-:mod:`impact_damper_sim.ros.interface`, feeds their header stamps (sim time) and values to
-the core, and every ``report_period`` logs one line per sensor and publishes a
-diagnostic_msgs/DiagnosticArray on ``/diagnostics``. Topic names are relative, so
-``ros2 run impact_damper_sim monitor --ros-args -r __ns:=/hpotp`` watches the simulator
-running in ``/hpotp``.
+subscribes to each accelerometer, to ``impacts`` and to ``impactor_state``
+(sensor_msgs/JointState, latched) with the QoS of :mod:`impact_damper_sim.ros.interface`,
+feeds their header stamps (sim time) and values to the core, and every ``report_period``
+logs one line per sensor and publishes a diagnostic_msgs/DiagnosticArray on ``/diagnostics``.
+Topic names are relative, so ``ros2 run impact_damper_sim monitor --ros-args -r
+__ns:=/hpotp`` watches the simulator running in ``/hpotp``.
+
+Which topic of a stream is read (layouts in :mod:`impact_damper_sim.recording.batches`):
+
+* accelerometer ``<name>``: the full-rate ``accel/<name>/batch`` (sensor_msgs/PointCloud2,
+  many samples a message) when it has a publisher, else the per-sample ``accel/<name>``
+  (sensor_msgs/Imu, decimated by ``vibration_node``; an old log replayed, another driver);
+* ``impacts``: sensor_msgs/PointCloud2 batches (one per stepped chunk, empty when nothing
+  hit: a batch covers its interval, so impacts/s counts rows over the time the batches
+  covered), else one geometry_msgs/WrenchStamped per impact (the old format).
+
+One subscription a stream: the choice follows the publishers' types in the graph (both
+published: the batch), checked when a stream is added and at every report; with no publisher
+yet, the batch is subscribed. When a sensor changes topic, its history is dropped, so that a
+window never mixes the decimated and the full-rate signal. Discovery (``sensors`` unset)
+finds the names of both kinds of ``accel/*`` topic.
 
 Threads: the subscription callbacks only queue what they receive (a few microseconds a
-message). A report thread owns the core: it feeds it the queued batches, and computes and
-publishes the reports, so that a long window (at 60 s and 2 kHz, an FFT of 120,000 points a
-sensor) does not stall the executor while the 100-deep best-effort sample queues fill.
+message: batches are decoded later). A report thread owns the core: it decodes and feeds it
+the queued input, and computes and publishes the reports, so that a long window (at 60 s
+and 20 kHz, an FFT of 1.2 million points a sensor) does not stall the executor while the
+best-effort queues fill.
 
 Diagnostics (all values as text; units in the key names):
 
@@ -25,7 +40,8 @@ Diagnostics (all values as text; units in the key names):
     ``window_end_s`` (sim s). WARN when no valid sample arrived yet, when ``stamp_lag_s`` or
     ``last_sample_age_s`` exceeds two windows (stale), or when samples were rejected since
     the previous report.
-``monitor: <namespace>/impacts`` (hardware_id: the housing frame of the impacts)
+``monitor: <namespace>/impacts`` (hardware_id: the frame of the impacts: a batch's
+frame_id, or the housing frame of a WrenchStamped's ``<housing>/<impactor>``)
     ``impacts_per_s``, ``impacts_in_window``, ``stuck_fraction``, ``impactors``,
     ``stuck_impactors``, ``rejected_impacts``, ``rejected_states``, ``time_resets``,
     ``span_s``, ``window_s``, ``window_end_s``. WARN before any ``impactor_state`` or when
@@ -46,15 +62,18 @@ import rclpy.executors
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import Imu, JointState
+from sensor_msgs.msg import Imu, JointState, PointCloud2
 
 from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
-from .interface import (ACCEL_PREFIX, accel_topic, DIAGNOSTICS, DIAGNOSTICS_QOS, EVENT_QOS,
-                        IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS, TYPES)
-from .wire import guard_services, settle_interrupt, shutdown_quietly, spin_guarded
+from ..recording.batches import BATCH_SUFFIX, rows_of, sample_times_ns
+from .interface import (ACCEL_PREFIX, accel_topic, BATCH_QOS, DIAGNOSTICS, DIAGNOSTICS_QOS,
+                        EVENT_QOS, IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS)
+from .wire import (guard_services, settle_interrupt, shutdown_quietly, spin_guarded,
+                   type_name)
 
-#: Samples (or impacts) queued on one stream before the batch goes to the report thread
-#: ahead of the report, so that memory stays bounded for long report periods.
+#: Samples (or impacts) queued on one per-sample stream, or in all batch messages together
+#: (a batch counts at least 1, so empty ones are bounded too), before they go to the report
+#: thread ahead of the report, so that memory stays bounded for long report periods.
 FLUSH_AT = 4096
 #: A sensor is stale after this many windows without a valid sample.
 STALE_WINDOWS = 2.0
@@ -63,6 +82,15 @@ STALE_WINDOWS = 2.0
 def _stamp_s(stamp):
     """Return a builtin_interfaces/Time as float seconds."""
     return stamp.sec + 1e-9 * stamp.nanosec
+
+
+def _stamps_s(ns):
+    """Stamps (ns, int64 array) as float s, rounded exactly as :func:`_stamp_s` rounds them.
+
+    A sample then has the same time (s) whether it came in an Imu or in a batch.
+    """
+    sec, nanosec = np.divmod(ns, 1_000_000_000)
+    return sec + 1e-9 * nanosec
 
 
 def _text(value):
@@ -76,11 +104,41 @@ class _Batch:
     """Input the callbacks queued since the last hand-over to the report thread."""
 
     def __init__(self, sensors=()):
-        self.samples = {name: array('d') for name in sensors}   # (t, ax, ay, az) rows
-        self.impacts = array('d')                                 # stamps (s)
+        self.samples = {}      # sensor -> Imu rows (t, ax, ay, az) (s, m/s^2)
+        self.clouds = {}       # sensor -> accel/<sensor>/batch messages, not decoded yet
+        for name in sensors:
+            self.add_sensor(name)
+        self.cleared = set()   # sensors whose history goes before this batch is fed
+        self.impacts = array('d')      # WrenchStamped stamps (s)
+        self.impact_clouds = []        # impacts batch messages, not decoded yet
+        self.queued = 0        # rows in the batch messages (at least 1 a message)
         self.states = []       # (stamp s, stuck flags), or None for a rejected message
         self.clock_s = math.nan    # node clock at the hand-over (s)
         self.report = False
+
+    def add_sensor(self, name):
+        self.samples.setdefault(name, array('d'))
+        self.clouds.setdefault(name, [])
+
+
+class _Stream:
+    """An input that comes on one of several topics; the first one published is read.
+
+    Parameters
+    ----------
+    options : list of tuple
+        ``(topic, message class, callback, QoS)``, preferred first; ``topic`` relative.
+    """
+
+    def __init__(self, options):
+        self.options = options
+        self.index = None          # the option subscribed, None before the first
+        self.subscription = None
+
+    @property
+    def topic(self):
+        """The relative topic read (str)."""
+        return self.options[self.index][0]
 
 
 class VibrationMonitor(Node):
@@ -99,16 +157,19 @@ class VibrationMonitor(Node):
     last_report : VibrationReport or None
         The latest report of the core (None before the first).
     message_counts : dict of str to int
-        Messages received per stream (``accel``, ``impacts``, ``impactor_state``).
+        Messages received per stream (``accel``: Imu and batch messages, ``impacts``:
+        WrenchStamped and batch messages, ``impactor_state``).
     """
 
     def __init__(self, node_name='monitor', **kwargs):
         super().__init__(node_name, **kwargs)
         sensors = self.declare_parameter(
             'sensors', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-                description='accelerometers to watch, on topics accel/<name> (relative to '
-                            'the namespace); unset or empty: discover the accel/* Imu '
-                            'topics of the namespace at start and every report period',
+                description='accelerometers to watch, on topics accel/<name>/batch '
+                            '(PointCloud2), or accel/<name> (Imu) when only that is '
+                            'published (relative to the namespace); unset or empty: '
+                            'discover the accel/* topics of the namespace at start and '
+                            'every report period',
                 read_only=True)).value or []
         window = self.declare_parameter('window', 2.0, ParameterDescriptor(
             description='rolling window of the statistics (s, in header-stamp time)',
@@ -138,11 +199,14 @@ class VibrationMonitor(Node):
         self._stopping = False
         self._frames = {}           # sensor -> frame_id of its latest message
         self._impact_frame = ''
-        self._accel_subscriptions = {}
+        self._accel_streams = {}    # sensor -> _Stream
         self._discover_sensors = not sensors
         for name in dict.fromkeys(sensors):   # ordered, without duplicates
             self._watch(name)
-        self.create_subscription(WrenchStamped, IMPACTS, self._on_impact, EVENT_QOS)
+        self._impact_stream = _Stream([
+            (IMPACTS, PointCloud2, self._on_impact_batch, EVENT_QOS),
+            (IMPACTS, WrenchStamped, self._on_impact, EVENT_QOS)])
+        self._settle(self._impact_stream)
         self.create_subscription(JointState, IMPACTOR_STATE, self._on_state, LATCHED_QOS)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS,
                                                   DIAGNOSTICS_QOS)
@@ -159,7 +223,14 @@ class VibrationMonitor(Node):
     @property
     def sensors(self):
         """Names of the watched sensors (tuple of str)."""
-        return tuple(self._accel_subscriptions)
+        return tuple(self._accel_streams)
+
+    @property
+    def topics(self):
+        """The relative topic read per sensor, and ``impacts`` (dict of str to str)."""
+        read = {sensor: stream.topic for sensor, stream in self._accel_streams.items()}
+        read[IMPACTS] = self._impact_stream.topic
+        return read
 
     def destroy_node(self):
         """Stop the report thread, then destroy the node."""
@@ -171,26 +242,65 @@ class VibrationMonitor(Node):
 
     # -- subscriptions -----------------------------------------------------------------
     def _watch(self, sensor):
-        """Subscribe to ``accel/<sensor>``."""
+        """Watch ``sensor``: subscribe to its batch topic, or to its Imu topic (see _settle)."""
+        topic = accel_topic(sensor)
+        stream = _Stream([
+            (topic + BATCH_SUFFIX, PointCloud2,
+             lambda msg, name=sensor: self._on_accel_batch(name, msg), BATCH_QOS),
+            (topic, Imu, lambda msg, name=sensor: self._on_accel(name, msg), SENSOR_QOS)])
         try:
-            subscription = self.create_subscription(
-                Imu, accel_topic(sensor), lambda msg, name=sensor: self._on_accel(name, msg),
-                SENSOR_QOS)
+            self._settle(stream)
         except Exception as error:   # rclpy raises several kinds for a bad name
             raise ValueError(f'sensor {sensor!r} does not make a valid topic name '
-                             f'{accel_topic(sensor)!r}: {error}') from error
-        self._accel_subscriptions[sensor] = subscription
+                             f'{topic!r}: {error}') from error
+        self._accel_streams[sensor] = stream
         with self._queue:
-            self._batch.samples.setdefault(sensor, array('d'))
-        self.get_logger().info(f'watching {self.resolve_topic_name(accel_topic(sensor))}')
+            self._batch.add_sensor(sensor)
+
+    def _settle(self, stream, sensor=None):
+        """Subscribe ``stream`` to its first option that has a publisher of its type.
+
+        With no publisher on any option, the current subscription stays (at first, the
+        first option). A sensor that changes topic loses its history (``sensor``: its name).
+        """
+        index = next((i for i, (topic, msg_type, _, _) in enumerate(stream.options)
+                      if any(info.topic_type == type_name(msg_type)
+                             for info in self.get_publishers_info_by_topic(topic))),
+                     0 if stream.index is None else stream.index)
+        if index == stream.index:
+            return
+        topic, msg_type, callback, qos = stream.options[index]
+        if stream.subscription is not None:
+            self.destroy_subscription(stream.subscription)
+        stream.subscription = self.create_subscription(msg_type, topic, callback, qos)
+        if stream.index is not None and sensor is not None:
+            with self._queue:
+                self._batch.samples[sensor] = array('d')
+                self._batch.clouds[sensor] = []
+                self._batch.cleared.add(sensor)
+        stream.index = index
+        self.get_logger().info(f'watching {self.resolve_topic_name(topic)} '
+                               f'({type_name(msg_type)})')
 
     def discover(self):
-        """Subscribe to every ``accel/*`` Imu topic of the namespace not yet watched."""
+        """Watch every accelerometer of the namespace not yet watched.
+
+        A sensor is named by an ``accel/<name>/batch`` PointCloud2 topic or an
+        ``accel/<name>`` Imu topic; :meth:`_settle` picks which of the two is read.
+        """
         prefix = self.resolve_topic_name(ACCEL_PREFIX.rstrip('/')) + '/'
+        found = []
         for topic, types in self.get_topic_names_and_types():
-            sensor = topic[len(prefix):]
-            if (topic.startswith(prefix) and sensor and TYPES[ACCEL_PREFIX] in types
-                    and sensor not in self._accel_subscriptions):
+            name = topic[len(prefix):]
+            if not (topic.startswith(prefix) and name):
+                continue
+            stem = name[:-len(BATCH_SUFFIX)]
+            if name.endswith(BATCH_SUFFIX) and stem and type_name(PointCloud2) in types:
+                found.append(stem)
+            if type_name(Imu) in types:
+                found.append(name)
+        for sensor in dict.fromkeys(found):
+            if sensor not in self._accel_streams:
                 self._watch(sensor)
 
     def _on_accel(self, sensor, msg):
@@ -205,6 +315,14 @@ class VibrationMonitor(Node):
         self._frames[sensor] = msg.header.frame_id
         self.message_counts['accel'] += 1
 
+    def _on_accel_batch(self, sensor, msg):
+        # queue the message as it is: the report thread decodes it
+        with self._queue:
+            self._batch.clouds[sensor].append(msg)
+            self._queue_rows(msg)
+        self._frames[sensor] = msg.header.frame_id
+        self.message_counts['accel'] += 1
+
     def _on_impact(self, msg):
         with self._queue:
             self._batch.impacts.append(_stamp_s(msg.header.stamp))
@@ -212,6 +330,19 @@ class VibrationMonitor(Node):
                 self._hand_over(report=False)
         self._impact_frame = msg.header.frame_id.rpartition('/')[0]
         self.message_counts['impacts'] += 1
+
+    def _on_impact_batch(self, msg):
+        with self._queue:
+            self._batch.impact_clouds.append(msg)
+            self._queue_rows(msg)
+        self._impact_frame = msg.header.frame_id
+        self.message_counts['impacts'] += 1
+
+    def _queue_rows(self, msg):
+        """Count a queued batch message; hand over when enough are (call with ``_queue``)."""
+        self._batch.queued += max(1, msg.height * msg.width)
+        if self._batch.queued >= FLUSH_AT:
+            self._hand_over(report=False)
 
     def _on_state(self, msg):
         self.message_counts['impactor_state'] += 1
@@ -233,6 +364,9 @@ class VibrationMonitor(Node):
     def _on_timer(self):
         if self._discover_sensors:
             self.discover()
+        for sensor, stream in self._accel_streams.items():
+            self._settle(stream, sensor)
+        self._settle(self._impact_stream)
         with self._queue:
             self._hand_over(report=True)
 
@@ -286,14 +420,26 @@ class VibrationMonitor(Node):
             self._stats.window = self._window
         report_due = False
         for job in jobs:
-            for sensor, values in job.samples.items():
+            for sensor in job.cleared:
+                self._stats.clear_sensor(sensor)
+            for sensor in job.samples:
                 self._stats.add_sensor(sensor)
-                if values:
-                    rows = np.frombuffer(values, dtype=float).reshape(-1, 4)
-                    if self._stats.add_samples(sensor, rows[:, 0], rows[:, 1:]):
-                        self._last_arrival[sensor] = job.clock_s
+                rows = self._accel_rows(sensor, job)
+                if rows is not None and self._stats.add_samples(sensor, rows[:, 0],
+                                                                rows[:, 1:]):
+                    self._last_arrival[sensor] = job.clock_s
             if job.impacts:
                 self._stats.add_impacts(np.frombuffer(job.impacts, dtype=float))
+            for msg in job.impact_clouds:
+                try:
+                    times = _stamps_s(sample_times_ns(msg))
+                except ValueError as error:
+                    self._stats.reject_impacts(msg.height * msg.width)
+                    self.get_logger().warning(f'{IMPACTS}: batch rejected: {error}',
+                                              throttle_duration_sec=10.0)
+                    continue
+                # the batch covers its interval from its stamp on, empty or not
+                self._stats.add_impacts(times, start=_stamp_s(msg.header.stamp))
             for state in job.states:
                 if state is None:
                     self._stats.reject_state()
@@ -315,6 +461,27 @@ class VibrationMonitor(Node):
         if self.get_parameter('log_reports').value:
             self._log(report, array_msg)
         return array_msg
+
+    def _accel_rows(self, sensor, job):
+        """Rows ``(t, ax, ay, az)`` (s, m/s^2) of ``sensor`` in ``job``, or None if none.
+
+        The batch messages are decoded here, each by its own fields; a malformed one (a
+        field missing, a bad datatype, short data) counts its rows as rejected samples.
+        """
+        parts = []
+        if job.samples[sensor]:
+            parts.append(np.frombuffer(job.samples[sensor], dtype=float).reshape(-1, 4))
+        for msg in job.clouds[sensor]:
+            try:
+                cloud = rows_of(msg)
+                parts.append(np.column_stack((_stamps_s(sample_times_ns(msg, cloud)),
+                                              cloud['ax'], cloud['ay'], cloud['az'])))
+            except ValueError as error:
+                self._stats.reject_samples(sensor, msg.height * msg.width)
+                self.get_logger().warning(
+                    f'{accel_topic(sensor)}{BATCH_SUFFIX}: batch rejected: {error}',
+                    throttle_duration_sec=10.0)
+        return np.concatenate(parts) if parts else None
 
     def _status_name(self, item):
         return f'{self.get_name()}: {self.get_namespace().rstrip("/")}/{item}'

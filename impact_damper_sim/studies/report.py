@@ -11,18 +11,26 @@ installation beyond the Python packages. The report gives
 
 * per topic: type, message count and rate (count over the log's duration, by log_time) and
   mean frequency (intervals between the topic's own messages);
-* per sensor (every ``sensor_msgs/Imu`` topic): peak and RMS of the linear acceleration in g
-  (G0 = 9.80665 m/s^2) per axis and of its magnitude, and a Welch spectrum with its dominant
-  frequency; when the log has ``rotor/speed`` with a speed range, a waterfall (spectrum per
-  slice of time against the rotor speed) as well;
-* the impact rate over time: ``impacts`` header stamps counted in 1 s bins;
+* per sensor (every ``accel/<name>/batch`` ``sensor_msgs/PointCloud2`` topic: the full-rate
+  signal, many samples a message; and every ``sensor_msgs/Imu`` topic, one sample a message,
+  except the decimated ``accel/<name>`` of a sensor whose batches are in the log): peak and
+  RMS of the linear acceleration in g (G0 = 9.80665 m/s^2) per axis and of its magnitude,
+  and a Welch spectrum with its dominant frequency; when the log has ``rotor/speed`` with a
+  speed range, a waterfall (spectrum per slice of time against the rotor speed) as well;
+* the impact rate over time: impact stamps counted in 1 s bins, from ``impacts`` batches
+  (``sensor_msgs/PointCloud2``, one row per impact with its impactor's index, named through
+  the ``impactor_state`` joint names ``<impactor>/<dof>`` in impactor order, else
+  ``impactor<i>``) or, in older logs, one ``geometry_msgs/WrenchStamped`` per impact (the
+  impactor the last component of its frame_id);
 * the stuck fraction of each impactor: ``impactor_state`` effort flags, time-weighted (each
   state holds until the next message, the last one until the end of the log);
 * the metadata records (``impact_damper_sim``: scene, overrides, software version;
   ``rosbag2``: the bag metadata).
 
-Signal times are header stamps (sim time for ``vibration_node``), counted from the earliest
-stamp in the log. Counts and rates use log_time (receive time), as rosbag2 does.
+Signal times are header stamps (sim time for ``vibration_node``; in a batch, ``header.stamp``
+plus the row's ``t``), counted from the earliest stamp in the log (the start of an impact
+batch's interval counts). Counts and rates use log_time (receive time), as rosbag2 does.
+Batch layouts: :mod:`impact_damper_sim.recording.batches`.
 
 :class:`RosLog` is the rclpy-free reader shared with ``replay``: it checks that a file is a
 complete ROS 2 MCAP and turns every problem with it into a one-line :class:`LogError`.
@@ -34,6 +42,8 @@ import math
 import os
 
 import numpy as np
+
+from ..recording.batches import BATCH_SUFFIX, POINTCLOUD2, rows_of, sample_times_ns
 
 #: standard gravity (m/s^2); the same constant as ``ros.interface.G0``, which imports rclpy
 G0 = 9.80665
@@ -249,15 +259,45 @@ def _sensor_name(topic):
     return base[at + len(ACCEL_PREFIX):] if at >= 0 and base[at + len(ACCEL_PREFIX):] else base
 
 
+def _batch_stem(topic):
+    """The topic without ``/batch`` if it is ``[/ns]/accel/<name>/batch`` (str), else None."""
+    base = '/' + _base(topic)
+    if not base.endswith(BATCH_SUFFIX):
+        return None
+    stem = base[:-len(BATCH_SUFFIX)]
+    at = stem.rfind('/' + ACCEL_PREFIX)
+    return stem if at >= 0 and stem[at + 1 + len(ACCEL_PREFIX):] else None
+
+
 def _stamp_ns(msg):
     return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
 class _Series:
-    """Collected samples of one topic (stamps in ns, values as lists until finished)."""
+    """Collected samples of one topic (stamps in ns, values as lists until finished).
+
+    A batch topic collects one array per message in ``t``, ``values`` (accelerations) or
+    ``labels`` (impactor indices), joined by :meth:`join`; ``starts`` holds the header
+    stamps of impact batches (ns), the starts of the intervals they cover.
+    """
 
     def __init__(self):
-        self.t, self.values, self.labels, self.failed = [], [], [], 0
+        self.t, self.values, self.labels, self.starts, self.failed = [], [], [], [], 0
+
+    def join(self, kind):
+        """Turn a batch topic's per-message arrays into one array each."""
+        if kind == 'batch':
+            self.t = np.concatenate(self.t) if self.t else np.empty(0, np.int64)
+            self.values = np.concatenate(self.values) if self.values else np.empty((0, 3))
+        elif kind == 'impact_batch':
+            self.t = np.concatenate(self.t) if self.t else np.empty(0, np.int64)
+            self.labels = (np.concatenate(self.labels) if self.labels
+                           else np.empty(0, np.int64))
+
+    def stamps(self):
+        """Every stamp of the topic (ns, int64 array), interval starts included."""
+        return np.concatenate([np.asarray(self.t, dtype=np.int64).reshape(-1),
+                               np.asarray(self.starts, dtype=np.int64)])
 
 
 def analyze(path):
@@ -296,6 +336,11 @@ def analyze(path):
         kind = _kind(ch.topic, log.type_of(ch))
         if kind is not None:
             wanted[cid] = kind
+    # a sensor with full-rate batches in the log is read from them, not from its decimated Imu
+    batched = {_batch_stem(log.channels[cid].topic) for cid, kind in wanted.items()
+               if kind == 'batch' and log.counts.get(cid, 0)}
+    wanted = {cid: kind for cid, kind in wanted.items()
+              if not (kind == 'imu' and '/' + _base(log.channels[cid].topic) in batched)}
     decoders, series = {}, {cid: _Series() for cid in wanted}
     counts, first, last = {}, {}, {}
     for ch, msg in log.messages(log_time_order=False):
@@ -320,6 +365,7 @@ def analyze(path):
         except Exception:   # a damaged payload: skip it, say how many
             s.failed += 1
     for cid, s in series.items():
+        s.join(wanted[cid])
         if s.failed:
             warnings.append(f'topic {log.channels[cid].topic}: {s.failed} message(s) could not '
                             'be decoded and were skipped')
@@ -333,6 +379,10 @@ def analyze(path):
 def _kind(topic, rtype):
     if rtype == IMU:
         return 'imu'
+    if rtype == POINTCLOUD2 and _batch_stem(topic) is not None:
+        return 'batch'
+    if rtype == POINTCLOUD2 and _ends_with(topic, IMPACTS):
+        return 'impact_batch'
     if rtype == WRENCH_STAMPED and _ends_with(topic, IMPACTS):
         return 'impacts'
     if rtype == JOINT_STATE and _ends_with(topic, IMPACTOR_STATE):
@@ -343,6 +393,19 @@ def _kind(topic, rtype):
 
 
 def _collect(kind, m, s):
+    if kind == 'batch':
+        rows = rows_of(m)
+        values = np.column_stack((rows['ax'], rows['ay'], rows['az']))
+        s.t.append(sample_times_ns(m, rows))
+        s.values.append(values)
+        return
+    if kind == 'impact_batch':
+        rows = rows_of(m)
+        index = rows['impactor'].astype(np.int64)
+        s.t.append(sample_times_ns(m, rows))
+        s.labels.append(index)
+        s.starts.append(_stamp_ns(m))
+        return
     t = _stamp_ns(m)
     if kind == 'imu':
         a = m.linear_acceleration
@@ -366,9 +429,9 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
         topics.append({'topic': ch.topic, 'type': log.type_of(ch), 'count': n,
                        'rate_hz': n / duration if duration > 0 else None,
                        'frequency_hz': (n - 1) / span if n > 1 and span > 0 else None})
-    stamps = [t for cid in wanted for t in series[cid].t]
-    origin = min(stamps) if stamps else 0
-    end = max(stamps) if stamps else 0
+    stamps = [x for x in (series[cid].stamps() for cid in wanted) if x.size]
+    origin = min(int(x.min()) for x in stamps) if stamps else 0
+    end = max(int(x.max()) for x in stamps) if stamps else 0
     plot = {'origin_ns': origin, 'sensors': {}, 'impacts': {}, 'states': {}}
     report = {'file': log.path, 'profile': log.profile, 'library': log.library,
               'start_time_ns': log.start_ns, 'end_time_ns': log.end_ns, 'duration_s': duration,
@@ -386,7 +449,7 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
                 'topic': topic, 'samples': int(t.size), 'min_rad_s': float(w.min()),
                 'max_rad_s': float(w.max()), 'min_rpm': float(w.min()) * 30 / math.pi,
                 'max_rpm': float(w.max()) * 30 / math.pi})
-    for cid in sorted((c for c, k in wanted.items() if k == 'imu'),
+    for cid in sorted((c for c, k in wanted.items() if k in ('imu', 'batch')),
                       key=lambda c: log.channels[c].topic):
         topic = log.channels[cid].topic
         t, acc = _sorted(series[cid].t, series[cid].values)
@@ -394,14 +457,20 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
             continue
         speed = _speed_for(topic, speeds)
         entry, arrays = sensor_report(t, acc / G0, origin, speed)
-        report['sensors'].append({'topic': topic, 'sensor': _sensor_name(topic), **entry})
+        name = _sensor_name(_batch_stem(topic) if wanted[cid] == 'batch' else topic)
+        report['sensors'].append({'topic': topic, 'sensor': name, **entry})
         plot['sensors'][topic] = arrays
         if entry['gaps']:
             warnings.append(f"topic {topic}: {entry['gaps']} gap(s) longer than 1.5 sample "
                             'periods (dropped samples?); the spectrum assumes even sampling')
-    for cid in sorted(c for c, k in wanted.items() if k == 'impacts'):
+    joints = {log.channels[cid].topic: _first_names(series[cid])
+              for cid, kind in wanted.items() if kind == 'state' and series[cid].t}
+    for cid in sorted(c for c, k in wanted.items() if k in ('impacts', 'impact_batch')):
         topic = log.channels[cid].topic
-        entry, arrays = impact_rate(series[cid].t, series[cid].labels, origin, end)
+        labels = series[cid].labels
+        if wanted[cid] == 'impact_batch':
+            labels = _impactor_labels(labels, _impactor_order(topic, joints))
+        entry, arrays = impact_rate(series[cid].t, labels, origin, end)
         report['impacts'].append({'topic': topic, **entry})
         plot['impacts'][topic] = arrays
     for cid in sorted(c for c, k in wanted.items() if k == 'state'):
@@ -414,6 +483,31 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
         report['impactor_state'].append({'topic': topic, 'impactors': impactors})
         plot['states'][topic] = steps
     return report, plot
+
+
+def _first_names(states):
+    """The joint names of the earliest ``impactor_state`` message of a series (list)."""
+    return states.labels[int(np.argmin(states.t))]
+
+
+def _impactor_order(topic, joints):
+    """Impactor names in impactor order for an ``impacts`` topic (list of str).
+
+    From the ``impactor_state`` joint names ``<impactor>/<dof>`` in the same namespace, else
+    of the only such topic; empty when none is known.
+    """
+    ns = _namespace(topic, IMPACTS)
+    names = next((n for state, n in joints.items() if _namespace(state, IMPACTOR_STATE) == ns),
+                 next(iter(joints.values())) if len(joints) == 1 else [])
+    return list(dict.fromkeys(name.rsplit('/', 1)[0] for name in names))
+
+
+def _impactor_labels(index, order):
+    """Name of each impact's impactor: ``order[i]`` for index ``i``, else ``impactor<i>``."""
+    top = int(index.max()) + 1 if index.size else 0
+    table = np.array(list(order) + [f'impactor{i}' for i in range(len(order), top)],
+                     dtype=object)
+    return table[index]
 
 
 def _sorted(t, values):
@@ -566,10 +660,11 @@ def impact_rate(t_ns, impactors, origin_ns, end_ns):
 
     Parameters
     ----------
-    t_ns : list of int
+    t_ns : sequence of int
         Impact stamps (ns).
-    impactors : list of str
-        Impactor name of each impact (last component of ``frame_id``).
+    impactors : sequence of str
+        Impactor name of each impact (the last component of a WrenchStamped's
+        ``frame_id``, or named from a batch row's impactor index).
     origin_ns, end_ns : int
         Start and end of the log's stamped time (ns); the last bin ends at ``end_ns``.
 
