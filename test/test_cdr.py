@@ -114,6 +114,7 @@ def _record(ctx, scene, path):
         node.on_unbalance_command(Float64(data=2.0))
         node.publish_diagnostics()
         node.publish_state()
+        node.stop()   # publishes (and records) what is still queued
         return {o.topic: o.count for o in node.outlets}
     finally:
         node.destroy_node()

@@ -1021,3 +1021,64 @@ def test_diagnostics_say_behind_only_when_short_of_the_requested_factor(ros_cont
         assert d['level'] == 1 and 'behind real time: achieved 0.' in d['message']
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize('tiny', [1e-6, 5e-324])
+def test_a_new_real_time_factor_wakes_the_stepping_thread(ros_context, tiny):
+    """A tiny factor asks for a wait of hours per chunk (1e-6: 1e4 s; 5e-324 overflowed the
+    wait and killed the thread); setting 1.0 again resumes the stream at once."""
+    node = VibrationNode(context=ros_context, parameter_overrides=[
+        Parameter('scene', value='sdof')])
+    try:
+        time.sleep(0.3)
+        assert node.set_parameters([Parameter('real_time_factor', value=tiny)])[0].successful
+        time.sleep(0.5)
+        t0 = node.live.t
+        assert node.set_parameters([Parameter('real_time_factor', value=1.0)])[0].successful
+        time.sleep(1.0)
+        assert node._thread.is_alive()
+        assert node.live.t - t0 > 0.5   # about 1 s of sim time in 1 s
+        node.publish_diagnostics()
+        assert node.last_diagnostics['level'] == 0, node.last_diagnostics['message']
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.filterwarnings('ignore::pytest.PytestUnhandledThreadExceptionWarning')
+def test_watchdog_reports_a_dead_or_stalled_stepping_thread(ros_context):
+    """Diagnostics cannot say OK while no sample is produced: a dead thread, a thread that
+    stopped cycling, or one stuck holding the simulation are ERROR within 2 s."""
+    node = VibrationNode(context=ros_context, parameter_overrides=[
+        Parameter('scene', value='sdof')])
+    try:
+        time.sleep(0.3)
+        node.publish_diagnostics()
+        assert node.last_diagnostics['level'] == 0
+        # stuck inside a chunk: it holds the lock
+        held, release = threading.Event(), threading.Event()
+
+        def hold():
+            with node._lock:
+                held.set()
+                release.wait(5.0)
+
+        holder = threading.Thread(target=hold)
+        holder.start()
+        held.wait(2.0)
+        t0 = time.monotonic()
+        node.publish_diagnostics()
+        assert time.monotonic() - t0 < 3.0
+        assert node.last_diagnostics['level'] == 2
+        assert 'stalled' in node.last_diagnostics['message']
+        release.set()
+        holder.join()
+        # a thread that ended (a BaseException that the loop does not catch)
+        node._cycle = lambda: (_ for _ in ()).throw(SystemExit())
+        node._thread.join(2.0)
+        assert not node._thread.is_alive()
+        node.publish_diagnostics()
+        assert node.last_diagnostics['level'] == 2
+        assert 'stepping thread stopped' in node.last_diagnostics['message']
+    finally:
+        node._thread = None   # nothing left to join
+        node.destroy_node()

@@ -65,6 +65,18 @@ class _HandoffLock:
     def __exit__(self, *exc_info):
         self._lock.release()
 
+    def acquire(self, timeout):
+        """Take the lock, waiting at most ``timeout`` s; True when taken (release it)."""
+        self.waiting += 1
+        try:
+            return self._lock.acquire(timeout=timeout)
+        finally:
+            self.waiting -= 1
+
+    def release(self):
+        """Release a lock taken with :meth:`acquire`."""
+        self._lock.release()
+
     def hand_over(self):
         """Let a waiting thread take the lock (call with the lock released)."""
         if self.waiting > 0:
@@ -121,6 +133,11 @@ class VibrationNode(Node):
     BURST = 2
     #: wall time (s) between the wake-ups that send a backlog (twice the sample rate or more)
     CATCH_UP = 5e-4
+    #: longest single wait of the stepping thread (s): it re-reads the schedule at least this
+    #: often, whatever the pacing asks
+    MAX_WAIT = 0.5
+    #: the stepping thread is reported stalled (ERROR) after this long without a cycle (s)
+    STALL = 2.0
     #: a diagnostics period is "behind" when its achieved real-time factor falls short of
     #: the requested one by more than this fraction (the goal is >= 0.98 in every 1 s)
     RTF_TOLERANCE = 0.02
@@ -134,6 +151,10 @@ class VibrationNode(Node):
         self._lock = _HandoffLock()
         self._thread = None
         self._stop = threading.Event()
+        # set by a parameter change and by stop(): a long wait (a tiny real_time_factor) must
+        # not outlive the setting that caused it
+        self._wake = threading.Event()
+        self._heartbeat = None   # wall time (s) of the stepping thread's last cycle
         self._last_log = {}
         self._pending = collections.deque()   # (sim ns, outlet, message or bytes, wire)
         p, unknown = declare_all(self)
@@ -340,6 +361,12 @@ class VibrationNode(Node):
     def _apply(self, changes):
         if 'real_time_factor' in changes:
             self.pacer.reset(changes['real_time_factor'], self._published_t())
+            self._wake.set()   # a wait computed for the old factor ends now
+            # the achieved factor is measured against the new one from now on
+            wall, st = self._wall(), self.stats
+            self.stats = _Stats(wall, time.process_time(), self.live.t, self._delivered_t(wall),
+                                steps0=self.live.steps, growing=st.growing,
+                                last_peak=st.last_peak)
         if 'noise_std' in changes or 'noise_seed' in changes:
             self.live.set_noise(changes.get('noise_std', self.live.noise_std),
                                 changes.get('noise_seed'))
@@ -408,15 +435,20 @@ class VibrationNode(Node):
         """``~/record`` (std_srvs/SetBool): true starts recording to the ``record`` parameter's
         path (or a new timestamped file), false stops."""
         if request.data:
-            path = self._params['record'] or time.strftime(
-                f'{self.scene.name}_%Y%m%d-%H%M%S.mcap')
-            error = self.start_recording(path, self._params['record_overwrite'])
+            if self._params['record']:
+                path, overwrite = self._params['record'], self._params['record_overwrite']
+            else:   # a new file each start: an automatic name never overwrites
+                path, overwrite = _new_record_path(self.scene.name), False
+            error = self.start_recording(path, overwrite)
             response.success = error is None
-            response.message = error or path
+            response.message = error or str(path)
         else:
             rec = self.stop_recording()
-            response.success = rec is not None
-            response.message = rec.path if rec is not None else 'not recording'
+            error = rec.error if rec is not None else None
+            response.success = rec is not None and error is None
+            response.message = ('not recording' if rec is None else
+                                f'{rec.path}: recording stopped by a disk error: {error}'
+                                if error is not None else str(rec.path))
         return response
 
     def _record(self, topic, type_name, qos, data, ns=None):
@@ -469,6 +501,7 @@ class VibrationNode(Node):
         recorded now, so the counters, the topics and the log agree.
         """
         self._stop.set()
+        self._wake.set()
         if self._thread is not None:
             self._thread.join()
             self._thread = None
@@ -484,6 +517,7 @@ class VibrationNode(Node):
         """
         cycles = 0
         while not self._stop.is_set():
+            self._heartbeat = self._wall()
             cycles += 1
             if cycles % 64 == 0 and not self.context.ok():   # a C call: not every cycle
                 break
@@ -495,9 +529,12 @@ class VibrationNode(Node):
                 with self._lock:
                     self.live.failure = f'{type(exc).__name__}: {exc}'
                 delay = self._tick_period
+            if not delay > 0:   # 0, or NaN from a degenerate schedule
+                continue
             if delay > 0.05:
-                self._stop.wait(delay)
-            elif delay > 0:
+                if self._wake.wait(min(delay, self.MAX_WAIT)):
+                    self._wake.clear()
+            else:
                 time.sleep(delay)   # cheaper than Event.wait at a few kHz
 
     def _cycle(self):
@@ -730,9 +767,10 @@ class VibrationNode(Node):
             self._pending.append((ns, self._joint_pub, joint, self._joint_pub.has_subscribers()))
 
     def publish_state(self):
-        """Publish ``impactor_state`` now (the periodic timer's callback)."""
+        """Queue ``impactor_state`` (the periodic timer's callback): it leaves with the
+        samples of its sim time, not a chunk ahead of them."""
         with self._lock:
-            self._publish_state()
+            self._queue_state()
 
     def _publish_state(self):
         self._state_pub.publish(self._state_message(), int(round(self.live.t * 1e9)))
@@ -765,8 +803,33 @@ class VibrationNode(Node):
 
     def publish_diagnostics(self):
         """Publish ``/diagnostics``: pacing, CPU, impacts, stuck fraction, peak, health."""
-        with self._lock:
+        if not self._lock.acquire(self.STALL):   # the stepping thread is stuck in a chunk
+            status = DiagnosticStatus(
+                name=f'{self.get_name()}: simulation', hardware_id=self.scene.name,
+                level=DiagnosticStatus.ERROR,
+                message=f'stepping thread stalled: it has held the simulation for over '
+                        f'{self.STALL:g} s')
+            msg = DiagnosticArray(status=[status])
+            msg.header.stamp = self.get_clock().now().to_msg()
+            self._diag_pub.publish(msg)
+            self.last_diagnostics = {'level': 2, 'message': status.message}
+            self.get_logger().error(status.message, throttle_duration_sec=5.0)
+            return
+        try:
             self._publish_diagnostics()
+        finally:
+            self._lock.release()
+
+    def _stalled(self, wall):
+        """Why the stepping thread is not stepping (str), or '' while it is alive and cycling."""
+        thread = self._thread
+        if thread is None:
+            return ''   # not started (tests drive tick() themselves) or stopped on purpose
+        if not thread.is_alive():
+            return 'stepping thread stopped: no samples are produced'
+        if self._heartbeat is not None and wall - self._heartbeat > self.STALL:
+            return f'stepping thread stalled for {wall - self._heartbeat:.1f} s'
+        return ''
 
     def _publish_diagnostics(self):
         live, st = self.live, self.stats
@@ -783,9 +846,13 @@ class VibrationNode(Node):
                                   hardware_id=self.scene.name)
         level, messages = DiagnosticStatus.OK, []
         rtf = self.pacer.real_time_factor
+        stalled = self._stalled(wall)
         if live.failure is not None:
             level = DiagnosticStatus.ERROR
             messages.append(f'stopped: {live.failure}')
+        elif stalled:
+            level = DiagnosticStatus.ERROR
+            messages.append(stalled)
         else:
             if rtf > 0 and achieved < rtf * (1.0 - self.RTF_TOLERANCE):
                 level = DiagnosticStatus.WARN
@@ -846,6 +913,18 @@ class VibrationNode(Node):
                             growing=st.growing + 1 if growing else 0, last_peak=st.peak)
 
 
+def _new_record_path(scene, directory='.'):
+    """A record file name not used before: ``<scene>_<date>-<time>.mcap``, or with ``-2``,
+    ``-3``, ... when that exists (the clock's second repeats across quick starts)."""
+    import pathlib
+    base = pathlib.Path(directory) / time.strftime(f'{scene}_%Y%m%d-%H%M%S')
+    path, n = base.with_name(base.name + '.mcap'), 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f'{base.name}-{n}.mcap')
+    return path
+
+
 def _plain(value):
     """A scene value as plain YAML-safe data (tuples to lists, NumPy to Python)."""
     if isinstance(value, dict):
@@ -876,8 +955,13 @@ def main(args=None):
     Exit status 0 on Ctrl-C or shutdown, 2 (one line on stderr) when the scene or a start-up
     parameter is invalid.
     """
+    import signal
+
     from rclpy.exceptions import ParameterException
     rclpy.init(args=args)
+    # a closed terminal or an ended remote session (SIGHUP) ends the node as SIGTERM does,
+    # finishing any recording, instead of killing it mid-file
+    signal.signal(signal.SIGHUP, lambda *_: signal.raise_signal(signal.SIGTERM))
     node = None
     status = 0
     try:
