@@ -350,6 +350,12 @@ class LiveSimulation:
         self.failure = None
         self.steps = 0
 
+    @property
+    def imu_delay(self):
+        """float: Delay of the decimation filter (s): a per-sample reading is complete this
+        long after the time it stands for (0 without decimation)."""
+        return self._decimator.delay / self.sample_rate
+
     # -- set-up ---------------------------------------------------------------------------
     def _output_rows(self):
         """Sensor names and rows: per accelerometer ux, uy, uz, rx, ry, rz (zero if clamped)."""

@@ -673,7 +673,7 @@ class VibrationNode(Node):
         it, a filter delay after its stamp); the chunk's impacts as one batch."""
         # the per-sample work is one NumPy pass per accelerometer (ImuPacker), no Python
         # message objects; items are queued in the order of their send times
-        delay_ns = int(round(self.live._decimator.delay / self.live.sample_rate * 1e9))
+        delay_ns = int(round(self.live.imu_delay * 1e9))
         imu_ns = np.rint(batch.imu_t * 1e9).astype(np.int64)
         items = []
         for a, (pub, msg, packer) in enumerate(zip(self._accel_pubs, self._imu, self._packers)):
