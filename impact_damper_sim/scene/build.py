@@ -90,8 +90,10 @@ def resolve_scene(scene_name_or_path):
     """
     if _is_path(scene_name_or_path):
         path = Path(scene_name_or_path)
-        if not path.is_file():
+        if not path.exists():
             raise SceneError(f'scene file {str(path)!r} does not exist')
+        if not path.is_file():   # a directory, a FIFO, a device: never opened
+            raise SceneError(f'{str(path)!r} is not a scene file (not a regular file)')
         return path
     name = str(scene_name_or_path)
     if _NAME_RE.fullmatch(name):

@@ -38,6 +38,8 @@ import copy
 import difflib
 import os
 import re
+import reprlib
+import stat
 from typing import NamedTuple
 
 import yaml
@@ -108,8 +110,14 @@ def _num(x):
     return f'{x:.12g}'
 
 
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother = 3, 50, 50
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
+
+
 def _describe(value):
-    text = repr(value)
+    # bounded: a huge or aliased value (a YAML alias bomb) is never printed whole
+    text = _REPR.repr(value)
     return text if len(text) <= 60 else text[:57] + '...'
 
 
@@ -1007,6 +1015,54 @@ _StrictLoader.add_implicit_resolver(
     list('-+0123456789'))
 
 
+#: Budgets of a scene document, checked before anything is built from it: the file's size
+#: (bytes), the nesting depth, and the number of values once every alias is expanded (an
+#: alias bomb of 457 bytes expands to billions). The shipped scenes are under 20 KB, depth 6,
+#: 2,000 values.
+MAX_SCENE_BYTES = 1 << 20
+MAX_SCENE_DEPTH = 32
+MAX_SCENE_VALUES = 1_000_000
+
+
+def _check_budget(root, source):
+    """Refuse a composed YAML node graph deeper than :data:`MAX_SCENE_DEPTH`, with more than
+    :data:`MAX_SCENE_VALUES` values when its aliases are expanded, or with a recursive alias.
+
+    Each node is visited once (sizes and depths memoised by node), so a bomb costs its
+    size in text, not its expansion.
+    """
+    sizes, depths, active = {}, {}, set()
+    stack = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        children = []
+        if isinstance(node, yaml.MappingNode):
+            children = [n for pair in node.value for n in pair]
+        elif isinstance(node, yaml.SequenceNode):
+            children = list(node.value)
+        if done:
+            active.discard(key)
+            sizes[key] = 1 + sum(sizes[id(c)] for c in children)
+            depths[key] = 1 + max((depths[id(c)] for c in children), default=0)
+            mark = node.start_mark
+            if depths[key] > MAX_SCENE_DEPTH:
+                raise SceneError(f'{source}:{mark.line + 1}: values nested deeper than '
+                                 f'{MAX_SCENE_DEPTH} levels; a scene is a few levels deep')
+            if sizes[key] > MAX_SCENE_VALUES:
+                raise SceneError(f'{source}:{mark.line + 1}: more than {MAX_SCENE_VALUES:,} '
+                                 'values once its aliases are expanded (an alias bomb?)')
+            continue
+        if key in sizes:
+            continue
+        if key in active:
+            raise SceneError(f'{source}:{node.start_mark.line + 1}: a recursive alias (a '
+                             'value that contains itself)')
+        active.add(key)
+        stack.append((node, True))
+        stack.extend((c, False) for c in children if id(c) not in sizes)
+
+
 def _is_path(path_or_text):
     # A one-line string naming a .yaml file is a path; anything else is YAML text.
     return isinstance(path_or_text, os.PathLike) or (
@@ -1033,21 +1089,42 @@ def load_yaml(path_or_text, *, source=None):
     Raises
     ------
     SceneError
-        For a missing file, a YAML syntax error (with line and column), a duplicate key,
-        or a top level that is not a mapping.
+        For a missing file, one that is not a regular file, over :data:`MAX_SCENE_BYTES` or
+        not UTF-8 text, a YAML syntax error (with line and column), a duplicate key, values
+        nested or aliased over the budgets (:func:`_check_budget`), or a top level that is
+        not a mapping.
     """
     if _is_path(path_or_text):
         path = os.fspath(path_or_text)
         source = source or path
         try:
-            with open(path, encoding='utf-8') as stream:
-                text = stream.read()
+            with open(path, 'rb') as stream:
+                if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
+                    raise SceneError(f'{source}: not a scene file (not a regular file)')
+                raw = stream.read(MAX_SCENE_BYTES + 1)   # never more, whatever the file
         except OSError as exc:
             raise SceneError(f'{source}: cannot read scene file: {exc.strerror}') from None
+        if len(raw) > MAX_SCENE_BYTES:
+            raise SceneError(f'{source}: not a scene file (over {MAX_SCENE_BYTES} bytes; '
+                             'scenes are a few kilobytes)')
+        try:
+            text = raw.decode('utf-8')
+        except UnicodeDecodeError:
+            raise SceneError(f'{source}: not a scene file (not UTF-8 text)') from None
     else:
         text, source = path_or_text, source or '<text>'
+        if len(text) > MAX_SCENE_BYTES:
+            raise SceneError(f'{source}: over {MAX_SCENE_BYTES} characters of scene text')
+    loader = _StrictLoader(text)
     try:
-        data = yaml.load(text, Loader=_StrictLoader)
+        try:
+            node = loader.get_single_node()
+        except RecursionError:   # PyYAML composes recursively: a few frames per level
+            raise SceneError(f'{source}: values nested deeper than {MAX_SCENE_DEPTH} levels; '
+                             'a scene is a few levels deep') from None
+        if node is not None:
+            _check_budget(node, source)
+        data = loader.construct_document(node) if node is not None else None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f':{mark.line + 1}:{mark.column + 1}' if mark else ''
@@ -1057,6 +1134,8 @@ def load_yaml(path_or_text, *, source=None):
         raise SceneError(f'{source}{where}: YAML error: {what}') from None
     except yaml.YAMLError as exc:
         raise SceneError(f'{source}: YAML error: {exc}') from None
+    finally:
+        loader.dispose()
     if not isinstance(data, dict):
         got = 'an empty document' if data is None else f'{type(data).__name__} {_describe(data)}'
         raise SceneError(f'{source}: a scene must be a mapping at top level; got {got}')

@@ -1,0 +1,91 @@
+"""Scene files under abuse: every bad file is refused in one line before anything is built,
+by the loader that ``study`` and ``vibration_node`` share, within bounded time and memory."""
+import os
+import subprocess
+import sys
+import time
+
+import pytest
+
+from impact_damper_sim.scene.build import load
+from impact_damper_sim.scene.schema import (MAX_SCENE_BYTES, MAX_SCENE_DEPTH, SceneError,
+                                            load_yaml)
+
+BOMB = """a: &a [x, x, x, x, x, x, x, x, x, x]
+b: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a, *a]
+c: &c [*b, *b, *b, *b, *b, *b, *b, *b, *b, *b]
+d: &d [*c, *c, *c, *c, *c, *c, *c, *c, *c, *c]
+e: &e [*d, *d, *d, *d, *d, *d, *d, *d, *d, *d]
+f: &f [*e, *e, *e, *e, *e, *e, *e, *e, *e, *e]
+g: &g [*f, *f, *f, *f, *f, *f, *f, *f, *f, *f]
+h: &h [*g, *g, *g, *g, *g, *g, *g, *g, *g, *g]
+i: &i [*h, *h, *h, *h, *h, *h, *h, *h, *h, *h]
+sensors: [*i, *i, *i, *i, *i, *i, *i, *i, *i, *i]
+"""
+
+
+def test_an_alias_bomb_is_refused_at_once():
+    """10 levels of 10 aliases: 1e10 values expanded (it took 3 GB and 200 s before)."""
+    t0 = time.process_time()
+    with pytest.raises(SceneError, match=r'<text>:\d+: more than 1,000,000 values once its '
+                                         r'aliases are expanded'):
+        load_yaml(BOMB)
+    assert time.process_time() - t0 < 1.0   # CPU, not wall: what the check itself costs
+
+
+def test_aliases_within_the_budget_still_load():
+    data = load_yaml('a: &a {x: 1}\nb: *a\nc: [*a, *a]\n')
+    assert data['b'] == {'x': 1} and data['c'] == [{'x': 1}, {'x': 1}]
+
+
+@pytest.mark.parametrize('depth, ok', [(MAX_SCENE_DEPTH - 1, True), (1000, False)])
+def test_nesting_depth(depth, ok):
+    text = 'a: ' + '[' * depth + ']' * depth + '\n'
+    if ok:
+        assert load_yaml(text)['a'] is not None
+    else:   # RecursionError before
+        with pytest.raises(SceneError, match=f'nested deeper than {MAX_SCENE_DEPTH} levels'):
+            load_yaml(text)
+
+
+def test_a_recursive_alias_is_refused():
+    with pytest.raises(SceneError, match='recursive alias'):
+        load_yaml('a: &a [1, *a]\n')
+
+
+def test_files_that_are_not_scene_files(tmp_path):
+    big = tmp_path / 'big.yaml'
+    big.write_text('# ' + 'x' * MAX_SCENE_BYTES + '\nname: s\n')
+    binary = tmp_path / 'bin.yaml'
+    binary.write_bytes(bytes(range(256)) + os.urandom(44))
+    (tmp_path / 'dir.yaml').mkdir()
+    fifo = tmp_path / 'fifo.yaml'
+    os.mkfifo(fifo)
+    zero = tmp_path / 'zero.yaml'
+    zero.symlink_to('/dev/zero')
+    cases = [(big, 'over 1048576 bytes'), (binary, 'not UTF-8 text'),
+             (tmp_path / 'dir.yaml', 'not a regular file'), (fifo, 'not a regular file'),
+             (zero, 'not a regular file'), (tmp_path / 'missing.yaml', 'does not exist')]
+    for path, why in cases:
+        with pytest.raises(SceneError, match=why):
+            load(str(path))
+
+
+@pytest.mark.parametrize('content, why', [
+    (bytes(range(256)) + bytes(44), 'not UTF-8 text'),
+    (BOMB.encode(), 'alias'),
+    (('a: ' + '[' * 1000 + ']' * 1000 + '\n').encode(), 'nested deeper'),
+])
+def test_the_node_refuses_them_in_one_line_with_exit_2(tmp_path, content, why):
+    """The node read these with tracebacks (UnicodeDecodeError, RecursionError) or hung."""
+    pytest.importorskip('rclpy')
+    path = tmp_path / 'g.yaml'
+    path.write_bytes(content)
+    proc = subprocess.run(
+        [sys.executable, '-m', 'impact_damper_sim.ros.vibration_node', '--ros-args',
+         '-p', f'scene:={path}'], capture_output=True, text=True, timeout=60,
+        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
+    assert proc.returncode == 2, proc.stderr
+    lines = [x for x in proc.stderr.splitlines() if x.startswith('vibration_node:')]
+    assert len(lines) == 1 and why in lines[0], proc.stderr
+    assert 'Traceback' not in proc.stderr
