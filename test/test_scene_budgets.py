@@ -89,3 +89,25 @@ def test_the_node_refuses_them_in_one_line_with_exit_2(tmp_path, content, why):
     lines = [x for x in proc.stderr.splitlines() if x.startswith('vibration_node:')]
     assert len(lines) == 1 and why in lines[0], proc.stderr
     assert 'Traceback' not in proc.stderr
+
+
+def test_a_time_step_below_a_nanosecond_is_refused_in_one_line(capsys):
+    """--dt 1e-308 overflowed the step count (OverflowError, exit 1) before."""
+    from impact_damper_sim.cli.study import main
+    for dt in ('1e-308', '5e-324'):
+        assert main(['simulate', 'sdof', '--dt', dt]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and 'simulation.dt' in err[0] and '1e-09' in err[0], err
+
+
+def test_a_plot_format_is_checked_before_the_work(capsys):
+    """--plot r.txt failed in Matplotlib after the whole sweep, losing its table."""
+    from impact_damper_sim.cli.study import PLOT_FORMATS, main
+    t0 = time.process_time()
+    assert main(['sweep', 'sdof', '--grid', 'impactors.0.clearance=1 mm,2 mm',
+                 '--plot', 'x.txt']) == 2
+    assert time.process_time() - t0 < 0.5   # refused before any simulation
+    err = capsys.readouterr().err
+    assert "--plot x.txt: cannot write a '.txt' plot" in err
+    mpl = pytest.importorskip('matplotlib.pyplot')
+    assert set(PLOT_FORMATS) <= set(mpl.figure().canvas.get_supported_filetypes())

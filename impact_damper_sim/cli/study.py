@@ -270,6 +270,7 @@ def main(argv=None):
     try:
         if getattr(args, 'scene', None) is not None:
             _check_scene_file(args.scene)
+        _check_plot_format(getattr(args, 'plot', None))
         if args.command == 'keys':
             return _keys(args)
         if args.command == 'modes':
@@ -324,6 +325,25 @@ def refuse_existing(paths, overwrite):
         raise OutputExists(f"{', '.join(existing)} exist{'s' if len(existing) == 1 else ''}; "
                            'pass --overwrite to replace '
                            f"{'it' if len(existing) == 1 else 'them'}")
+
+
+#: What Matplotlib's savefig writes (its file-type registry), so that a --plot name is
+#: checked before the computation it would follow, without importing Matplotlib.
+PLOT_FORMATS = ('avif', 'eps', 'gif', 'jpeg', 'jpg', 'pdf', 'pgf', 'png', 'ps', 'raw', 'rgba',
+                'svg', 'svgz', 'tif', 'tiff', 'webp')
+
+
+def _check_plot_format(path):
+    """Refuse a ``--plot`` path whose suffix Matplotlib cannot write (before any work)."""
+    import os
+
+    from ..scene.schema import SceneError
+    if not path:
+        return
+    suffix = os.path.splitext(path)[1].lower().lstrip('.')
+    if suffix not in PLOT_FORMATS:
+        raise SceneError(f"--plot {path}: cannot write a '.{suffix}' plot; use one of "
+                         f"{', '.join('.' + f for f in PLOT_FORMATS)}")
 
 
 def _check_scene_file(scene):

@@ -540,8 +540,9 @@ _SIMULATION = Section(doc='defaults of study simulate and make_simulation', fiel
                      doc='exact: exact modal flow with located impacts; newmark: modal '
                          'Newmark with located impacts; newmark_step_end: impacts at step ends '
                          "(the paper's); direct: Newmark in physical coordinates"),
-    'dt': Quantity('time', default='0.1 ms', min=0, max=1, min_inclusive=False,
-                   doc='output sample period (and Newmark step)'),
+    'dt': Quantity('time', default='0.1 ms', min=1e-9, max=1,
+                   doc='output sample period (and Newmark step); 1 ns at least (a 1e-308 s '
+                       'step overflowed the step count)'),
     'duration': Quantity('time', default='2 s', min=0, max=1e6, min_inclusive=False,
                          doc='simulated time of study simulate'),
     'window': Quantity('time', default='0.5 s', min=0, min_inclusive=False,
