@@ -40,6 +40,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import stat
 
 import numpy as np
 
@@ -62,6 +63,11 @@ WATERFALL_MIN_SPAN = 0.1
 #: slices per waterfall (fewer when the record is short)
 WATERFALL_SLICES = 40
 BIN_S = 1.0   # impact-rate bin width (s)
+
+
+#: Longest log-time span a log may have (ns): a year. Anything longer is a corrupt or absurd
+#: timestamp (one message at 2^63 - 1 ns made replay wait 292 years).
+MAX_LOG_SPAN_NS = 365 * 86400 * 10**9
 
 
 class LogError(Exception):
@@ -145,14 +151,22 @@ class RosLog:
             self._scan()
         if self.message_count == 0:
             self.start_ns = self.end_ns = 0
+        if self.end_ns - self.start_ns > MAX_LOG_SPAN_NS:   # replay would wait that long
+            raise LogError(f'{self.path}: messages span {(self.end_ns - self.start_ns) * 1e-9:.3g}'
+                           f' s of log time, over {MAX_LOG_SPAN_NS * 1e-9:.3g} s (a year): a '
+                           'corrupt or absurd timestamp')
 
     def _check_ends(self):
         try:
-            size = os.path.getsize(self.path)
+            st = os.stat(self.path)
+            # a FIFO would block the open, a device (/dev/zero) never end a read
+            if not stat.S_ISREG(st.st_mode):
+                raise LogError(f'{self.path}: not an MCAP log (not a regular file)')
+            size = st.st_size
             with open(self.path, 'rb') as fh:
                 head = fh.read(len(MCAP_MAGIC))
                 fh.seek(max(0, size - len(MCAP_MAGIC)))
-                tail = fh.read()
+                tail = fh.read(len(MCAP_MAGIC))
         except OSError as exc:
             raise LogError(f'{self.path}: cannot read: {exc.strerror or exc}') from None
         if size == 0:
