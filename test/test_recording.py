@@ -609,3 +609,36 @@ def test_async_write_leaves_the_encoding_to_the_writer_thread(tmp_path, monkeypa
     assert len(threads) == n
     assert threading.get_ident() not in threads
     assert set(threads) == {recorder._thread.ident}
+
+
+@pytest.mark.ros
+def test_recover_skips_a_corrupt_chunk_and_keeps_what_follows(tmp_path):
+    """One chunk's contents broken, its framing and everything after it intact: recovery keeps
+    every other chunk and says how many messages the broken one held (it stopped there and
+    kept 23,912 of 74,423 messages before)."""
+    import struct
+
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64
+    full = tmp_path / 'full.mcap'
+    with Rosbag2McapWriter(full, chunk_size=2048) as writer:
+        for i in range(600):
+            writer.write('/v', 'std_msgs/msg/Float64', None,
+                         serialize_message(Float64(data=float(i))), T0 + i, T0 + i)
+    summary, _, _ = _read_all(full)
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    bad = chunks[len(chunks) // 2]
+    lost = bad.message_end_time - bad.message_start_time + 1
+    blob = bytearray(full.read_bytes())
+    # the first record inside the chunk: opcode, then its length; make that length absurd
+    first = bad.chunk_start_offset + 1 + 8 + 8 + 8 + 8 + 4 + 4 + len(bad.compression) + 8
+    blob[first + 1:first + 9] = struct.pack('<Q', 2**40)
+    src = tmp_path / 'corrupt.mcap'
+    src.write_bytes(bytes(blob))
+    report = recover(src, tmp_path / 'out.mcap')
+    assert report.corrupt_chunks == 1 and report.corrupt_chunk_messages == lost
+    assert report.messages == 600 - lost and report.complete
+    _, messages, _ = _read_all(tmp_path / 'out.mcap')
+    kept = [d.data for *_, d in messages]
+    missing = set(range(bad.message_start_time - T0, bad.message_end_time - T0 + 1))
+    assert kept == [float(i) for i in range(600) if i not in missing]

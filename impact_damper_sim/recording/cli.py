@@ -82,4 +82,8 @@ def run_recover(args):
               f'{report.stop_reason}')
     if report.skipped_messages:
         print(f'skipped {report.skipped_messages} messages of unknown channels')
+    if report.corrupt_chunks:
+        print(f'skipped {report.corrupt_chunks} corrupt chunk'
+              f'{"" if report.corrupt_chunks == 1 else "s"} holding '
+              f'{report.corrupt_chunk_messages} messages; kept everything after them')
     return 0

@@ -2,8 +2,10 @@
 
 The input is read front to back with mcap's :class:`~mcap.stream_reader.StreamReader`
 (chunks whole, each checked against its CRC and size), through a file wrapper that treats a
-short read as the end of the data. Reading stops at the first record that is incomplete or
-broken; everything before it is copied: schemas, channels (with their QoS and type-hash
+short read as the end of the data. A chunk whose contents are broken (CRC or size mismatch)
+while its framing is intact is skipped, and reading goes on with the records after it (the
+message indexes that follow it tell how many messages it held); reading stops at the first
+record that is itself incomplete or broken. Everything read is copied: schemas, channels (with their QoS and type-hash
 metadata), messages (log and publish times and sequence kept), metadata records and
 attachments. A crashed recording therefore keeps everything up to its last complete chunk.
 The output is written in rosbag2's layout (:class:`.Rosbag2McapWriter`) with a fresh
@@ -49,6 +51,11 @@ class RecoveryReport:
         Why reading stopped before the footer (None when complete).
     skipped_messages : int
         Messages of unknown channels (not written).
+    corrupt_chunks : int
+        Chunks skipped because their contents were broken (chunks).
+    corrupt_chunk_messages : int
+        Messages those chunks held, from their message indexes (messages; 0 when the
+        indexes are missing too).
     start_ns, end_ns : int or None
         Earliest and latest recovered log time (ns since the epoch).
     """
@@ -64,6 +71,8 @@ class RecoveryReport:
     bytes_total: int = 0
     stop_reason: str | None = None
     skipped_messages: int = 0
+    corrupt_chunks: int = 0
+    corrupt_chunk_messages: int = 0
     start_ns: int | None = None
     end_ns: int | None = None
 
@@ -136,8 +145,8 @@ def recover(source, destination, *, overwrite=False):
     FileExistsError
         If the output exists and ``overwrite`` is false.
     """
-    from mcap.records import (Attachment, Channel, Chunk, Footer, Header, Message, Metadata,
-                              Schema)
+    from mcap.records import (Attachment, Channel, Chunk, Footer, Header, Message,
+                              MessageIndex, Metadata, Schema)
     from mcap.stream_reader import StreamReader
 
     source, destination = os.fspath(source), os.fspath(destination)
@@ -191,11 +200,23 @@ def recover(source, destination, *, overwrite=False):
                                             record.media_type, record.data)
                 report.attachments += 1
 
+        after_corrupt_chunk = False
         try:
             while True:
                 try:
                     record = next(records)
-                    inner = _chunk_records(record) if isinstance(record, Chunk) else [record]
+                    try:
+                        inner = _chunk_records(record) if isinstance(record, Chunk) else [record]
+                    except Exception:   # its framing held: skip it, keep what follows
+                        report.corrupt_chunks += 1
+                        after_corrupt_chunk = True
+                        report.bytes_used = stream.position
+                        continue
+                    if isinstance(record, MessageIndex):
+                        if after_corrupt_chunk:   # the skipped chunk's messages, counted
+                            report.corrupt_chunk_messages += len(record.records)
+                        continue
+                    after_corrupt_chunk = False
                 except StopIteration:
                     report.stop_reason = 'the file ends after a complete record, without a footer'
                     break
