@@ -16,14 +16,18 @@ SCENE ?= hpotp
 NODE_ARGS ?=
 PYTEST_ARGS ?=
 
-.PHONY: run test test-slow bench constraints clean validation convergence
+.PHONY: run test test-slow bench constraints clean validation convergence ros2cli
 
-# runtime only (requirements.txt); the test tooling comes with $(DEV)
-$(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml
+# runtime only (requirements.txt); the test tooling comes with $(DEV). The editable install
+# then becomes an ament package of the venv (tools/ament_develop.py: the ament index marker,
+# share/impact_damper_sim/ linked to the checkout, lib/impact_damper_sim/ launchers), so that
+# `ros2 run`/`ros2 launch impact_damper_sim ...` find it with AMENT_PREFIX_PATH=.venv.
+$(STAMP): requirements.txt constraints.txt setup.py setup.cfg package.xml tools/ament_develop.py
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade 'pip>=23.2'
 	$(PY) -m pip install --quiet -r requirements.txt -c constraints.txt
 	$(PY) -m pip install --quiet --no-deps --config-settings editable_mode=compat -e .
+	$(PY) tools/ament_develop.py
 	touch $@
 
 $(DEV): $(STAMP) requirements-dev.txt
@@ -35,7 +39,21 @@ run: $(STAMP)
 	$(VENV)/bin/vibration_node --ros-args --params-file config/vibration_node.yaml \
 	    -p scene:=$(SCENE) $(NODE_ARGS)
 
-test: $(DEV)
+# the ROS 2 command line and launch (not on PyPI) into the venv: `ros2 run/launch/topic/param/
+# service/node/pkg/interface`. From $(ROS2CLI_WHEELS) (pure-Python wheels, offline) when it
+# exists, else from the jazzy branches upstream (pip git URLs: needs git and the network)
+ROS2CLI_WHEELS ?= ../shared/ros2cli
+ROS2CLI := $(VENV)/.installed-ros2cli
+
+$(ROS2CLI): $(STAMP) tools/install_ros2cli.sh
+	ROS2CLI_WHEELS='$(ROS2CLI_WHEELS)' bash tools/install_ros2cli.sh $(VENV) -c constraints.txt
+	touch $@
+
+ros2cli: $(ROS2CLI)
+
+# with the wheels beside the checkout (as in CI), the tests of the real tools run
+# (test/test_ros2_tools.py); without them those tests skip and say why
+test: $(DEV) $(if $(wildcard $(ROS2CLI_WHEELS)/install.sh),$(ROS2CLI))
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 test-slow: $(DEV)
@@ -43,7 +61,7 @@ test-slow: $(DEV)
 
 # the paper's results next to ours (docs/validation.md and docs/validation/*.png; minutes)
 validation: $(DEV)
-	$(VENV)/bin/study validate --out docs/validation.md --overwrite
+	$(VENV)/bin/impact_damper_study validate --out docs/validation.md --overwrite
 
 # speed/accuracy trade: docs/convergence.md, docs/convergence/*.{csv,json,png} (about 10 min)
 convergence: $(DEV)
@@ -52,7 +70,7 @@ convergence: $(DEV)
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
 BENCHES := bench/sdof_methods.py bench/ivp_baseline.py bench/modal_vs_direct.py \
            bench/realtime_offline.py bench/long_run.py bench/node_realtime.py \
-           bench/node_startup.py bench/impact_cost.py
+           bench/node_startup.py bench/impact_cost.py bench/node_scenes.py
 
 bench: $(DEV)
 	for b in $(BENCHES); do $(PY) $$b || exit 1; done

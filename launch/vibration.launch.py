@@ -1,16 +1,19 @@
 """vibration_node with the monitor, in one namespace.
 
-Usage (on a ROS 2 Jazzy machine, after ``colcon build``)::
+Usage (after ``make run``'s set-up and ``make ros2cli``, with ``AMENT_PREFIX_PATH=.venv``; or
+on a ROS 2 Jazzy machine after ``colcon build``)::
 
     ros2 launch impact_damper_sim vibration.launch.py
     ros2 launch impact_damper_sim vibration.launch.py scene:=rbs namespace:=rbs \
-        record:=/tmp/rbs.mcap monitor:=false
+        record:=rbs.mcap monitor:=false
     ros2 launch impact_damper_sim vibration.launch.py params_file:=/path/to/my_params.yaml
 
 Arguments: ``scene`` (name or file), ``namespace``, ``params_file`` (the node's parameters;
 default the package's ``config/vibration_node.yaml``), ``record`` (MCAP path; empty = not
 recording), ``real_time_factor``, ``monitor`` (true/false). Values given as arguments win
-over the params file.
+over the params file. ``scene`` and ``record`` are passed as strings and ``real_time_factor``
+as a float whatever they look like: launch would otherwise read ``scene:=0123`` or
+``record:=2024`` as YAML integers, which the node's string parameters refuse.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
@@ -50,8 +53,8 @@ def generate_launch_description():
         Node(package=PACKAGE, executable='vibration_node', name='vibration_node',
              namespace=namespace, output='screen', emulate_tty=True,
              parameters=[params_file, {
-                 'scene': scene,
-                 'record': record,
+                 'scene': ParameterValue(scene, value_type=str),
+                 'record': ParameterValue(record, value_type=str),
                  'real_time_factor': ParameterValue(real_time_factor, value_type=float)}]),
         Node(package=PACKAGE, executable='monitor', name='monitor', namespace=namespace,
              output='screen', emulate_tty=True, condition=IfCondition(monitor)),

@@ -9,7 +9,6 @@ serialization leaves pads uninitialised and pads a ``JointState`` with an empty 
 import math
 import pathlib
 
-import numpy as np
 import pytest
 
 rclpy = pytest.importorskip('rclpy')

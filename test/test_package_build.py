@@ -4,8 +4,10 @@ Two groups of checks:
 
 * ``colcon``-marked tests build a copy of the source tree with ``colcon build`` into a temporary
   directory (once per module, a few seconds) and inspect the install space: console scripts in
-  ``lib/<pkg>/`` (where ``ros2 run`` looks), ``config/`` and ``package.xml`` under
-  ``share/<pkg>/``, the ament index marker, every Python module, and a working ``study --help``.
+  ``lib/<pkg>/`` (where ``ros2 run`` looks) under their ``ros2 run`` names (``monitor``, not
+  ``impact_damper_monitor``), ``config/`` and ``package.xml`` under ``share/<pkg>/``, the ament
+  index marker, every Python module, and a working ``study --help``; the same for a
+  ``--symlink-install`` build (``setup.py develop``).
 * Static checks (no build) of ``package.xml``, ``setup.cfg``, ``setup.py`` and the package layout.
 
 colcon comes from ``requirements-dev.txt`` (``colcon-common-extensions``). If it is missing
@@ -38,12 +40,16 @@ _CONFIG_PROBE = Path('config') / '_build_probe' / 'nested' / 'probe.txt'
 REQUIRED_EXEC_DEPENDS = {
     'rclpy', 'std_msgs', 'std_srvs', 'sensor_msgs', 'geometry_msgs', 'diagnostic_msgs',
     'rosgraph_msgs', 'rcl_interfaces', 'builtin_interfaces', 'ament_index_python',
-    'python3-yaml', 'python3-matplotlib', 'launch', 'launch_ros',
+    'python3-yaml', 'launch', 'launch_ros',
     'python3-numpy', 'python3-scipy',
     'python3-numba',  # rosdistro has no pip key for numba; see the comment in package.xml
-    'mcap-ros2-support',
+    'mcap-ros2-support',  # also installs mcap, which has no rosdep key
 }
+#: optional (study plots, parallel sweeps): never a hard dependency
+OPTIONAL_DEPENDS = {'python3-matplotlib', 'python3-dask'}
 REQUIRED_TEST_DEPENDS = {'python3-pytest'}
+#: what ``ros2 run impact_damper_sim NAME`` runs: lib/<pkg>/NAME
+ROS2_RUN_NAMES = {'vibration_node', 'monitor', 'replay', 'study'}
 
 
 # --------------------------------------------------------------------------- helpers
@@ -66,6 +72,11 @@ def _setup_kwarg(name):
         if kw.arg == name:
             return kw.value
     raise AssertionError(f'setup.py: setup() has no {name}= keyword')
+
+
+def ros2_run_name(script):
+    """setup.py's rule: lib/<pkg>/ holds a console script without its ``impact_damper_``."""
+    return script[len('impact_damper_'):] if script.startswith('impact_damper_') else script
 
 
 def _console_scripts():
@@ -107,8 +118,7 @@ def _colcon_env(venv_bin):
 
 # --------------------------------------------------------------------------- the build
 
-@pytest.fixture(scope='module')
-def built(tmp_path_factory):
+def _build(tmp_path_factory, *extra_args):
     """Build a copy of the source tree with colcon; return the package's install prefix."""
     venv_bin = Path(sys.executable).parent
     colcon = venv_bin / 'colcon'
@@ -135,7 +145,7 @@ def built(tmp_path_factory):
         '--base-paths', str(src),
         '--build-base', str(tmp / 'build'),
         '--install-base', str(tmp / 'install'),
-        '--event-handlers', 'console_cohesion+',
+        '--event-handlers', 'console_cohesion+', *extra_args,
     ]
     proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True, timeout=300)
     if proc.returncode != 0:
@@ -147,6 +157,18 @@ def built(tmp_path_factory):
     prefix = tmp / 'install' / PKG
     assert prefix.is_dir(), f'colcon succeeded but {prefix} is missing:\n{proc.stdout}'
     return {'tmp': tmp, 'src': src, 'prefix': prefix, 'env': env}
+
+
+@pytest.fixture(scope='module')
+def built(tmp_path_factory):
+    """A ``colcon build`` (``setup.py install``) of a copy of the source tree."""
+    return _build(tmp_path_factory)
+
+
+@pytest.fixture(scope='module')
+def built_symlink(tmp_path_factory):
+    """A ``colcon build --symlink-install`` (``setup.py develop``) of a copy of the tree."""
+    return _build(tmp_path_factory, '--symlink-install')
 
 
 def _site_packages(prefix):
@@ -161,20 +183,47 @@ def test_colcon_build_succeeds(built):
     assert marker.is_file(), f'colcon did not register {PKG} in its install space'
 
 
-@pytest.mark.colcon
-def test_console_scripts_installed_for_ros2_run(built):
+def _check_ros2_run_scripts(prefix):
     scripts = _console_scripts()
     assert scripts, "setup.py declares no entry_points['console_scripts']"
-    libexec = built['prefix'] / 'lib' / PKG
-    for name in scripts:
+    assert {ros2_run_name(s) for s in scripts} == ROS2_RUN_NAMES
+    libexec = prefix / 'lib' / PKG
+    held = sorted(p.name for p in libexec.iterdir()) if libexec.is_dir() else 'nothing'
+    for script in scripts:
+        name = ros2_run_name(script)
         path = libexec / name
         assert path.is_file(), (
-            f'console script {name!r} is not at {path}; `ros2 run {PKG} {name}` looks there '
-            f'(setup.cfg [install] install_scripts). lib/{PKG}/ holds: '
-            f'{sorted(p.name for p in libexec.iterdir()) if libexec.is_dir() else "nothing"}'
+            f'console script {script!r} is not at {path}; `ros2 run {PKG} {name}` looks there '
+            f'(setup.cfg [install] install_scripts, setup.py install_scripts). lib/{PKG}/ '
+            f'holds: {held}'
         )
         assert os.access(path, os.X_OK), f'{path} is not executable'
         assert path.read_text().startswith('#!'), f'{path} has no shebang line'
+    # only the ros2 run names: `ros2 pkg executables` lists exactly these
+    assert set(held) == ROS2_RUN_NAMES, held
+
+
+@pytest.mark.colcon
+def test_console_scripts_installed_for_ros2_run(built):
+    _check_ros2_run_scripts(built['prefix'])
+
+
+@pytest.mark.colcon
+def test_symlink_install_has_the_ros2_run_scripts_and_runs_the_source(built_symlink):
+    """``colcon build --symlink-install`` (``setup.py develop``): the same names in lib/, and
+    ``study`` runs the package from the build's source copy."""
+    prefix = built_symlink['prefix']
+    _check_ros2_run_scripts(prefix)
+    env = dict(built_symlink['env'])
+    env['AMENT_PREFIX_PATH'] = os.pathsep.join([str(prefix), sys.prefix])
+    # colcon's hook for a develop install puts the build directory (links to the source) first
+    env['PYTHONPATH'] = os.pathsep.join(
+        [str(built_symlink['tmp'] / 'build' / PKG), str(_site_packages(prefix))])
+    env.pop('COLCON_HOME', None)
+    proc = subprocess.run([str(prefix / 'lib' / PKG / 'study'), '--help'],
+                          cwd=built_symlink['tmp'], env=env, capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0 and proc.stdout.strip(), proc.stderr
 
 
 @pytest.mark.colcon
@@ -284,6 +333,9 @@ def test_package_xml_dependencies():
     assert not REQUIRED_TEST_DEPENDS - test_deps, (
         f'package.xml lacks test_depend: {sorted(REQUIRED_TEST_DEPENDS - test_deps)}'
     )
+    assert not OPTIONAL_DEPENDS & exec_deps, (
+        f'optional dependencies declared as required: {sorted(OPTIONAL_DEPENDS & exec_deps)}'
+    )
 
 
 def test_setup_cfg_installs_scripts_for_ros2_run():
@@ -355,8 +407,8 @@ def test_every_subpackage_has_init():
 
 
 # --------------------------------------------------------------------------- launch file
-# The `launch` packages are not on PyPI, so the launch file cannot run here: these checks
-# parse it and hold every name it uses against what the package declares.
+# Static checks: the launch file's names against what the package declares, without launch
+# installed. test/test_ros2_tools.py runs it with `ros2 launch`.
 
 def _launch_calls(name):
     tree = ast.parse((ROOT / 'launch' / 'vibration.launch.py').read_text())
@@ -377,9 +429,7 @@ def test_launch_file_parses_and_defines_the_entry_point():
 def test_launch_file_executables_and_parameters_exist():
     pytest.importorskip('rclpy')
     from impact_damper_sim.ros.parameters import PARAMETERS
-    scripts = {ep.split('=')[0].strip() for ep in ast.literal_eval(
-        next(k.value for k in _setup_call().keywords if k.arg == 'entry_points'))[
-            'console_scripts']}
+    scripts = {ros2_run_name(name) for name in _console_scripts()}
     nodes = _launch_calls('Node')
     assert len(nodes) == 2
     executables = {_kw(n, 'executable').value for n in nodes}

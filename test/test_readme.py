@@ -24,7 +24,7 @@ def region(name):
 
 
 def test_key_table_is_the_schema():
-    # regenerate with: .venv/bin/study keys --markdown
+    # regenerate with: .venv/bin/impact_damper_study keys --markdown
     text = region('scene-keys')
     table = markdown_table(SCHEMA)
     assert text.endswith('\n' + table), 'README key table differs from the schema'
@@ -117,7 +117,7 @@ def _run_examples():
     found = []
     for line in lines:
         command = line.split('  #')[0].strip().rstrip('&').strip()
-        if re.match(r'(make run|\.venv/bin/(vibration_node|monitor))\b', command):
+        if re.match(r'(make run|\.venv/bin/(vibration_node|impact_damper_monitor))\b', command):
             found.append(command)
     return sorted(set(found))
 
@@ -180,8 +180,9 @@ def test_command_table_names_every_study_command_and_option():
     shared = region('study-options')
     sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
     for name, parser in sub.choices.items():
-        rows = [ln for ln in text.splitlines() if ln.startswith(f'| `.venv/bin/study {name} ')
-                or ln.startswith(f'| `.venv/bin/study {name}`')]
+        rows = [ln for ln in text.splitlines()
+                if ln.startswith(f'| `.venv/bin/impact_damper_study {name} ')
+                or ln.startswith(f'| `.venv/bin/impact_damper_study {name}`')]
         assert len(rows) == 1, name
         for action in parser._actions:
             for option in (o for o in action.option_strings

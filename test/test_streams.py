@@ -189,7 +189,7 @@ def test_batches_read_with_rosbags_and_mcap_ros2(tmp_path):
     """A log of batches written as the node writes it reads, message by message, to the same
     rows with rosbags (typestore ROS2_JAZZY) and mcap_ros2's decoder."""
     pytest.importorskip('rclpy')
-    rosbags = pytest.importorskip('rosbags')
+    pytest.importorskip('rosbags')
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader

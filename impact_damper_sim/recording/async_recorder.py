@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import atexit
 import collections
+import os
 import threading
 import weakref
 
 from .bag_metadata import qos_list
-from .definitions import message_definition
+from .definitions import AmentIndexError, check_ament_index, message_definition
 from .rosbag2_mcap import Rosbag2McapWriter, check_times, check_topic, full_type_name
 
 #: Queue capacity (messages); about 30 MB of ``sensor_msgs/Imu``.
@@ -52,27 +53,38 @@ class AsyncRecorder:
     on_error : callable, optional
         Called once, from the writer thread, with the first disk error (``OSError``).
     **writer_options
-        Passed to :class:`.Rosbag2McapWriter`: ``overwrite``, ``chunk_size`` (bytes),
-        ``flush_period`` (s), ``fsync_period`` (s), ``compression``, ``custom_data``,
+        Passed to :class:`.Rosbag2McapWriter`: ``overwrite``, ``overwrite_option`` (what the
+        caller's user sets for ``overwrite``, named in the ``FileExistsError``), ``chunk_size``
+        (bytes), ``flush_period`` (s), ``fsync_period`` (s), ``compression``, ``custom_data``,
         ``ros_distro``.
 
     Raises
     ------
     FileExistsError
         If the file exists and ``overwrite`` is not true (raised here, in the caller).
+    AmentIndexError
+        An ``OSError``: the message definitions cannot be read (``AMENT_PREFIX_PATH`` unset or
+        wrong), checked before the file is created, so nothing is written.
     OSError
         If the file cannot be created.
+
+    A refused start leaves no file behind: every check comes before the file is created.
     """
 
     def __init__(self, path, *, max_queue=DEFAULT_MAX_QUEUE, wake_period=DEFAULT_WAKE_PERIOD,
                  on_error=None, **writer_options):
         if not (isinstance(max_queue, int) and max_queue > 0) or not wake_period > 0:
             raise ValueError('max_queue must be a positive int and wake_period > 0 s')
-        unknown = set(writer_options) - {'overwrite', 'chunk_size', 'flush_period',
-                                         'fsync_period', 'compression', 'custom_data',
-                                         'ros_distro'}
+        unknown = set(writer_options) - {'overwrite', 'overwrite_option', 'chunk_size',
+                                         'flush_period', 'fsync_period', 'compression',
+                                         'custom_data', 'ros_distro'}
         if unknown:
             raise TypeError(f'unknown AsyncRecorder options: {sorted(unknown)}')
+        try:   # every topic's schema is read from the ament index: check it before the file
+            check_ament_index()
+        except AmentIndexError as exc:
+            raise AmentIndexError(f'cannot record to {os.fspath(path)} (nothing written): '
+                                  f'{exc}') from None
         self._writer = Rosbag2McapWriter(path, on_error=on_error, **writer_options)
         self.path = self._writer.path
         self._max_queue = max_queue

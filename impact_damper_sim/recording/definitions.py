@@ -32,6 +32,36 @@ class DefinitionNotFoundError(LookupError):
     """A type's ``.msg`` file (or one of its dependencies') is not installed."""
 
 
+class AmentIndexError(DefinitionNotFoundError, OSError):
+    """The ament index cannot be searched: ``AMENT_PREFIX_PATH`` is unset, empty, or names no
+    prefix holding the ROS message definitions.
+
+    An ``OSError`` (an environment problem, as ament_index_python raises it) as well as a
+    :class:`DefinitionNotFoundError`: a recorder's start refuses with it before creating its file.
+    """
+
+
+#: Message packages every ROS 2 installation has; a recorder checks it can read them first.
+CORE_PACKAGES = ('builtin_interfaces', 'std_msgs')
+
+
+def _prefix_with(package):
+    """This Python's install prefix if ``share/<package>/msg`` is in it, else ``None``: the
+    value ``AMENT_PREFIX_PATH`` most likely needs (a venv with the PyPI ROS 2 wheels)."""
+    import sys
+    if os.path.isdir(os.path.join(sys.prefix, 'share', package, 'msg')):
+        return sys.prefix
+    return None
+
+
+def _index_hint(package):
+    prefix = _prefix_with(package)
+    if prefix:
+        return f'export AMENT_PREFIX_PATH={prefix} (where {package} is installed)'
+    return ('source a ROS 2 setup file, or export AMENT_PREFIX_PATH=<the prefix holding '
+            f'share/{package}/msg>')
+
+
 def split_type_name(type_name):
     """Split ``pkg/msg/Type`` (or ``pkg/Type``) into ``(pkg, Type)``.
 
@@ -57,14 +87,47 @@ def split_type_name(type_name):
 
 
 def _share_dir(package):
+    if not os.environ.get('AMENT_PREFIX_PATH'):
+        raise AmentIndexError(
+            f'AMENT_PREFIX_PATH is not set (or empty), so the ROS message definitions '
+            f'(share/{package}/msg) cannot be found; {_index_hint(package)}')
     from ament_index_python.packages import (PackageNotFoundError,
                                              get_package_share_directory)
     try:
         return get_package_share_directory(package)
+    except OSError as exc:   # ament_index_python: the variable is unset or empty
+        raise AmentIndexError(f'{exc}; {_index_hint(package)}') from None
     except (PackageNotFoundError, LookupError, ValueError) as exc:
         raise DefinitionNotFoundError(
             f"package {package!r} not found in the ament index (AMENT_PREFIX_PATH="
             f"{os.environ.get('AMENT_PREFIX_PATH', '')!r}): {exc}") from None
+
+
+def check_ament_index(packages=CORE_PACKAGES):
+    """Raise :class:`AmentIndexError` unless the ament index has the message definitions of
+    ``packages``: what a recorder checks before it creates its file.
+
+    Parameters
+    ----------
+    packages : iterable of str, optional
+        Message packages that must be found, with their ``msg`` directory.
+
+    Raises
+    ------
+    AmentIndexError
+        One line: what is missing and the ``AMENT_PREFIX_PATH`` to set.
+    """
+    for package in packages:
+        try:
+            share = _share_dir(package)
+        except AmentIndexError:
+            raise
+        except DefinitionNotFoundError:
+            share = None
+        if share is None or not os.path.isdir(os.path.join(share, 'msg')):
+            raise AmentIndexError(
+                f"no message definitions of {package} under AMENT_PREFIX_PATH="
+                f"{os.environ.get('AMENT_PREFIX_PATH', '')!r}; {_index_hint(package)}")
 
 
 @functools.lru_cache(maxsize=None)

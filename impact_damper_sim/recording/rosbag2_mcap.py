@@ -106,6 +106,14 @@ def check_times(log_time_ns, publish_time_ns):
                          f'{log_time_ns!r} and publish_time {publish_time_ns!r}')
 
 
+class _FileExistsError(FileExistsError):
+    """``FileExistsError`` whose text is its message alone (not ``[Errno 17] ...: 'path'``), so
+    that a caller can show ``str(exc)`` as one line."""
+
+    def __str__(self):
+        return self.strerror
+
+
 class _RawFile:
     """Unbuffered output: each write goes to the OS at once, so a closed chunk survives a kill.
 
@@ -157,6 +165,10 @@ class Rosbag2McapWriter:
         Output file (rosbag2 names it ``<bag>_0.mcap``; any name works).
     overwrite : bool, optional
         Replace an existing file. Without it an existing file raises ``FileExistsError``.
+    overwrite_option : str, optional
+        How the caller's user asks for ``overwrite``, named in that error's message (``set
+        {overwrite_option} to replace it``): default ``overwrite=True``; a node passes its
+        parameter (``record_overwrite:=true``), a command line its option.
     chunk_size : int, optional
         Chunk size (bytes, uncompressed) at which a chunk is closed.
     flush_period : float, optional
@@ -197,7 +209,7 @@ class Rosbag2McapWriter:
     def __init__(self, path, *, overwrite=False, chunk_size=DEFAULT_CHUNK_SIZE,
                  flush_period=DEFAULT_FLUSH_PERIOD, fsync_period=DEFAULT_FSYNC_PERIOD,
                  compression='none', custom_data=None, ros_distro=None, on_error=None,
-                 clock=time.monotonic):
+                 clock=time.monotonic, overwrite_option='overwrite=True'):
         if compression not in _COMPRESSION:
             raise ValueError(f'compression {compression!r} is not one of {list(_COMPRESSION)}')
         if not (isinstance(chunk_size, int) and chunk_size > 0):
@@ -225,9 +237,9 @@ class Rosbag2McapWriter:
         try:
             self._fd = os.open(self.path, flags, 0o644)
         except FileExistsError:
-            raise FileExistsError(
-                errno.EEXIST, f'{self.path} exists; not overwriting it (pass overwrite=True '
-                f'to replace it)', self.path) from None
+            raise _FileExistsError(
+                errno.EEXIST, f'{self.path} exists; not overwriting it (set '
+                f'{overwrite_option} to replace it)', self.path) from None
         self._file = _RawFile(self._fd)
         self._mcap = Writer(self._file, chunk_size=chunk_size,
                             compression=_COMPRESSION[compression], enable_crcs=True)

@@ -68,8 +68,8 @@ from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
 from ..recording.batches import BATCH_SUFFIX, rows_of, sample_times_ns
 from .interface import (ACCEL_PREFIX, accel_topic, BATCH_QOS, DIAGNOSTICS, DIAGNOSTICS_QOS,
                         EVENT_QOS, IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS)
-from .wire import (guard_services, settle_interrupt, shutdown_quietly, spin_guarded,
-                   type_name)
+from .wire import (guard_services, ignore_further_interrupts, settle_interrupt,
+                   shutdown_quietly, spin_guarded, type_name)
 
 #: Samples (or impacts) queued on one per-sample stream, or in all batch messages together
 #: (a batch counts at least 1, so empty ones are bounded too), before they go to the report
@@ -581,6 +581,7 @@ def main(args=None):
         spin_guarded(executor, lambda exc: node.get_logger().error(
             f'callback failed: {type(exc).__name__}: {exc}', throttle_duration_sec=1.0))
     except (KeyboardInterrupt, ExternalShutdownException):
+        ignore_further_interrupts()
         settle_interrupt()
     finally:
         if node is not None:

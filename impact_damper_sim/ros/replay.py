@@ -59,7 +59,7 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPro
 
 from ..studies.report import LogError, RosLog, type_name
 from .interface import CLOCK, CLOCK_QOS
-from .wire import settle_interrupt, shutdown_quietly
+from .wire import ignore_further_interrupts, settle_interrupt, shutdown_quietly
 
 EXIT_USAGE = 2
 DEFAULT_CLOCK_HZ = 100.0
@@ -780,6 +780,7 @@ def main(args=None):
             f'{stats.wall_s:.3f} s; lateness median {stats.median_lateness_s * 1e3:.3f} ms, '
             f'max {stats.max_lateness_s * 1e3:.3f} ms')
     except (KeyboardInterrupt, ExternalShutdownException):
+        ignore_further_interrupts()
         settle_interrupt()
     except LogError as exc:   # damage found while reading on
         _error(exc)

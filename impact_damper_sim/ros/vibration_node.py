@@ -35,8 +35,8 @@ from ..scene.schema import SceneError
 from . import interface as itf
 from .cdr import serialize
 from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
-from .wire import ImuPacker, Outlet, guard_services, settle_interrupt, shutdown_quietly, \
-    spin_guarded, stamp
+from .wire import ImuPacker, Outlet, guard_services, ignore_further_interrupts, \
+    settle_interrupt, shutdown_quietly, spin_guarded, stamp
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
 RECORD_CHUNK_SIZE = 768 * 1024   # bytes, as rosbag2's MCAP storage
@@ -407,7 +407,8 @@ class VibrationNode(Node):
                 # the file closes (64 KiB chunks grew RSS ~0.8 MB/min); a chunk is still
                 # closed at least every flush period, which bounds what a crash loses
                 rec = AsyncRecorder(path, overwrite=overwrite, on_error=self._on_disk_error,
-                                    chunk_size=RECORD_CHUNK_SIZE)
+                                    chunk_size=RECORD_CHUNK_SIZE,
+                                    overwrite_option='record_overwrite:=true')
             except (OSError, ValueError) as exc:
                 return str(exc)
             rec.add_metadata('impact_damper_sim', self._run_metadata())
@@ -971,6 +972,7 @@ def main(args=None):
         spin_guarded(executor, lambda exc: node._log(
             'error', f'callback failed: {type(exc).__name__}: {exc}', 1.0, 'spin'))
     except (KeyboardInterrupt, ExternalShutdownException):
+        ignore_further_interrupts()
         settle_interrupt()
     except (SceneError, ParameterException) as exc:
         print(f'vibration_node: {exc}', file=sys.stderr)

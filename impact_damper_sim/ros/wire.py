@@ -214,8 +214,8 @@ def guard_services(node, log):
         srv.callback = guarded
 
 
-__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'set_stamp',
-           'settle_interrupt', 'shutdown_quietly', 'spin_guarded', 'stamp', 'type_name']
+__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'ignore_further_interrupts',
+           'set_stamp', 'settle_interrupt', 'shutdown_quietly', 'spin_guarded', 'stamp', 'type_name']
 
 
 def spin_guarded(executor, report):
@@ -243,6 +243,17 @@ def spin_guarded(executor, report):
                 # Ctrl-C shut the context down under the wait ("context is not valid")
                 raise ExternalShutdownException() from exc
             report(exc)
+
+
+def ignore_further_interrupts():
+    """After the first Ctrl-C of a ``main``, ignore SIGINT while it cleans up.
+
+    ``ros2 launch`` without a terminal signals the whole process group, so a node gets the
+    launch's SIGINT and the group's: the second one interrupted ``destroy_node`` with a
+    traceback (launch reported exit code -2); the first one already asked to stop.
+    """
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def settle_interrupt(context=None, timeout_s=1.0):

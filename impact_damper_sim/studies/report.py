@@ -40,7 +40,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import stat
+from stat import S_ISREG
 
 import numpy as np
 
@@ -160,7 +160,7 @@ class RosLog:
         try:
             st = os.stat(self.path)
             # a FIFO would block the open, a device (/dev/zero) never end a read
-            if not stat.S_ISREG(st.st_mode):
+            if not S_ISREG(st.st_mode):
                 raise LogError(f'{self.path}: not an MCAP log (not a regular file)')
             size = st.st_size
             with open(self.path, 'rb') as fh:
