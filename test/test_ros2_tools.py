@@ -364,7 +364,7 @@ def test_ros2_run_node_and_every_documented_command_against_it(tmp_path):
             elif k == 'pub':
                 topic, value = PUB.match(c).groups()
                 if not node.wait_for(rf'{re.escape(relative(topic, ""))} '
-                                     rf'{float(value):g} accepted', 10.0):
+                                     rf'{float(value):g} accepted', 30.0):
                     problems.append(f'{c}: the node did not log the command as accepted')
             elif k == 'param_set':
                 name, param, value = PARAM_SET.match(c).groups()
@@ -504,7 +504,7 @@ def test_documented_launch_commands_run_as_written(tmp_path):
                 topic, value = PUB.match(c).groups()   # only publications so far
                 if rc != 0 or not proc.wait_for(
                         rf'{re.escape(relative(topic, namespace))} {float(value):g} accepted',
-                        10.0):
+                        30.0):
                     problems.append(f'{c} (against {command}): exit status {rc}, not '
                                     f'accepted:\n{out}')
             rc = proc.interrupt()
