@@ -5,9 +5,9 @@ The input is read front to back with mcap's :class:`~mcap.stream_reader.StreamRe
 short read as the end of the data. A chunk whose contents are broken (CRC or size mismatch)
 while its framing is intact is skipped, and reading goes on with the records after it (the
 message indexes that follow it tell how many messages it held); reading stops at the first
-record that is itself incomplete or broken. Everything read is copied: schemas, channels (with their QoS and type-hash
-metadata), messages (log and publish times and sequence kept), metadata records and
-attachments. A crashed recording therefore keeps everything up to its last complete chunk.
+record that is itself incomplete or broken. Everything read is copied: schemas, channels
+(with their QoS and type-hash metadata), messages (log and publish times and sequence kept),
+metadata records and attachments. A crashed recording therefore keeps everything up to its last complete chunk.
 The output is written in rosbag2's layout (:class:`.Rosbag2McapWriter`) with a fresh
 ``rosbag2`` record counting what was recovered (a stale one in the input is dropped).
 

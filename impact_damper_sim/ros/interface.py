@@ -143,7 +143,8 @@ def accel_batch_topic(sensor):
     return ACCEL_PREFIX + sensor + BATCH_SUFFIX
 
 
-__all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS', 'DIAGNOSTICS',
+__all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS',
+           'DIAGNOSTICS',
            'DIAGNOSTICS_QOS', 'EVENT_QOS', 'G0', 'IMPACTS', 'IMPACTOR_STATE', 'LATCHED_QOS',
            'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES',
            'UNBALANCE_COMMAND', 'accel_batch_topic', 'accel_topic']

@@ -280,7 +280,8 @@ class VibrationNode(Node):
         try:
             return ImuPacker(msg)
         except RuntimeError as exc:   # another CDR layout: serialize message by message
-            self.get_logger().warning(f'{exc}; falling back to serializing message by message', once=True)
+            self.get_logger().warning(f'{exc}; serializing message by message instead',
+                                      once=True)
             return None
 
     def _log(self, level, text, throttle=None, key=None):
@@ -379,8 +380,8 @@ class VibrationNode(Node):
     def outlets(self):
         """list of _Outlet: Every publisher of the node (``topic``, ``type_name``, ``count``)."""
         return [*self._accel_pubs, *self._batch_pubs, self._impact_pub, self._state_pub,
-                self._speed_pub,
-                self._joint_pub, self._diag_pub] + ([self._clock_pub] if self._clock_pub else [])
+                self._speed_pub, self._joint_pub, self._diag_pub] + (
+                    [self._clock_pub] if self._clock_pub else [])
 
     # -- recording ------------------------------------------------------------------------
     def start_recording(self, path, overwrite=False):

@@ -215,7 +215,8 @@ def guard_services(node, log):
 
 
 __all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'guard_services', 'ignore_further_interrupts',
-           'set_stamp', 'settle_interrupt', 'shutdown_quietly', 'spin_guarded', 'stamp', 'type_name']
+           'set_stamp', 'settle_interrupt', 'shutdown_quietly', 'spin_guarded', 'stamp',
+           'type_name']
 
 
 def spin_guarded(executor, report):
