@@ -76,26 +76,29 @@ def test_factor_one_passes_the_signal_through():
 
 
 def test_default_live_rates():
-    assert default_imu_rate(2000.0) == 2000.0
-    assert default_imu_rate(20000.0) == 2000.0
-    assert default_imu_rate(50000.0) == 50000.0 / 25
-    assert default_imu_rate(3000.0) == 1500.0
+    assert default_imu_rate(2000.0) == 1000.0
+    assert default_imu_rate(20000.0) == 1000.0
+    assert default_imu_rate(50000.0) == 1000.0
+    assert default_imu_rate(3000.0) == 1000.0
+    assert default_imu_rate(1500.0) == 750.0
+    assert default_imu_rate(800.0) == 800.0
 
 
 def test_live_imu_stream_is_the_decimated_batch_stream():
-    """RBS: 20 kHz batches, 2 kHz Imu. The Imu samples are the full-rate signal through the
-    FIR, stamped on the 2 kHz grid of the full-rate sample times."""
+    """RBS: 20 kHz batches, 1 kHz Imu. The Imu samples are the full-rate signal through the
+    FIR, stamped on the 1 kHz grid of the full-rate sample times."""
     model, target = live_scene('rbs')
     live = LiveSimulation(model, initial_target=target)
-    assert (live.sample_rate, live.imu_rate) == (20000.0, 2000.0)
+    assert (live.sample_rate, live.imu_rate) == (20000.0, 1000.0)
     batches = [live.step(200) for _ in range(10)]
     t = np.concatenate([b.t for b in batches])
     full = np.concatenate([b.linear_acceleration for b in batches])[:, 0, :]
     imu_t = np.concatenate([b.imu_t for b in batches])
     imu = np.concatenate([b.imu_linear_acceleration for b in batches])[:, 0, :]
-    np.testing.assert_allclose(imu_t, t[::10][:len(imu_t)], rtol=0, atol=1e-12)
-    assert len(imu_t) == (len(t) - 1 - live._decimator.delay) // 10 + 1
-    expect = StreamingDecimator(10, 20000.0, 3).apply(full)[1]
+    np.testing.assert_allclose(imu_t, t[::20][:len(imu_t)], rtol=0, atol=1e-12)
+    assert len(imu_t) == (len(t) - 1 - live._decimator.delay) // 20 + 1
+    assert live.imu_delay == pytest.approx(live._decimator.delay / 20000.0)
+    expect = StreamingDecimator(20, 20000.0, 3).apply(full)[1]
     np.testing.assert_allclose(imu, expect, rtol=0, atol=1e-9 * np.abs(full).max())
 
 

@@ -18,11 +18,11 @@ structure), in two forms, as drivers of high-rate sensors publish:
     ``np.frombuffer`` (``batches.rows_of``). Always recorded.
 
 ``accel/<accelerometer>`` -- ``sensor_msgs/Imu``, one message per sample of the live rate
-    ``imu_rate`` (at most 2 kHz by default): the full-rate signal decimated through a
+    ``imu_rate`` (at most 1 kHz by default): the full-rate signal decimated through a
     linear-phase anti-alias FIR (flat to 0.4 x ``imu_rate``, 80 dB from 0.5 x ``imu_rate``
     on). ``header.stamp`` is the time the sample stands for; it is sent when the filter has
-    it, a filter delay later (12.9 ms for 20 kHz to 2 kHz; none when ``imu_rate`` equals
-    ``sample_rate``, as on hpotp). ``header.frame_id`` the accelerometer frame.
+    it, a filter delay later (about 26 ms at 1 kHz, whatever the full rate; none when
+    ``imu_rate`` equals ``sample_rate``). ``header.frame_id`` the accelerometer frame.
 
 In both, the acceleration is that of the accelerometer's node along the frame's x, y, z (the
 global axes), as an AC-coupled vibration accelerometer reads it (no static 1 g), averaged

@@ -37,7 +37,7 @@ PARAMETERS = {
     'imu_rate': (0.0, 'rate of the per-sample Imu stream accel/<name> (Hz): the full-rate '
                       'signal (accel/<name>/batch) decimated through an anti-alias FIR, '
                       'sample_rate / k for a whole number k; 0 = the highest such rate not '
-                      'above 2000 Hz (hpotp 2000 Hz, rbs 2000 Hz from 20000 Hz)',
+                      'above 1000 Hz (hpotp 1000 Hz from 2000 Hz, rbs 1000 Hz from 20000 Hz)',
                  (0.0, 100000.0), True),
     'dampers_enabled': (True, 'impact dampers act (dynamic: compare with and without live)',
                         None, False),
