@@ -9,8 +9,8 @@ STAMP  := $(VENV)/.installed
 DEV    := $(VENV)/.installed-dev
 # ament_index_python finds the message packages (and ours) under the venv prefix.
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
-# Numba's on-disk cache, shared by every run from this checkout.
-export NUMBA_CACHE_DIR ?= $(abspath $(VENV))/numba-cache
+# Numba's on-disk cache: not set here, so make and direct runs share the package's per-user
+# default, ~/.cache/impact_damper_sim/numba (impact_damper_sim/_cache_dir.py); set it to move it.
 
 SCENE ?= hpotp
 NODE_ARGS ?=

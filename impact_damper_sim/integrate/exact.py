@@ -419,10 +419,9 @@ class ExactPropagator(IntegratorBase):
                 self._imp_z[:ni], self._imp_v[:ni], self._stuck[:ni], self._imp_normal[:ni],
                 self._imp_last_t[:ni], self._imp_rel[:ni], self._imp_grace[:ni],
                 self._count_step[:ni], rule, self.stick_time, self.max_events_per_step,
-                self.taylor_order, self.ledger_on, model.C, *self._damping_pattern(model.C),
-                model.K_skew, model.B,
-                self._ledger, disp, vel, acc, ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss,
-                ev_after, ev_count, self._info, self.counters,
+                self.taylor_order, *self._ledger_model(model), self._ledger, disp, vel, acc,
+                ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, self._info,
+                self.counters,
                 self._work_arrays(ni, model.C.shape[0]))
             m = int(ev_count[0])
             if m:
@@ -457,15 +456,25 @@ class ExactPropagator(IntegratorBase):
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
 
-    def _damping_pattern(self, C):
-        """Columns of the non-zero entries of each row of ``C`` and their counts: the ledger's
-        damping power skips the zeros (modal damping is diagonal)."""
+    def _ledger_model(self, model):
+        """The ``ledger_model`` and ``c_pattern`` arguments of :func:`.kernels.exact.advance`.
+
+        ``(None, None)`` without the ledger. Otherwise ``(C, K_skew, B)`` of ``model``, and
+        ``None`` for a diagonal ``C`` (modal damping) or the columns of the non-zero entries
+        of each row of ``C`` and their counts, with which the ledger's damping power skips
+        the zeros. The kernel compiles only the forms these select.
+        """
+        if not self.ledger_on:
+            return None, None
+        C = model.C
         if self._c_pattern is None or self._c_pattern[0] is not C:
             cols = np.zeros(C.shape, dtype=np.int64)
             counts = np.zeros(C.shape[0], dtype=np.int64)
             ledger_kernels.row_pattern(C, cols, counts)
-            self._c_pattern = (C, cols, counts)
-        return self._c_pattern[1:]
+            own = np.flatnonzero(counts == 1)
+            diagonal = np.all(counts <= 1) and np.array_equal(cols[own, 0], own)
+            self._c_pattern = (C, None if diagonal else (cols, counts))
+        return (C, model.K_skew, model.B), self._c_pattern[1]
 
     def _work_arrays(self, ni, n):
         """The kernel's work arrays, made again only when a size changes. Kept here, so

@@ -112,7 +112,7 @@ def grace_shift_py(fid, X, limit):
     return 1e-9 * limit
 
 
-grace_shift = kernel(inline='always')(grace_shift_py)
+grace_shift = kernel(forceinline=True)(grace_shift_py)
 
 
 def fn_taylor_py(fid, X, z, v, limit, normal, P, Eb, S, shift, rw, a):
@@ -256,7 +256,7 @@ def third_bound_py(fid, X, z, v, limit, normal, Eb, T):
     return np.sqrt(normal[0] * normal[0] + normal[1] * normal[1]) * Eb[5]
 
 
-third_bound = kernel(inline='always')(third_bound_py)
+third_bound = kernel(forceinline=True)(third_bound_py)
 
 
 def out_of_reach_py(n_rows, reach, X, z, v, limit, T):
@@ -277,7 +277,7 @@ def out_of_reach_py(n_rows, reach, X, z, v, limit, T):
     return room > 0.0 and max(a0 * a0 + a1 * a1, b0 * b0 + b1 * b1) < room * room
 
 
-out_of_reach = kernel(inline='always')(out_of_reach_py)
+out_of_reach = kernel(forceinline=True)(out_of_reach_py)
 
 
 def sort_candidates_py(n_cand, cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv):
@@ -649,7 +649,7 @@ def record_py(ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_co
     ev_count[0] = e + 1
 
 
-record = kernel(inline='always')(record_py)
+record = kernel(forceinline=True)(record_py)
 
 
 def impact_py(j, fid, n_rows, t_cur, X, yh, kick, mob, lawmob, imp_mass, imp_cor, imp_limit,
@@ -855,7 +855,7 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                imp_rep, imp_group, group_radix, imp_dim, imp_mass, imp_cor, imp_limit,
                imp_z, imp_v, imp_stuck, imp_normal, imp_last_t, imp_rel, imp_grace, count_step,
                stick_rule, stick_time, max_events_per_step, taylor_order,
-               ledger_on, Cmat, c_cols, c_counts, Kskew, Bmat, ledger,
+               ledger_model, c_pattern, ledger,
                out_disp, out_vel, out_acc,
                ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, info,
                counters, work):
@@ -868,6 +868,14 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     ``info[3]`` the largest impacts in one step. On ``CONFIG_CHANGE`` the state is at the
     event time in the old slot; the caller builds the new configuration, converts ``yh``,
     sets ``slot_state`` and calls again.
+
+    The energy ledger integrates over each piece of a step when ``ledger_model`` is the
+    tuple ``(C, K_skew, B)`` (damping, skew stiffness and input matrices of the model); with
+    ``None`` it is off. ``c_pattern`` is ``None`` for a diagonal ``C`` (its closed and modal
+    forms) or ``(cols, counts)`` of ``C``'s non-zero entries per row (its general form).
+    Both branch on ``is None``, which Numba decides from the argument types when it
+    compiles: a kernel without the ledger, or without the general form, does not compile
+    them (the ledger is a fifth of hpotp's compile time).
     """
     (yh_tau, y_tau, y_sw, x_sw, yd, uder, Xs, X, Eb, reach, ybound, u_abs, us_abs, exc,
      cand_key, cand_j, cand_fid, cand_s0, cand_shift, cand_lv, cand_out, active, shifts, coef,
@@ -889,16 +897,13 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
     cap = ev_t.size
     quiet_until = -np.inf
     circulatory = False
-    for i in range(Kskew.shape[0]):
-        for i2 in range(Kskew.shape[1]):
-            if Kskew[i, i2] != 0.0:
-                circulatory = True
-    # the ledger's forms for diagonal damping (closed form: also no skew stiffness and, per
-    # slot, one state coordinate per velocity row)
-    diag_ledger = True
-    for i in range(c_counts.size):
-        if c_counts[i] > 1 or (c_counts[i] == 1 and c_cols[i, 0] != i):
-            diag_ledger = False
+    if ledger_model is not None:
+        Cmat, Kskew, Bmat = ledger_model
+        n = Cmat.shape[0]
+        for i in range(Kskew.shape[0]):
+            for i2 in range(Kskew.shape[1]):
+                if Kskew[i, i2] != 0.0:
+                    circulatory = True
     slot = slot_state[0]
     release_normals(imp_stuck, imp_normal, tb_relmap[slot], release_n)
     t_cur = t_state[0]
@@ -918,7 +923,6 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
             part_plus = tb_pp[slot]
             part_minus = tb_pm[slot]
             house = tb_house[slot]
-            n = Cmat.shape[0]
             for f in range(nf):
                 u0[f] = u_grid[k, f] + us[f] * (t_cur - t_k)
             for i in range(n2):
@@ -971,13 +975,15 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                     w_max, w_zero, exc):
                         quiet_until = t_end
             whole_step = best_j == -1 and t_cur == t_k
-            if ledger_on:
+            if ledger_model is not None:
                 # the piece [t_cur, t_cur + tau], or the whole step
                 piece = tau
                 if whole_step:
                     piece = h
                 used = -1 if piece > 0.0 else 0   # nothing to add over an empty piece
-                if used < 0 and diag_ledger and not circulatory and tb_vmodal[slot]:
+                # the forms for diagonal damping (closed form: also no skew stiffness and,
+                # per slot, one state coordinate per velocity row)
+                if used < 0 and c_pattern is None and not circulatory and tb_vmodal[slot]:
                     # closed form: the step's own flow factors, or the piece's
                     if nh > 0:
                         harmonic_factors(omegas, t_cur, piece, led_harm)
@@ -996,13 +1002,14 @@ def advance_py(t_state, t_base, h, k_start, n_steps, u_grid, omegas, amps, yh, s
                                              led_rows[4, 0], led_rg, ledger)
                 if used >= 0:
                     counters[CNT_LEDGER_CLOSED] += used
-                elif diag_ledger:
+                elif c_pattern is None:
                     counters[CNT_LEDGER_PANELS] += ledger_modal(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
                         piece, tb_lam_max[slot], tb_V[slot, n:], tb_vcols[slot],
                         circulatory or not tb_vmodal[slot], tb_vt[slot], circulatory, Cmat,
                         Bmat, led_soa, led_u, led_y0, ledger)
                 else:
+                    c_cols, c_counts = c_pattern
                     counters[CNT_LEDGER_PANELS] += ledger_taylor(
                         yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,
                         piece, tb_lam_max[slot], tb_V[slot, :n], tb_V[slot, n:],

@@ -19,7 +19,7 @@ def cabs_py(z):
     return np.sqrt(z.real * z.real + z.imag * z.imag)
 
 
-cabs = kernel(inline='always')(cabs_py)
+cabs = kernel(forceinline=True)(cabs_py)
 
 
 #: Taylor coefficients of phi1: 1/(k+1)!, k = 0..13 (the ledger's real phi1)
@@ -53,7 +53,7 @@ def phis_from_py(z, ez):
     return f1, (f1 - 1.0) * inv
 
 
-phis_from = kernel(inline='always')(phis_from_py)
+phis_from = kernel(forceinline=True)(phis_from_py)
 
 
 def flow_factors_py(z):
@@ -67,7 +67,7 @@ def flow_factors_py(z):
     return ez, f1, f2
 
 
-flow_factors = kernel(inline='always')(flow_factors_py)
+flow_factors = kernel(forceinline=True)(flow_factors_py)
 
 
 
@@ -85,7 +85,7 @@ def propagate_py(yh, lam, tau, w0, ws, out):
         out[k] = ez * yh[k] + tau * (f1 * w0[k] + tau * f2 * ws[k])
 
 
-propagate = kernel(inline='always')(propagate_py)
+propagate = kernel(forceinline=True)(propagate_py)
 
 
 def step_factors_py(lam, h, e_h, p1_h, p2_h):
@@ -110,7 +110,7 @@ def add_particular_py(yh, omegas, part_plus, part_minus, t, out):
             out[k] += part_plus[h, k] * ep + part_minus[h, k] * em
 
 
-add_particular = kernel(inline='always')(add_particular_py)
+add_particular = kernel(forceinline=True)(add_particular_py)
 
 
 def input_derivs_py(u0, us, omegas, amps, t, tau, order, out):
@@ -135,7 +135,7 @@ def input_derivs_py(u0, us, omegas, amps, t, tau, order, out):
             fac *= 1j * omegas[h]
 
 
-input_derivs = kernel(inline='always')(input_derivs_py)
+input_derivs = kernel(forceinline=True)(input_derivs_py)
 
 
 def state_derivs_py(y, lam, W, uder, order, out):
@@ -167,10 +167,10 @@ def more_derivs_py(lam, W, uder, m_from, order, out):
             out[m, k] = acc
 
 
-more_derivs = kernel(inline='always')(more_derivs_py)
+more_derivs = kernel(forceinline=True)(more_derivs_py)
 
 
-state_derivs = kernel(inline='always')(state_derivs_py)
+state_derivs = kernel(forceinline=True)(state_derivs_py)
 
 
 def input_bounds_py(u_abs, us_abs, omegas, amps, order, ub):
@@ -193,7 +193,7 @@ def input_bounds_py(u_abs, us_abs, omegas, amps, order, ub):
                 p *= omegas[h]
 
 
-input_bounds = kernel(inline='always')(input_bounds_py)
+input_bounds = kernel(forceinline=True)(input_bounds_py)
 
 
 def derivative_chain_py(b, lam_abs, W, k, ub, order, u_orders, wu, out):
@@ -213,7 +213,7 @@ def derivative_chain_py(b, lam_abs, W, k, ub, order, u_orders, wu, out):
         out[m, k] = acc
 
 
-derivative_chain = kernel(inline='always')(derivative_chain_py)
+derivative_chain = kernel(forceinline=True)(derivative_chain_py)
 
 
 def input_orders_py(omegas, order):
@@ -223,7 +223,7 @@ def input_orders_py(omegas, order):
     return order + 1 if omegas.size > 0 else min(order + 1, 2)
 
 
-input_orders = kernel(inline='always')(input_orders_py)
+input_orders = kernel(forceinline=True)(input_orders_py)
 
 
 def derivative_bounds_py(yh, lam, W, part_plus, part_minus, w0, ws, tau, Th, u_abs, us_abs,
@@ -277,7 +277,7 @@ def row_derivs_py(rows, n_rows, yd, order, out):
             out[m, r] = acc.real
 
 
-row_derivs = kernel(inline='always')(row_derivs_py)
+row_derivs = kernel(forceinline=True)(row_derivs_py)
 
 
 def row_bound_py(rows, n_rows, ybound, m):
@@ -324,7 +324,7 @@ def site_reach_py(abs_rows, n_rows, exc):
     return np.sqrt(reach)
 
 
-site_reach = kernel(inline='always')(site_reach_py)
+site_reach = kernel(forceinline=True)(site_reach_py)
 site_bounds = kernel()(site_bounds_py)
 
 

@@ -136,7 +136,7 @@ def taylor_degree_py(z2):
     return N_TERMS - 1
 
 
-taylor_degree = kernel(inline='always')(taylor_degree_py)
+taylor_degree = kernel(forceinline=True)(taylor_degree_py)
 
 
 def panel_plan_py(lam_max, omegas, tau):
@@ -153,7 +153,7 @@ def panel_plan_py(lam_max, omegas, tau):
     return n_pan, width, deg_h
 
 
-panel_plan = kernel(inline='always')(panel_plan_py)
+panel_plan = kernel(forceinline=True)(panel_plan_py)
 
 
 def input_series_py(u0, us, amps, omegas, t0, s0, width, deg_u, deg_h, u_t):
@@ -175,7 +175,7 @@ def input_series_py(u0, us, amps, omegas, t0, s0, width, deg_u, deg_h, u_t):
                 a = a * zh * _INV[m + 1]
 
 
-input_series = kernel(inline='always')(input_series_py)
+input_series = kernel(forceinline=True)(input_series_py)
 
 
 def hilbert_dot_py(qd, i, di, b):
@@ -186,7 +186,7 @@ def hilbert_dot_py(qd, i, di, b):
     return x
 
 
-hilbert_dot = kernel(inline='always')(hilbert_dot_py)
+hilbert_dot = kernel(forceinline=True)(hilbert_dot_py)
 
 
 def damping_row_py(qd, Cmat, c_cols, c_counts, degs, n2, i, di, acc):
@@ -209,7 +209,7 @@ def damping_row_py(qd, Cmat, c_cols, c_counts, degs, n2, i, di, acc):
     return total
 
 
-damping_row = kernel(inline='always')(damping_row_py)
+damping_row = kernel(forceinline=True)(damping_row_py)
 
 
 def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur, tau,
@@ -388,7 +388,7 @@ def dense_row_sums_py(cr, ci, vt, part, m, n, n2, out):
             out[m, i] += vt[part, k, i] * a - vt[part + 1, k, i] * b
 
 
-dense_row_sums = kernel(inline='always')(dense_row_sums_py)
+dense_row_sums = kernel(forceinline=True)(dense_row_sums_py)
 
 
 def rows_transposed(Vv, KVq):
@@ -572,7 +572,7 @@ def phi1_real_py(x):
     return np.expm1(x) / x
 
 
-phi1_real = kernel(inline='always')(phi1_real_py)
+phi1_real = kernel(forceinline=True)(phi1_real_py)
 
 
 def phi1_ledger_py(z, ez):
@@ -585,7 +585,7 @@ def phi1_ledger_py(z, ez):
     return (ez - 1.0) * np.conj(z) * (1.0 / r2)   # complex division is several times slower
 
 
-phi1_ledger = kernel(inline='always')(phi1_ledger_py)
+phi1_ledger = kernel(forceinline=True)(phi1_ledger_py)
 
 
 def piece_factors_py(lam, tau, e_tau, p1_tau, p2_tau, m_tau):
@@ -626,10 +626,10 @@ def harmonic_factors_py(omegas, t0, tau, harm):
             harm[4 + nh + h, g] = tau * f1
 
 
-harmonic_factors = kernel(inline='always')(harmonic_factors_py)
+harmonic_factors = kernel(forceinline=True)(harmonic_factors_py)
 
 
-piece_factors = kernel(inline='always')(piece_factors_py)
+piece_factors = kernel(forceinline=True)(piece_factors_py)
 
 
 
@@ -661,7 +661,7 @@ def row_series_py(y0, lk, w0k, wsk, v, tau, g0, g1, qd):
     return tau * damp, tau * force
 
 
-row_series = kernel(inline='always')(row_series_py)
+row_series = kernel(forceinline=True)(row_series_py)
 
 
 def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau, part_plus,

@@ -83,7 +83,7 @@ def cubic_safe_step_py(g0, g1, g2, g3max, T, s_exact):
     return T
 
 
-cubic_safe_step = kernel(inline='always')(cubic_safe_step_py)
+cubic_safe_step = kernel(forceinline=True)(cubic_safe_step_py)
 
 
 def quadratic_first_root_py(g0, g1, g2, leaving):
@@ -106,7 +106,7 @@ def quadratic_first_root_py(g0, g1, g2, leaving):
     return -(g1 + np.sqrt(disc)) / g2 if g2 < 0.0 else np.inf
 
 
-quadratic_first_root = kernel(inline='always')(quadratic_first_root_py)
+quadratic_first_root = kernel(forceinline=True)(quadratic_first_root_py)
 
 
 def _binomials(n_max):
@@ -139,7 +139,7 @@ def horner_py(a, n, s):
     return acc
 
 
-horner = kernel(inline='always')(horner_py)
+horner = kernel(forceinline=True)(horner_py)
 
 
 def horner_d_py(a, n, s):
@@ -152,7 +152,7 @@ def horner_d_py(a, n, s):
     return p, d
 
 
-horner_d = kernel(inline='always')(horner_d_py)
+horner_d = kernel(forceinline=True)(horner_d_py)
 
 
 def bernstein_range_py(a, n, lo, hi, work):

@@ -50,7 +50,7 @@ def fn_values_py(fid, X, z, v, tau, limit, normal):
             -(normal[0] * X[4, 0] + normal[1] * X[4, 1]))
 
 
-fn_values = kernel(inline='always')(fn_values_py)
+fn_values = kernel(forceinline=True)(fn_values_py)
 
 
 def fn_third_bound_py(fid, X, z, v, tau, limit, normal, ybound, rows, n_rows, T):
