@@ -92,8 +92,8 @@ Usage::
         [--lag-limit 0.1] [--raw-no-drain] [--node-arg ARG ...] [--strict]
 
 ``--load`` runs a busy-loop process pinned to the last core for every run (the node and
-the readers are not pinned). ``AMENT_PREFIX_PATH`` and ``NUMBA_CACHE_DIR`` default to the
-venv and ``.venv/numba-cache``, as the Makefile sets them for ``make run``.
+the readers are not pinned). ``AMENT_PREFIX_PATH`` defaults to the venv, as the Makefile sets
+it for ``make run``; the compiled kernels come from the package's per-user cache, as for users.
 """
 from __future__ import annotations
 
@@ -661,7 +661,6 @@ def scene_names():
 def base_env():
     env = dict(os.environ)
     env.setdefault('AMENT_PREFIX_PATH', VENV)
-    env.setdefault('NUMBA_CACHE_DIR', os.path.join(VENV, 'numba-cache'))
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env.setdefault('OPENBLAS_NUM_THREADS', '1')
     env['PYTHONUNBUFFERED'] = '1'
