@@ -687,6 +687,42 @@ def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
         node.destroy_node()
 
 
+def test_a_20_khz_stream_sends_its_1_khz_imu_in_pairs_and_its_backlog_two_at_a_time(
+        ros_context):
+    """RBS's rates: 20 kHz batches, Imu decimated to 1 kHz. On time, a wake-up every 2 ms
+    sends a pair of Imu samples (500 wake-ups a second, not 1000); after a 20 ms stall the
+    backlog leaves at most 2 Imu samples per wake-up (counted in Imu samples: 1 ms of the
+    20 kHz stream would be 20 at once into a keep-last-5 reader), every sample once, in order."""
+    from rclpy.serialization import deserialize_message
+    clock = FakeClock()
+    node = make_node(ros_context, 'sdof', clock=clock, sample_rate=20000.0)
+    assert (node.live.sample_rate, node.live.imu_rate) == (20000.0, 1000.0)
+    out = node._accel_pubs[0]
+    out.has_subscribers = lambda: True
+    sent = []
+    out.pub.publish = lambda data: sent.append(
+        (lambda st: st.sec * 10**9 + st.nanosec)(deserialize_message(data, Imu).header.stamp))
+    try:
+        groups = []
+        while clock.now < 1000.3:
+            n0 = len(sent)
+            clock.now += _wake(node)
+            groups.append(len(sent) - n0)
+        on_time = [k for k in groups[len(groups) // 3:] if k]   # after the filter's delay
+        assert max(groups) <= 2 and sum(on_time) >= 180
+        assert len(on_time) <= 0.55 * sum(on_time)   # pairs: one wake-up per 2 ms
+        clock.now += 0.020   # descheduled for 20 ms: 20 Imu samples due
+        backlog = []
+        for _ in range(30):
+            n0 = len(sent)
+            clock.now += _wake(node)
+            backlog.append(len(sent) - n0)
+        assert max(backlog) <= 2 and backlog[0] == 2
+        assert np.all(np.diff(sent) == 1_000_000)   # every sample, in order, once
+    finally:
+        node.destroy_node()
+
+
 def test_achieved_factor_is_the_delivered_stream_on_a_short_period(ros_context):
     """On a fake clock, a 0.25 s diagnostics period on time reports 1 within 0.4 % (2 kHz
     samples leave within 0.75 ms of their time; the stepped time, a chunk and a lookahead

@@ -126,10 +126,14 @@ class VibrationNode(Node):
         The scene or a start-up parameter is invalid (the message names it).
     """
 
-    #: how early (wall s) an item may be published with the one due before it
-    EARLY = 7.5e-4
-    #: most samples per accelerometer one wake-up sends (or 1 ms of them, if more): a wake-up
-    #: that comes late sends its backlog in such groups, not in one burst
+    #: how early (wall s) an item may be published with the one due before it, at most
+    EARLY = 1.2e-3
+    #: ... and in per-sample Imu periods: 1.1 sends each Imu sample with the one before it,
+    #: so one wake-up sends 2 samples per accelerometer (every 2 ms at 1 kHz): half the
+    #: wake-ups of one sample each, and a keep-last-5 reader holds 2 such pairs
+    EARLY_SAMPLES = 1.1
+    #: most Imu samples per accelerometer one wake-up sends (or 1 ms of them, if more): a
+    #: wake-up that comes late sends its backlog in such groups, not in one burst
     BURST = 2
     #: wall time (s) between the wake-ups that send a backlog (twice the sample rate or more)
     CATCH_UP = 5e-4
@@ -547,12 +551,13 @@ class VibrationNode(Node):
         rtf = self.pacer.real_time_factor
         held = False
         if rtf > 0:
-            # up to ~1.5 sample periods early (at most 0.75 ms): one wake-up sends 1 or 2
-            # samples per accelerometer, which halves the wake-ups at 2 kHz and keeps bursts
-            # far below a keep-last-5 reader's depth; a backlog (the thread was descheduled)
-            # is spread the same way instead of leaving in one burst
-            held = self._flush(now + min(self.EARLY, 1.5 * self._period / rtf),
-                               max(self.BURST, math.ceil(1e-3 * rtf / self._period - 1e-9)))
+            # pairs of Imu samples (see EARLY_SAMPLES), far below a keep-last-5 reader's
+            # depth; a backlog (the thread was descheduled) is spread the same way instead of
+            # leaving in one burst. Counted in Imu samples, not in the full-rate batch's: at
+            # 20 kHz 1 ms of the latter would be 20 Imu messages at once
+            imu_period = 1.0 / self.live.imu_rate
+            held = self._flush(now + min(self.EARLY, self.EARLY_SAMPLES * imu_period / rtf),
+                               max(self.BURST, math.ceil(1e-3 * rtf / imu_period - 1e-9)))
         else:
             self._flush(math.inf)
         if live.failure is not None:
