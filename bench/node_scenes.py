@@ -91,7 +91,12 @@ Usage::
 
     .venv/bin/python bench/node_scenes.py [--scenes sdof,hpotp] [--seconds 12] [--load]
         [--json FILE] [--keep-logs DIR] [--namespace NS] [--start-timeout 300]
-        [--lag-limit 0.1] [--raw-no-drain] [--node-arg ARG ...] [--strict]
+        [--lag-limit 0.1] [--raw-no-drain] [--node-arg ARG ...] [--strict] [--cold]
+
+``--cold`` runs each scene twice: first with the node's ``NUMBA_CACHE_DIR`` an empty
+directory (row ``<scene> cold``: its start column is the cold start, the compile included, and
+its windows show whether it keeps time right after), then as usual (the start column is then
+the warm start).
 
 ``--load`` runs a busy-loop process pinned to the last core for every run (the node and
 the readers are not pinned). ``AMENT_PREFIX_PATH`` defaults to the venv, as the Makefile sets
@@ -128,6 +133,8 @@ WARM_READERS = 2
 MONITOR_WARMUP = 3.5
 #: goals of issue 24
 RTF_GOAL, CPU_GOAL, DELIVERY_GOAL = 0.98, 60.0, 99.0
+#: ... and a cold start (empty Numba cache) to the first sample (s), with ``--cold``
+COLD_GOAL = 20.0
 SAMPLE_TYPES = ('sensor_msgs/msg/Imu', 'sensor_msgs/msg/PointCloud2')
 IMU = 'sensor_msgs/msg/Imu'
 PC2 = 'sensor_msgs/msg/PointCloud2'
@@ -686,8 +693,9 @@ def base_env():
     return env
 
 
-def run_scene(scene, args, domain, log_dir):
-    """Run one scene; return a dict of figures (see the module docstring)."""
+def run_scene(scene, args, domain, log_dir, cache_dir=None):
+    """Run one scene; return a dict of figures (see the module docstring). ``cache_dir``:
+    the node's ``NUMBA_CACHE_DIR`` (an empty one times a cold start)."""
     env = dict(base_env(), ROS_DOMAIN_ID=str(domain))
     ns = args.namespace or '/'
     ns_args = ['-r', f'__ns:={args.namespace}'] if args.namespace else []
@@ -738,7 +746,8 @@ def run_scene(scene, args, domain, log_dir):
                 pass
         node = Child('node', [node_exe, '--ros-args', '--params-file', PARAMS,
                               '-p', f'scene:={scene}', *ns_args, *args.node_arg],
-                     env, log_dir, pipe=False)
+                     dict(env, NUMBA_CACHE_DIR=cache_dir) if cache_dir else env,
+                     log_dir, pipe=False)
         children.append(node)
         for c in children:
             cpu.add(c.pid)
@@ -1054,7 +1063,7 @@ def _f(x, fmt, width):
 
 
 def print_scene(res):
-    s = res['scene']
+    s = res["scene"] + (" (cold start)" if res.get("cold") else "")
     if res.get('first_attempt'):
         print(f'{s}: first attempt: {res["first_attempt"]}')
     if res['status'] != 'ran':
@@ -1119,11 +1128,12 @@ def print_table(results):
           f'{"peak":>5s} {"samples/s":>9s} {"impacts/s":>9s} {"py % min":>8s} '
           f'{"py lag":>6s} {"py CPU":>6s} {"monitor":>7s}  verdict')
     for r in results:
+        name = r['scene'] + (' cold' if r.get('cold') else '')
         if r['status'] != 'ran':
-            print(f'{r["scene"]:11s} {r["status"]}: {r["reason"]}')
+            print(f'{name:11s} {r["status"]}: {r["reason"]}')
             continue
         imu = [t for t in r['topics'] if t['type'] == IMU]
-        print(f'{r["scene"]:11s} {_f(r["start_s"], ".1f", 7)} {_f(r["rtf_worst"], ".3f", 7)} '
+        print(f'{name:11s} {_f(r["start_s"], ".1f", 7)} {_f(r["rtf_worst"], ".3f", 7)} '
               f'{_f(r["rtf_median"], ".3f", 6)} {_f(r["cpu_median"], ".1f", 7)} '
               f'{_f(r["cpu_peak"], ".1f", 5)} {_f(r["samples_per_s"], ".0f", 9)} '
               f'{_f(r["impacts_per_s"], ".0f", 9)} '
@@ -1169,6 +1179,9 @@ def main(argv=None):
     parser.add_argument('--keep-logs', metavar='DIR',
                         help='keep each process\'s output and the readers\' data in DIR/<scene>')
     parser.add_argument('--strict', action='store_true', help='exit 1 if a scene fails')
+    parser.add_argument('--cold', action='store_true',
+                        help='run each scene first from an empty Numba cache (its cold start, '
+                             'and the real-time factor right after it), then warm')
     args = parser.parse_args(argv)
     args.namespace = '/' + args.namespace.strip('/') if args.namespace.strip('/') else ''
     scenes = [s.strip() for s in args.scenes.split(',') if s.strip()]
@@ -1195,6 +1208,23 @@ def main(argv=None):
                 if args.keep_logs:
                     log_dir = os.path.join(args.keep_logs, scene)
                     os.makedirs(log_dir, exist_ok=True)
+                cold = None
+                if args.cold:
+                    with tempfile.TemporaryDirectory(prefix='numba_cold_') as cache:
+                        try:
+                            cold = run_scene(scene, args, domain, log_dir, cache_dir=cache)
+                        except Exception as exc:
+                            cold = {'scene': scene, 'status': 'error',
+                                    'reason': f'bench: {type(exc).__name__}: {exc}'}
+                    cold['cold'] = True
+                    if cold.get('status') == 'ran' and not cold.get('start_s') <= COLD_GOAL:
+                        cold['pass'] = False
+                        cold.setdefault('why', []).append(
+                            f'cold start {cold.get("start_s"):.1f} s > {COLD_GOAL:g} s')
+                    results.append(cold)
+                    print_scene(cold)
+                    print(flush=True)
+                    domain = pick_domain(domain + 1)
                 res = None
                 for attempt in range(2):
                     first = res

@@ -59,7 +59,8 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPro
 
 from ..studies.report import LogError, RosLog, type_name
 from .interface import CLOCK, CLOCK_QOS
-from .wire import ignore_further_interrupts, settle_interrupt, shutdown_quietly
+from .wire import freeze_start_up_heap, ignore_further_interrupts, settle_interrupt, \
+    shutdown_quietly
 
 EXIT_USAGE = 2
 DEFAULT_CLOCK_HZ = 100.0
@@ -764,6 +765,7 @@ def main(args=None):
     status = 0
     try:
         node = ReplayNode(plan, clock=not options.no_clock, clock_hz=options.clock_hz)
+        freeze_start_up_heap()   # paced playing: no full collections of start-up objects
         # spin in the background (graph and parameter services); play in this thread
         executor = SingleThreadedExecutor()
         executor.add_node(node)

@@ -35,8 +35,8 @@ from ..scene.schema import SceneError
 from . import interface as itf
 from .cdr import serialize
 from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
-from .wire import ImuPacker, Outlet, guard_services, ignore_further_interrupts, \
-    settle_interrupt, shutdown_quietly, spin_guarded, stamp
+from .wire import ImuPacker, Outlet, freeze_start_up_heap, guard_services, \
+    ignore_further_interrupts, settle_interrupt, shutdown_quietly, spin_guarded, stamp
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
 RECORD_CHUNK_SIZE = 768 * 1024   # bytes, as rosbag2's MCAP storage
@@ -973,7 +973,9 @@ def main(args=None):
     node = None
     status = 0
     try:
-        node = VibrationNode()
+        node = VibrationNode(start_stepping=False)
+        freeze_start_up_heap()   # no 150 ms full collections of start-up objects while paced
+        node.start()
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         spin_guarded(executor, lambda exc: node._log(
