@@ -7,8 +7,12 @@ energies overflow long before the state does), or an engine failure that only su
 cause (unresolved chatter, a floating-point error). :class:`Divergence` says what diverged,
 when, and which setting to change; :func:`scene_advice` finds that setting in a scene.
 
-Also here: :func:`check_allocation`, which refuses up front a run whose sample arrays would
-not fit in memory (:class:`TooLarge`, with the estimate).
+Also here, the memory budget of a run, in one place: :func:`model_estimate`, what a scene's
+model will allocate (DOFs, modes, impactors, stuck configurations), computed from the
+validated scene before anything is built and refused by :func:`check_model`
+(:class:`ModelTooLarge`, with the estimate and the limit); and :func:`check_allocation`,
+which refuses up front a run whose sample arrays, with the model, would not fit
+(:class:`TooLarge`). Both use :func:`memory_limit`.
 
 Pure NumPy, no rclpy: :class:`~impact_damper_sim.simulation.Simulation` checks every chunk
 it advances, the ``study`` command turns :class:`Divergence` into exit status
@@ -27,8 +31,10 @@ EXIT_DIVERGED = 3
 #: Sensor displacement beyond which a run has diverged (m).
 MAX_DISPLACEMENT = 1.0e3
 
-#: Largest total size of the sample arrays of one advance (bytes): 4 GiB, or half the
-#: physical memory if that is less.
+#: Largest memory one run may allocate (bytes): its model (:func:`model_estimate`) plus the
+#: sample arrays of one advance: 4 GiB, or half the physical memory if that is less
+#: (:func:`memory_limit`). The interpreter with NumPy, SciPy and the compiled kernels, about
+#: 190 MB, comes on top.
 MAX_SAMPLE_BYTES = 4 * 2 ** 30
 
 #: Engine messages that only a diverging state produces (``RuntimeError`` text).
@@ -105,12 +111,14 @@ class TooLarge(ValueError):
         What asked for them, e.g. ``'simulation.dt = 1e-09 s over ...'``.
     """
 
-    def __init__(self, n_steps, n_bytes, limit, context=None):
+    def __init__(self, n_steps, n_bytes, limit, context=None, model_bytes=0):
         self.n_steps, self.n_bytes, self.limit = int(n_steps), int(n_bytes), int(limit)
+        self.model_bytes = int(model_bytes)
         lead = f'{context}: ' if context else ''
+        model = (f", with the model's {_gib(self.model_bytes)}" if self.model_bytes else '')
         super().__init__(
             f'{lead}{self.n_steps:.4g} samples would need about {_gib(self.n_bytes)} of memory '
-            f'(limit {_gib(self.limit)}): raise simulation.dt (--dt) or shorten '
+            f'(limit {_gib(self.limit)}{model}): raise simulation.dt (--dt) or shorten '
             'simulation.duration (--duration)')
 
 
@@ -136,7 +144,258 @@ def memory_limit():
     return min(MAX_SAMPLE_BYTES, physical // 2) if physical > 0 else MAX_SAMPLE_BYTES
 
 
-def check_allocation(n_steps, n_outputs, limit=None):
+# --- the model-size estimate ------------------------------------------------------------
+
+#: Largest number of stuck configurations the exact propagator keeps as one table inside
+#: its kernel (a table for every stuck count of every group of interchangeable impactors,
+#: allocated at once); a scene with more switches through Python
+#: (:mod:`impact_damper_sim.integrate.exact`).
+MAX_TABLE_SLOTS = 4096
+#: ... and the largest such table (bytes, flows included, :func:`configuration_bytes` per
+#: slot): 2,000 interchangeable impactors on one mode (2,001 slots of 0.96 MB) switch
+#: through Python instead of allocating 1.8 GB.
+MAX_TABLE_BYTES = 2 ** 30
+#: Stuck configurations kept when switching through Python (a flow and a one-slot table
+#: each): as many as fit in :data:`MAX_CACHE_BYTES`, at least this many (and at most
+#: :data:`MAX_TABLE_SLOTS`), see :func:`cache_limit`; the least recently used is dropped
+#: beyond and built again if reached again. With ``stuck_model: basis_switch`` (a modal
+#: basis each) this many. Without a bound 5,000 interchangeable impactors passed 2.4 GB in
+#: 1.2 simulated s (1,300 configurations of 1.7 MB).
+MAX_CACHED_CONFIGURATIONS = 64
+#: Memory of the configurations kept when switching through Python (bytes). 5,000
+#: impactors over 0.8 simulated s (625 configurations): 121 s and 1.29 GB peak without a
+#: bound, 189 s and 0.38 GB with 64 kept (rebuilt when reached again), 0.5 GiB about 300.
+MAX_CACHE_BYTES = 2 ** 29
+
+#: Most impactors in a scene. Every step scans each impactor and every change of the stuck
+#: set costs time and memory in proportion to their number: interchangeable impactors on
+#: one mode took 3.2 s (100), 9.9 s (1,000), 14.5 s (2,000) and 47 s (5,000) for 0.5
+#: simulated s on a 2-core machine (10,000: 64 s and 4.5 GB for the probe); the shipped
+#: scenes have at most 12.
+MAX_IMPACTORS = 1000
+#: Bytes per DOF pair of the structure's dense matrices: static condensation (the n x m
+#: recovery and its product with K, the condensed M, C, K), the dense eigen solver's copies
+#: and workspace, at most 12 dense n x n float64 arrays. See :func:`model_estimate`.
+DENSE_BYTES_PER_DOF2 = 12 * 8
+#: Bytes per impactor kept by the scene and its model outside the configurations: the
+#: validated scene entry, the Impactor, its housing rows, the propagator's state (measured:
+#: 5,000 impactors on one mode add 39 MB to the built scene, 8 kB each, mostly the YAML
+#: and validated entries).
+IMPACTOR_BYTES = 8 * 1024
+
+
+class ModelTooLarge(ValueError):
+    """A scene refused before it is built: its model would not fit in memory.
+
+    The message is one line: the fields that size the model (impactors, modes, DOFs, stuck
+    configurations), the estimate and the limit, and the keys to change.
+
+    Attributes
+    ----------
+    estimate : ModelEstimate
+        The estimate.
+    limit : int
+        The limit (bytes).
+    """
+
+    def __init__(self, estimate, limit):
+        self.estimate, self.limit = estimate, int(limit)
+        if estimate.n_impactors > MAX_IMPACTORS:
+            text = (f"scene key 'impactors': {estimate.n_impactors:,} impactors, over the "
+                    f'limit of {MAX_IMPACTORS:,} (each costs time every step and memory in '
+                    f'every stuck configuration; model estimate {_gib(estimate.total)}): '
+                    'use fewer impactors')
+        else:
+            text = (f'model too large: {estimate.describe()} would need about '
+                    f'{_gib(estimate.total)} of memory (limit {_gib(self.limit)}): '
+                    f'{estimate.advice()}')
+        super().__init__(text)
+
+
+def configuration_bytes(n_modes, n_impactors, n_sensors=0, n_inputs=0, n_harmonics=1):
+    """Bytes of one stuck configuration of the exact propagator: its flow and table slot.
+
+    Per configuration the flow (:func:`~impact_damper_sim.integrate.flow.build_flow`) and
+    its copy in the kernel's table hold the complex eigenvectors and their inverse
+    (``2n x 2n`` each), the ledger's rows and patterns, and per impactor its housing rows,
+    impulse response and 2 x 2 mobilities (``house_q``, ``kick``, ``house_abs``,
+    ``mobility``, ``house_mobility``, ``release_map``).
+
+    Parameters
+    ----------
+    n_modes, n_impactors, n_sensors, n_inputs, n_harmonics : int
+        Model sizes (dimensionless).
+
+    Returns
+    -------
+    int
+        Bytes (an upper bound: 480 bytes per impactor on one mode, where 5,000 impactors
+        measured 350 per configuration).
+    """
+    n, ni = int(n_modes), int(n_impactors)
+    n2 = 2 * n
+    per_impactor = 2 * (2 * 2 * n2 * 16 + 3 * 4 * 8) + 2 * n2 * 8   # flow and table
+    modal = (2 * 2 * n2 * n2 * 16                       # V, Vinv in flow and table
+             + 2 * n2 * (int(n_inputs) + 2 * int(n_harmonics) + 2 * int(n_sensors)) * 16
+             + 4 * n2 * n * 8 + 2 * n * n2 * 8           # ledger rows, row patterns
+             + 8 * n2 * 16)                              # eigenvalues, step factors
+    return per_impactor * ni + modal
+
+
+def cache_limit(per_configuration):
+    """How many configurations of ``per_configuration`` bytes are kept when switching
+    through Python: :data:`MAX_CACHE_BYTES` worth, between
+    :data:`MAX_CACHED_CONFIGURATIONS` and :data:`MAX_TABLE_SLOTS` (int)."""
+    fit = MAX_CACHE_BYTES // max(int(per_configuration), 1)
+    return int(max(MAX_CACHED_CONFIGURATIONS, min(MAX_TABLE_SLOTS, fit)))
+
+
+class ModelEstimate:
+    """What a scene's model allocates, estimated from the validated scene (bytes).
+
+    Build it with :func:`model_estimate`. Attributes: ``n_nodes``, ``n_dof`` (6 per node,
+    an upper bound on the active DOFs), ``n_modes`` (``modal.n_modes``, or ``n_dof`` when
+    the modes are chosen by frequency), ``n_impactors``, ``n_configurations`` (stuck
+    configurations the run may hold at once), ``stuck_model`` and ``terms`` (bytes by
+    kind: ``dofs``, ``modes``, ``impactors``, ``configurations``); ``total`` their sum.
+    """
+
+    def __init__(self, **fields):
+        self.__dict__.update(fields)
+        self.total = int(sum(self.terms.values()))
+
+    def describe(self):
+        """The sizes, largest term first, e.g. ``'10,000 impactors, 4,096 stuck ...'``."""
+        def count(n, what):
+            return f'{n:,} {what}' + ('' if n == 1 else 's')
+
+        parts = {
+            'impactors': count(self.n_impactors, 'impactor'),
+            'configurations': count(self.n_configurations, 'stuck configuration')
+            + f' ({self.stuck_model})',
+            'modes': count(self.n_modes, 'mode'),
+            'dofs': f"{count(self.n_dof, 'DOF')} ({count(self.n_nodes, 'node')})",
+        }
+        order = sorted(parts, key=lambda k: -self.terms[k])
+        return ', '.join(parts[k] for k in order)
+
+    def advice(self):
+        """Which keys to change, for the largest term."""
+        top = max(self.terms, key=self.terms.get)
+        if top == 'dofs':
+            return ('use fewer nodes (structure.lines[].n_elements, structure.nodes)')
+        if top == 'modes':
+            return 'retain fewer modes (modal.n_modes, modal.f_max, modal.cutoff)'
+        return 'use fewer impactors (impactors) or fewer modes (modal.n_modes)'
+
+    def __repr__(self):
+        return f'ModelEstimate({self.describe()}: {self.total} bytes)'
+
+
+def _impactor_groups(impactors):
+    """Sizes of the groups of interchangeable impactors (same housing and mass), as
+    :func:`impact_damper_sim.integrate.exact._interchangeable_groups` finds them in the
+    built model, approximated from the scene entries."""
+    sizes = {}
+    for imp in impactors:
+        where = (imp.get('node'), imp.get('kind'), imp.get('dof'),
+                 tuple(imp.get('plane') or ()))
+        mass = (imp.get('mass'), imp.get('mass_ratio'), imp.get('housing_mass'))
+        sizes[(where, mass)] = sizes.get((where, mass), 0) + 1
+    return list(sizes.values())
+
+
+def model_estimate(scene):
+    """Estimate the memory a scene's model allocates, before building it.
+
+    Calibrated against the peak resident memory (``ru_maxrss``, ``/usr/bin/time -v``) of
+    ``study simulate``, over the 186 to 189 MiB of ``sdof`` (interpreter, NumPy, SciPy,
+    compiled kernels): the shipped scenes add 0 to 5.3 MiB (estimates 0.01 to 8.2 MiB); a
+    100-element beam with rotary inertia (606 DOFs, 20 modes) 15 MiB (estimate 35 MiB);
+    interchangeable impactors on one mode: 100 add nothing measurable (estimate 5.5 MiB),
+    1,000 over 0.5 s 4 MiB (estimate 467 MiB: the table is allocated for every stuck count,
+    touched only for those reached), 2,000 over 5 s 129 MiB (estimate 0.51 GiB), 5,000
+    over 0.8 s 430 MiB with 223 configurations kept (estimate 0.54 GiB; 1.1 GiB and growing
+    without the bound). An upper bound, then, by design.
+
+    Parameters
+    ----------
+    scene : dict
+        A validated scene (SI units), see :mod:`impact_damper_sim.scene.spec`.
+
+    Returns
+    -------
+    ModelEstimate
+        The sizes and the bytes by kind (an upper bound).
+    """
+    st = scene['structure']
+    if st['kind'] == 'sdof':
+        n_nodes = 1
+    else:
+        n_nodes = len(st.get('nodes') or ()) + sum(line['n_elements'] + 1
+                                                   for line in st.get('lines') or ())
+    n_dof = 6 * n_nodes
+    modal = scene['modal']
+    n_modes = min(modal['n_modes'], n_dof) if modal.get('n_modes') else n_dof
+    impactors = scene.get('impactors') or []
+    ni = len(impactors)
+    rotor = scene.get('rotor') or {}
+    n_inputs = len(scene.get('forcing') or ()) + 2 * len(rotor.get('unbalance') or ())
+    stuck_model = (scene.get('simulation') or {}).get('stuck_model') or 'mass_update'
+    n_keys = 1
+    for size in _impactor_groups(impactors):
+        n_keys *= size + 1
+        if n_keys > MAX_TABLE_SLOTS:
+            break
+    per_config = configuration_bytes(n_modes, ni, len(scene.get('sensors') or ()), n_inputs,
+                                     len(scene.get('forcing') or ()) + 1)
+    if (stuck_model == 'mass_update' and n_keys <= MAX_TABLE_SLOTS
+            and n_keys * per_config <= MAX_TABLE_BYTES):
+        n_configs = n_keys   # one table of every stuck count per group, allocated at once
+    elif stuck_model == 'mass_update':
+        n_configs = min(2 ** min(ni, 62), cache_limit(per_config))
+    else:
+        n_configs = min(2 ** min(ni, 62), MAX_CACHED_CONFIGURATIONS)
+    if stuck_model == 'basis_switch':
+        # each stuck set's own modal basis: its dense condensation and mode shapes
+        per_config += 3 * 8 * n_dof ** 2 + 2 * 8 * n_dof * n_modes + 8 * n_modes ** 2
+    terms = {'dofs': DENSE_BYTES_PER_DOF2 * n_dof ** 2,
+             'modes': 8 * n_dof * n_modes * 4,   # shapes, rows, basis and solver copies
+             'impactors': IMPACTOR_BYTES * ni,
+             'configurations': n_configs * per_config}
+    return ModelEstimate(n_nodes=n_nodes, n_dof=n_dof, n_modes=n_modes, n_impactors=ni,
+                         n_configurations=n_configs, stuck_model=stuck_model, terms=terms)
+
+
+def check_model(scene, limit=None):
+    """Refuse a scene whose model would not fit in memory, before building it.
+
+    Parameters
+    ----------
+    scene : dict
+        A validated scene (SI units).
+    limit : int, optional
+        Bytes; default :func:`memory_limit`.
+
+    Returns
+    -------
+    ModelEstimate
+        The estimate, when it fits.
+
+    Raises
+    ------
+    ModelTooLarge
+        With the estimate and the limit, in one line; also for more than
+        :data:`MAX_IMPACTORS` impactors.
+    """
+    limit = memory_limit() if limit is None else int(limit)
+    estimate = model_estimate(scene)
+    if estimate.total > limit or estimate.n_impactors > MAX_IMPACTORS:
+        raise ModelTooLarge(estimate, limit)
+    return estimate
+
+
+def check_allocation(n_steps, n_outputs, limit=None, model_bytes=0):
     """Refuse a run whose samples would not fit in memory.
 
     Parameters
@@ -147,6 +406,8 @@ def check_allocation(n_steps, n_outputs, limit=None):
         Sensor outputs per sample (dimensionless).
     limit : int, optional
         Bytes; default :func:`memory_limit`.
+    model_bytes : int, optional
+        The model's estimate (bytes, :func:`model_estimate`), which shares the limit.
 
     Raises
     ------
@@ -155,8 +416,8 @@ def check_allocation(n_steps, n_outputs, limit=None):
     """
     limit = memory_limit() if limit is None else int(limit)
     need = sample_bytes(n_steps, n_outputs)
-    if need > limit:
-        raise TooLarge(n_steps, need, limit)
+    if need + int(model_bytes) > limit:
+        raise TooLarge(n_steps, need, limit, model_bytes=model_bytes)
 
 
 def check_state(q, qd, t):
@@ -295,7 +556,9 @@ def _linear_growth(scene):
         return None
 
 
-__all__ = ['Divergence', 'EXIT_DIVERGED', 'MAX_DISPLACEMENT', 'MAX_SAMPLE_BYTES', 'StudyDiverged',
-           'TooLarge',
-           'check_allocation', 'check_samples', 'check_state', 'from_engine_error',
-           'memory_limit', 'sample_bytes', 'scene_advice']
+__all__ = ['Divergence', 'EXIT_DIVERGED', 'MAX_CACHE_BYTES', 'MAX_CACHED_CONFIGURATIONS',
+           'MAX_DISPLACEMENT', 'MAX_IMPACTORS', 'MAX_SAMPLE_BYTES', 'MAX_TABLE_BYTES',
+           'MAX_TABLE_SLOTS', 'ModelEstimate', 'ModelTooLarge', 'StudyDiverged', 'TooLarge',
+           'cache_limit', 'check_allocation', 'check_model', 'check_samples', 'check_state',
+           'configuration_bytes', 'from_engine_error', 'memory_limit', 'model_estimate',
+           'sample_bytes', 'scene_advice']

@@ -510,3 +510,28 @@ def test_malformed_parameter_request_is_refused_and_the_monitor_stays_up(ros_con
     finally:
         client_node.destroy_node()
         monitor.destroy_node()
+
+
+def test_a_topic_of_another_type_is_not_adopted(setup):
+    """A String on ``accel/fake_sensor`` (issue 29) is not an accelerometer: not watched, no
+    diagnostics status, no warning each period; the Imu and batch sensors still are."""
+    from std_msgs.msg import String
+    monitor, sim, executor = setup(
+        dict(parameter_overrides=[Parameter('window', value=0.1),
+                                  Parameter('report_period', value=0.05)]),
+        batch=('a',))
+    fake = sim.node.create_publisher(String, interface.accel_topic('fake_sensor'), 10)
+    fake_batch = sim.node.create_publisher(
+        String, interface.accel_topic('fake_batch') + BATCH_SUFFIX, 10)
+    start = len(sim.arrays)
+    deadline = time.monotonic() + 1.5
+    while time.monotonic() < deadline:
+        fake.publish(String(data='not an Imu'))
+        fake_batch.publish(String(data='not a PointCloud2'))
+        executor.spin_once(timeout_sec=0.01)
+    assert len(sim.arrays) > start + 5   # the monitor reported meanwhile
+    assert 'a' in monitor.sensors   # (other processes on the domain may add their own)
+    assert not {'fake_sensor', 'fake_batch'} & set(monitor.sensors), monitor.sensors
+    names = {s.name for array in sim.arrays for s in array.status}
+    assert not any('fake' in name for name in names), names
+    assert fake.get_subscription_count() == 0 and fake_batch.get_subscription_count() == 0

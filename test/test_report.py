@@ -501,7 +501,8 @@ def test_json_schema(synthetic, capsys):
     assert set(r['topics'][0]) == {'topic', 'type', 'count', 'rate_hz', 'frequency_hz'}
     s = r['sensors'][0]
     assert set(s) == {'topic', 'sensor', 'samples', 'sample_rate_hz', 'gaps', 'duration_s',
-                      'peak_g', 'rms_g', 'spectrum', 'waterfall'}
+                      'peak_g', 'rms_g', 'nonfinite_samples', 'spectrum', 'waterfall'}
+    assert s['nonfinite_samples'] == {'x': 0, 'y': 0, 'z': 0}
     assert set(s['peak_g']) == set(s['rms_g']) == {'x', 'y', 'z', 'magnitude'}
     assert set(s['spectrum']) == {'method', 'segment_samples', 'resolution_hz', 'dominant_hz'}
     assert set(s['spectrum']['dominant_hz']) == {'x', 'y', 'z', 'total'}
@@ -604,3 +605,44 @@ def test_short_last_bin_is_a_count_not_a_rate_and_silent_axes_are_named(tmp_path
     assert 'impacts/s per full 1 s bin: 50 50 50\n' in out
     assert re.search(r'last 0\.09\d* s \(partial bin\): 5 impact\(s\)', out)
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+# --- non-finite samples (issue 29) -------------------------------------------------------------
+
+def write_nan_log(path, all_nan_axis='z'):
+    """The synthetic sine log with 10 NaN x samples, 5 inf y samples and a NaN-only axis."""
+    log = Log(path)
+    for k in range(N):
+        t = k / FS
+        ax = math.nan if 500 <= k < 510 else AX * math.sin(2 * math.pi * FX * t)
+        ay = math.inf if 700 <= k < 705 else AY * math.sin(2 * math.pi * FY * t)
+        az = math.nan if all_nan_axis == 'z' else 0.0
+        log.write('/accel/s1', 'sensor_msgs/msg/Imu', _imu(k * 1_000_000, ax, ay, az),
+                  k * 1_000_000)
+    log.close()
+
+
+@pytest.mark.parametrize('fmt', ['text', 'json'])
+def test_nan_samples_are_named_without_runtime_warnings(tmp_path, capsys, fmt):
+    import warnings
+    path = tmp_path / 'nan.mcap'
+    write_nan_log(path)
+    plot = tmp_path / 'nan.png'
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')   # a NumPy RuntimeWarning fails the test
+        args = ['report', str(path), '--plot', str(plot)] + (['--json'] if fmt == 'json' else [])
+        assert study(args) == 0
+    captured = capsys.readouterr()
+    said = (r'/accel/s1: non-finite samples \(NaN or inf\): x 10 of 2000, y 5 of 2000, '
+            r'z 2000 of 2000')
+    assert re.search(said, captured.err), captured.err   # a warning, in either format
+    if fmt == 'json':
+        s = json.loads(captured.out)['sensors'][0]
+        assert s['nonfinite_samples'] == {'x': 10, 'y': 5, 'z': N}
+        assert s['peak_g']['z'] is None and s['rms_g']['z'] is None   # no finite sample
+        # the finite samples' statistics: the sine's peak, and its spectrum's frequency
+        assert s['peak_g']['x'] == pytest.approx(AX, rel=1e-9)
+        assert s['spectrum']['dominant_hz']['x'] == pytest.approx(FX, abs=2.0)
+    else:
+        assert re.search(said, captured.out), captured.out
+    assert plot.exists()

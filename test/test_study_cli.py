@@ -23,8 +23,8 @@ def run(capsys, *argv):
 
 
 def documented_json_fields():
-    """The ``study simulate --json`` fields listed in the README (``<name>`` placeholders)."""
-    text = README.read_text()
+    """The ``study simulate --json`` fields listed in docs/study.md (``<name>`` placeholders)."""
+    text = (README.parent / 'docs' / 'study.md').read_text()
     region = text.split('<!-- simulate-json:start -->')[1].split('<!-- simulate-json:end -->')[0]
     return set(re.findall(r'^\| `([^`]+)` \|', region, flags=re.M))
 

@@ -503,19 +503,21 @@ def run(scene):
         If the run diverges; its ``setting`` names the scene keys to change.
     """
     from ..analysis import summarize
-    from ..divergence import Divergence, TooLarge, check_allocation, scene_advice
+    from ..divergence import (Divergence, TooLarge, check_allocation, model_estimate,
+                              scene_advice)
     from ..filters import scene_lowpass
     from ..scene.schema import SceneError
     from ..integrate.events import EVENT_KINDS
     cfg = scene.scene['simulation']
     method, dt = cfg['method'], cfg['dt']
     scene_lowpass(scene, dt)   # reject a cutoff at or above Nyquist before running
-    try:   # refuse up front what would not fit in memory
-        check_allocation(round(cfg['duration'] / dt), len(scene.model.sensor_names))
+    try:   # refuse up front what would not fit in memory: the samples with the model
+        check_allocation(round(cfg['duration'] / dt), len(scene.model.sensor_names),
+                         model_bytes=model_estimate(scene.scene).total)
     except TooLarge as exc:
         raise TooLarge(exc.n_steps, exc.n_bytes, exc.limit,
                        context=f"simulation.dt = {dt:g} s over simulation.duration = "
-                               f"{cfg['duration']:g} s") from None
+                               f"{cfg['duration']:g} s", model_bytes=exc.model_bytes) from None
     try:
         # JIT compilation or cache loading is not simulation time: warm up on one step first
         try:

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..divergence import MAX_CACHED_CONFIGURATIONS
 from ..modal.basis import modal_reduction
 from ..modal.stuck import add_point_mass
 from .model import LinearModel
@@ -45,6 +46,15 @@ __all__ = ['BasisSwitch']
 
 #: Relative tolerance when checking the model's impactor rows against the free basis.
 _ROWS_RTOL = 1e-9
+
+
+def _bound(cache, keep=None):
+    """Drop the oldest entries of ``cache`` (never ``keep``) beyond
+    :data:`~impact_damper_sim.divergence.MAX_CACHED_CONFIGURATIONS`: a run visiting many
+    stuck sets keeps a bounded number of bases (each a modal reduction and its dense
+    condensation), built again if reached again."""
+    while len(cache) > MAX_CACHED_CONFIGURATIONS:
+        del cache[next(k for k in cache if k != keep)]
 
 
 def _key(stuck):
@@ -203,6 +213,7 @@ class BasisSwitch:
                                 zeta=float(zeta[-1]), zeta_overrides=overrides,
                                 method=self.method)
         self._bases[key] = basis
+        _bound(self._bases, self._free_key)
         return basis
 
     def model(self, stuck):
@@ -237,6 +248,7 @@ class BasisSwitch:
                                 sensor_names=base.sensor_names, impactors=impactors,
                                 kind='modal', input_names=base.input_names)
             self._models[key] = found
+            _bound(self._models, self._free_key)
         carried = tuple(imp.mass if flag else 0.0 for imp, flag in zip(self.base.impactors, key))
         return found, (0.0,) * len(key), carried
 
@@ -265,6 +277,7 @@ class BasisSwitch:
             T = bb.shapes.T @ cb.M @ ba.rows(cb.master)
             T.setflags(write=False)
             self._transforms[(a, b)] = T
+            _bound(self._transforms)
         return T
 
     # -- energies -------------------------------------------------------------------------------
@@ -272,6 +285,7 @@ class BasisSwitch:
         K = self._K_sym.get(key)
         if K is None:
             K = self._K_sym[key] = self.model(key)[0].K_sym
+            _bound(self._K_sym)
         return K
 
     def _kinetic(self, key, which, qd):

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..divergence import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS,
+                          cache_limit, configuration_bytes)
 from .kernels import exact as kernels
 from .kernels import flow as flow_kernels
 from .kernels import ledger as ledger_kernels
@@ -52,9 +54,11 @@ class MassUpdate:
 _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUMULATION,
                'none': kernels.STICK_NONE}
 
-#: Largest number of configurations kept as one table inside the kernel; a scene with more
-#: (many impactors on distinct housings) switches through Python instead.
-MAX_TABLE_SLOTS = 4096
+# MAX_TABLE_SLOTS and MAX_TABLE_BYTES (the largest table of configurations inside the
+# kernel; a scene with more, e.g. many impactors on distinct housings, switches through
+# Python) and the configurations kept when switching through Python (cache_limit,
+# MAX_CACHED_CONFIGURATIONS) are memory budgets, stated with the others in
+# impact_damper_sim.divergence.
 #: Largest table whose configurations are all built when the engine is made (0.5 to 1 ms
 #: each at 10 modes): the event loop then never returns to Python to build one, and a live
 #: node never stalls for a build in the middle of a run. Larger tables build on first use.
@@ -73,16 +77,12 @@ def _interchangeable_groups(model):
     imps = model.impactors
     rep = np.arange(len(imps), dtype=np.int64)
     group = np.zeros(len(imps), dtype=np.int64)
-    keys = []
+    keys = {}
+    sites = {}   # equal rows -> first impactor: linear in the impactors, not quadratic
     for j, imp in enumerate(imps):
-        for i in range(j):
-            if imps[i].dim == imp.dim and np.array_equal(imps[i].rows, imp.rows):
-                rep[j] = rep[i]
-                break
-        key = (int(rep[j]), float(imp.mass))
-        if key not in keys:
-            keys.append(key)
-        group[j] = keys.index(key)
+        rows = np.asarray(imp.rows, dtype=float) + 0.0   # -0.0 as 0.0, like array_equal
+        rep[j] = sites.setdefault((imp.dim, rows.shape, rows.tobytes()), j)
+        group[j] = keys.setdefault((int(rep[j]), float(imp.mass)), len(keys))
     sizes = np.bincount(group, minlength=len(keys)) if len(imps) else np.zeros(0, np.int64)
     return rep, group, sizes
 
@@ -217,8 +217,13 @@ class ExactPropagator(IntegratorBase):
             if sizes.size else np.zeros(0, np.int64)
         n_keys = int(np.prod(sizes + 1.0)) if sizes.size else 1
         # one table for every stuck count per group when the coordinates never change
+        per_config = configuration_bytes(n, ni, model.sensors.shape[0], model.n_inputs,
+                                         self._omegas.size)
         self._table_mode = isinstance(self.configurations, MassUpdate) and \
-            n_keys <= MAX_TABLE_SLOTS
+            n_keys <= MAX_TABLE_SLOTS and n_keys * per_config <= MAX_TABLE_BYTES
+        # configurations kept when switching through Python (least recently used dropped)
+        self._cache_limit = cache_limit(per_config) if isinstance(
+            self.configurations, MassUpdate) else MAX_CACHED_CONFIGURATIONS
         self._n_slots = n_keys if self._table_mode else 1
         self._flows = {}      # configuration key -> (FlowConfig, LinearModel)
         self._tables = {}     # table key -> _Table
@@ -286,7 +291,14 @@ class ExactPropagator(IntegratorBase):
     def _config(self, key=None):
         key = self._key() if key is None else key
         entry = self._flows.get(key)
+        if entry is not None and not self._table_mode:   # most recently used last
+            self._flows[key] = self._flows.pop(key)
         if entry is None:
+            if not self._table_mode:
+                while len(self._flows) >= self._cache_limit:   # drop the least recent use
+                    old = next(iter(self._flows))
+                    del self._flows[old]
+                    self._tables.pop(old, None)
             model, masses, *carried = self.configurations.model(self._stuck_for(key))
             release = ([imp.mass for imp in model.impactors] if self._table_mode else None)
             flow = build_flow(model, masses, self._omegas, self._amps, self.law,

@@ -103,14 +103,16 @@ def _chunk_records(chunk):
 
 
 def _check_source(path):
+    from ..scene.schema import file_kind
     try:
+        kind = file_kind(path)   # before opening: a FIFO would block, /dev/zero never end
+        if kind:
+            raise RecoveryError(f'{path}: {kind}, not an MCAP file (not a regular file)')
         size = os.path.getsize(path)
         with open(path, 'rb') as f:
             head = f.read(len(MAGIC))
     except FileNotFoundError:
         raise RecoveryError(f'{path}: no such file') from None
-    except IsADirectoryError:
-        raise RecoveryError(f'{path}: is a directory, not an MCAP file') from None
     except OSError as exc:
         raise RecoveryError(f'{path}: cannot read it: {exc.strerror or exc}') from None
     if size == 0:

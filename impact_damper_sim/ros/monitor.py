@@ -68,6 +68,7 @@ from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
 from ..recording.batches import BATCH_SUFFIX, rows_of, sample_times_ns
 from .interface import (ACCEL_PREFIX, accel_topic, BATCH_QOS, DIAGNOSTICS, DIAGNOSTICS_QOS,
                         EVENT_QOS, IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS)
+from .parameters import serve_unset_parameters
 from .wire import (guard_services, ignore_further_interrupts, settle_interrupt,
                    shutdown_quietly, spin_guarded, type_name)
 
@@ -182,6 +183,7 @@ class VibrationMonitor(Node):
         self.declare_parameter('log_reports', True, ParameterDescriptor(
             description='log one INFO line per sensor and one for impacts every report'))
         self.add_post_set_parameters_callback(self._on_parameters_set)
+        serve_unset_parameters(self)   # GetParameters naming an unset 'sensors' answers all
 
         self.last_report = None
         self.message_counts = {'accel': 0, 'impacts': 0, 'impactor_state': 0}

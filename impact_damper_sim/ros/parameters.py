@@ -204,8 +204,41 @@ def declare_all(node):
                 raise ParameterError(f'parameter {name!r}: {why}')
         values[name] = value
     unknown = sorted(set(overrides) - set(PARAMETERS) - set(RCLPY_PARAMETERS))
+    serve_unset_parameters(node)
     return values, unknown
 
 
+def serve_unset_parameters(node):
+    """Make ``node``'s ``get_parameters`` service answer a declared but unset parameter.
+
+    rclpy answers no values at all when one requested name is declared but unset
+    (``overrides`` without overrides: a statically typed parameter has no default); ROS 2
+    specifies one value per name, ``PARAMETER_NOT_SET`` for an unset one, which is what this
+    answers. A name that is not declared keeps rclpy's answer (no values).
+    """
+    from rcl_interfaces.msg import ParameterValue
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.exceptions import ParameterNotDeclaredException, ParameterUninitializedException
+
+    def get_parameters(request, response):
+        values = []
+        for name in request.names:
+            try:
+                values.append(node.get_parameter(name).get_parameter_value())
+            except ParameterUninitializedException:
+                values.append(ParameterValue())   # type PARAMETER_NOT_SET
+            except ParameterNotDeclaredException:
+                values = []
+                break
+        response.values = values
+        return response
+
+    own = f'{node.get_name()}/get_parameters'   # as rclpy's ParameterService names it
+    for service in node.services:
+        if service.srv_type is GetParameters and service.srv_name == own:
+            service.callback = get_parameters
+
+
 __all__ = ['METHODS', 'PARAMETERS', 'ParameterError', 'check', 'declare_all', 'descriptor',
+           'serve_unset_parameters',
            'expected', 'parameters_markdown']

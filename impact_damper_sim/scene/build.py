@@ -23,7 +23,7 @@ import numpy as np
 import impact_damper_sim
 
 from ..units import UNITS
-from .schema import SceneError, apply_overrides, load_yaml, validate
+from .schema import SceneError, apply_overrides, file_kind, load_yaml, validate
 from .spec import DOF_NAMES, ROTATIONS, SCHEMA, SDOF_NODE, STUCK_MODELS
 
 __all__ = ['SceneModel', 'available_scenes', 'build', 'load', 'resolve_scene', 'scene_dirs']
@@ -93,7 +93,12 @@ def resolve_scene(scene_name_or_path):
         if not path.exists():
             raise SceneError(f'scene file {str(path)!r} does not exist')
         if not path.is_file():   # a directory, a FIFO, a device: never opened
-            raise SceneError(f'{str(path)!r} is not a scene file (not a regular file)')
+            try:
+                kind = file_kind(path)
+            except OSError as exc:
+                kind = exc.strerror
+            raise SceneError(f'{str(path)!r} is not a scene file ({kind}, not a regular '
+                             'file)')
         return path
     name = str(scene_name_or_path)
     if _NAME_RE.fullmatch(name):
@@ -952,8 +957,16 @@ def build(scene, *, source=None, overrides=()):
     Raises
     ------
     SceneError
-        For model problems, each naming the scene key.
+        For model problems, each naming the scene key; before anything is built, for a model
+        whose estimated memory (:func:`impact_damper_sim.divergence.model_estimate`: DOFs,
+        modes, impactors, stuck configurations) is over the limit, in one line with the
+        estimate and the limit.
     """
+    from ..divergence import ModelTooLarge, check_model
+    try:
+        check_model(scene)
+    except ModelTooLarge as exc:
+        raise SceneError(str(exc), source=source) from None
     fe, system = _build_fe(scene['structure'], source)
     basis = _build_basis(system, scene['modal'], source, scene)
     return SceneModel(scene, source, overrides, fe, system, basis)

@@ -40,6 +40,7 @@ import os
 import re
 import reprlib
 import stat
+import unicodedata
 from typing import NamedTuple
 
 import yaml
@@ -891,6 +892,9 @@ def _apply_one(data, text):
                          "e.g. 'impactors[0].mass' or 'impactors.0.mass'")
     try:
         value = _parse_yaml_value(value_text)
+    except yaml.reader.ReaderError as exc:
+        raise SceneError(f'override {text!r}: value is not valid YAML: '
+                         f'{_reader_problem(value_text, exc)}') from None
     except yaml.YAMLError as exc:
         raise SceneError(f'override {text!r}: value is not valid YAML: '
                          f'{getattr(exc, "problem", None) or exc}') from None
@@ -987,8 +991,32 @@ def markdown_table(schema, *, units=True):
 
 # --- YAML loading ----------------------------------------------------------------------------
 
+#: What a typed tag's value must look like, for the message when its constructor cannot
+#: convert it (``dof: !!int uy``)
+_TAG_EXPECTS = {'int': 'an integer', 'float': 'a number', 'bool': 'true or false',
+                'timestamp': 'a date or time, e.g. 2024-01-31 or 2024-01-31T12:00:00Z',
+                'null': 'null or ~', 'binary': 'base64 text'}
+
+
 class _StrictLoader(yaml.SafeLoader):
-    """SafeLoader that rejects duplicate keys and reads ``1e-3`` as a float (YAML 1.2)."""
+    """SafeLoader that rejects duplicate keys, reads ``1e-3`` as a float (YAML 1.2) and
+    reports a tagged value it cannot convert as a YAML error, with its line and column."""
+
+    def construct_object(self, node, deep=False):
+        try:
+            return super().construct_object(node, deep=deep)
+        except yaml.YAMLError:
+            raise
+        except (ValueError, KeyError, AttributeError, TypeError, OverflowError):
+            # PyYAML's own int/float/bool/timestamp constructors raise these on a value
+            # they cannot read ('!!int uy'): no mark, a traceback for the user
+            tag = node.tag
+            short = tag.rsplit(':', 1)[-1] if tag.startswith('tag:yaml.org,2002:') else None
+            value = node.value if isinstance(node, yaml.ScalarNode) else f'a {node.id}'
+            expects = _TAG_EXPECTS.get(short, 'a value of that type')
+            raise yaml.constructor.ConstructorError(
+                None, None, f'cannot read {reprlib.repr(value)} as '
+                f'{"!!" + short if short else tag} ({expects})', node.start_mark) from None
 
     def construct_mapping(self, node, deep=False):
         if isinstance(node, yaml.MappingNode):
@@ -1070,6 +1098,57 @@ def _is_path(path_or_text):
         and path_or_text.strip().endswith(('.yaml', '.yml')))
 
 
+def file_kind(path):
+    """What a path (or open file descriptor) is when it is not a regular file, else None.
+
+    Parameters
+    ----------
+    path : str, os.PathLike or int
+        A path (symbolic links followed) or a file descriptor.
+
+    Returns
+    -------
+    str or None
+        ``'a directory'``, ``'a FIFO'``, ``'a character device'``, ``'a block
+        device'``, ``'a socket'`` or ``'not a regular file'``; None for a regular file.
+
+    Raises
+    ------
+    OSError
+        The path does not exist or cannot be examined.
+    """
+    mode = os.fstat(path).st_mode if isinstance(path, int) else os.stat(path).st_mode
+    if stat.S_ISREG(mode):
+        return None
+    for test, kind in ((stat.S_ISDIR, 'a directory'), (stat.S_ISFIFO, 'a FIFO'),
+                       (stat.S_ISCHR, 'a character device'), (stat.S_ISBLK, 'a block device'),
+                       (stat.S_ISSOCK, 'a socket')):
+        if test(mode):
+            return kind
+    return 'not a regular file'
+
+
+def _reader_problem(text, exc):
+    """One line for PyYAML's ReaderError on ``text``: the character (as U+XXXX: a raw
+    control character would garble the terminal) and where it is."""
+    char = exc.character
+    code = char if isinstance(char, int) else ord(char) if isinstance(char, str) else char[0]
+    pos = exc.position
+    if not (0 <= pos < len(text) and text[pos] == chr(code)):
+        pos = max(text.find(chr(code)), 0)
+    # YAML allows no other character before this one, so splitlines() breaks lines as YAML
+    lines = text[:pos].splitlines(keepends=True)
+    if not lines or lines[-1][-1] in '\r\n\x85\u2028\u2029':
+        line, column = len(lines) + 1, 1
+    else:
+        line, column = len(lines), len(lines[-1]) + 1
+    if unicodedata.category(chr(code)) == 'Cc':
+        what, why = 'control character', 'YAML allows none but tab and line breaks'
+    else:
+        what, why = 'character', 'YAML does not allow it'
+    return f'{what} U+{code:04X} at line {line}, column {column} ({why})'
+
+
 def load_yaml(path_or_text, *, source=None):
     """Read a scene file or YAML text into a raw mapping (no validation).
 
@@ -1098,9 +1177,13 @@ def load_yaml(path_or_text, *, source=None):
         path = os.fspath(path_or_text)
         source = source or path
         try:
+            kind = file_kind(path)   # before opening: opening a FIFO blocks
+            if kind:
+                raise SceneError(f'{source}: not a scene file ({kind}, not a regular file)')
             with open(path, 'rb') as stream:
-                if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
-                    raise SceneError(f'{source}: not a scene file (not a regular file)')
+                kind = file_kind(stream.fileno())   # replaced in between
+                if kind:
+                    raise SceneError(f'{source}: not a scene file ({kind}, not a regular file)')
                 raw = stream.read(MAX_SCENE_BYTES + 1)   # never more, whatever the file
         except OSError as exc:
             raise SceneError(f'{source}: cannot read scene file: {exc.strerror}') from None
@@ -1115,7 +1198,10 @@ def load_yaml(path_or_text, *, source=None):
         text, source = path_or_text, source or '<text>'
         if len(text) > MAX_SCENE_BYTES:
             raise SceneError(f'{source}: over {MAX_SCENE_BYTES} characters of scene text')
-    loader = _StrictLoader(text)
+    try:
+        loader = _StrictLoader(text)   # checks every character: may raise ReaderError
+    except yaml.reader.ReaderError as exc:
+        raise SceneError(f'{source}: YAML error: {_reader_problem(text, exc)}') from None
     try:
         try:
             node = loader.get_single_node()
