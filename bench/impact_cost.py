@@ -294,14 +294,15 @@ def plot_curve(rows, out_dir, duration):
     except ImportError:
         print('matplotlib not installed: no plot')
         return
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for n_modes, marker in zip((10, 20, 40), 'os^'):
+    from impact_damper_sim.studies.plot_style import place_labels
+    fig, ax = plt.subplots(figsize=(7, 4.5), dpi=110)
+    labels = []
+    for k, (n_modes, marker) in enumerate(zip((10, 20, 40), 'os^')):
         sel = [r for r in rows if r['modes'] == n_modes]
         ax.plot([r['impacts_per_s'] for r in sel], [r['cpu_per_sim_s'] for r in sel],
                 marker=marker, label=f'{n_modes} modes')
-        for r in sel:
-            ax.annotate(f"{r['impactors']}", (r['impacts_per_s'], r['cpu_per_sim_s']),
-                        textcoords='offset points', xytext=(4, 4), fontsize=8)
+        labels += [(r['impacts_per_s'], r['cpu_per_sim_s'], f"{r['impactors']}", f'C{k}')
+                   for r in sel]
     ax.axhline(1.0, color='k', lw=0.8, ls='--', label='real time')
     ax.set_xlabel('impacts per simulated second')
     ax.set_ylabel('CPU seconds per simulated second')
@@ -310,6 +311,9 @@ def plot_curve(rows, out_dir, duration):
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
+    # labels in pixels of the final layout, off each other, the markers and the legend
+    fig.canvas.draw()
+    place_labels(ax, labels, avoid=[ax.get_legend().get_window_extent()], marker_pt=4.0)
     fig.savefig(out_dir / 'cost_curve.png', dpi=110)
     print(f'wrote {out_dir / "cost_curve.csv"} and {out_dir / "cost_curve.png"}')
 

@@ -349,41 +349,51 @@ def plot(result, path):
     keys = (('amplitude_error', 'steady amplitude error (relative)'),
             ('rms_acceleration_error', 'RMS acceleration error (relative)'),
             ('impact_time_error_s', 'isolated impact-time error (s)'))
+    from .plot_style import log_ticks, place_labels
     markers = {'exact': 'o', 'newmark': 's', 'newmark_step_end': '^', 'direct': 'D'}
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6))
+    # one panel per error, stacked: 990 px wide at 110 dpi, shown at its size on a docs page
+    fig, axes = plt.subplots(3, 1, figsize=(9, 12.5), dpi=110)
+    ok = [r for r in result['rows'] if r.get('status') == 'ok']
+    costs = [r['cpu_per_simulated_s'] for r in ok if r.get('cpu_per_simulated_s')]
+    labels = {}
     for ax, (key, label) in zip(axes, keys):
+        labels[key] = []
         for method, marker in markers.items():
-            rows = [r for r in result['rows'] if r['method'] == method
-                    and r.get('status') == 'ok' and r.get(key) is not None]
+            rows = [r for r in ok if r['method'] == method and r.get(key) is not None]
             if not rows:
                 continue
             ax.scatter([r['cpu_per_simulated_s'] for r in rows],
                        [max(r[key], 1e-16) for r in rows], marker=marker, label=method)
-            # per-method label offsets: methods that agree (newmark and direct on a
-            # complete basis) put their points on top of each other, not their labels
-            offset = {'exact': (3, 2), 'newmark': (3, 2), 'newmark_step_end': (3, 2),
-                      'direct': (-3, -8)}[method]
-            for r in rows:
-                ax.annotate(f"{r['dt_s'] * 1e6:g}us/{r['modes']}",
-                            (r['cpu_per_simulated_s'], max(r[key], 1e-16)), fontsize=6,
-                            xytext=offset, textcoords='offset points',
-                            ha='right' if offset[0] < 0 else 'left',
-                            color=f'C{list(markers).index(method)}')
+            labels[key] += [(r['cpu_per_simulated_s'], max(r[key], 1e-16),
+                             f"{r['dt_s'] * 1e6:g}us/{r['modes']}",
+                             f'C{list(markers).index(method)}') for r in rows]
         front = pareto(result['rows'], key)
         if front:
             ax.step([r['cpu_per_simulated_s'] for r in front], [max(r[key], 1e-16)
                                                                   for r in front],
                     'k:', where='post', lw=1, label='Pareto front')
+            # the front's points are labelled first: they are the ones to read
+            on_front = {(r['cpu_per_simulated_s'], max(r[key], 1e-16)) for r in front}
+            labels[key].sort(key=lambda item: (item[0], item[1]) not in on_front)
         ax.set_xscale('log')
         ax.set_yscale('log')
+        if costs:
+            log_ticks(ax.xaxis, min(costs) / 1.1, max(costs) * 1.1)
         ax.set_xlabel('CPU s per simulated s')
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"speed/accuracy: {result['scene']} (labels: dt/modes; reference exact "
-                 f"{result['reference']['dt_s'] * 1e6:g} us, {result['reference']['modes']} "
-                 'modes)')
+    axes[0].legend(fontsize=8)
+    modes = result['reference']['modes']
+    fig.suptitle(f"speed/accuracy: {result['scene']} (labels: dt/modes where they fit; "
+                 f"reference exact {result['reference']['dt_s'] * 1e6:g} us, {modes} "
+                 f"mode{'' if modes == 1 else 's'})")
     fig.tight_layout()
+    # labels last, in pixels of the final layout: none on another, a marker or the legend
+    fig.canvas.draw()
+    legend = axes[0].get_legend()
+    for ax, (key, _) in zip(axes, keys):
+        place_labels(ax, labels[key], avoid=[legend.get_window_extent()] if ax is axes[0]
+                     else [])
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

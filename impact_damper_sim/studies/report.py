@@ -161,7 +161,9 @@ class RosLog:
             st = os.stat(self.path)
             # a FIFO would block the open, a device (/dev/zero) never end a read
             if not S_ISREG(st.st_mode):
-                raise LogError(f'{self.path}: not an MCAP log (not a regular file)')
+                from ..scene.schema import file_kind
+                raise LogError(f'{self.path}: not an MCAP log ({file_kind(self.path)}, not a '
+                               'regular file)')
             size = st.st_size
             with open(self.path, 'rb') as fh:
                 head = fh.read(len(MCAP_MAGIC))
@@ -477,6 +479,9 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
         if entry['gaps']:
             warnings.append(f"topic {topic}: {entry['gaps']} gap(s) longer than 1.5 sample "
                             'periods (dropped samples?); the spectrum assumes even sampling')
+        if any(entry['nonfinite_samples'].values()):
+            warnings.append(f'topic {topic}: {nonfinite_text(entry)}; left out of peak and '
+                            'RMS, replaced by the axis mean in the spectra')
     joints = {log.channels[cid].topic: _first_names(series[cid])
               for cid, kind in wanted.items() if kind == 'state' and series[cid].t}
     for cid in sorted(c for c, k in wanted.items() if k in ('impacts', 'impact_batch')):
@@ -567,19 +572,35 @@ def sensor_report(t_ns, a_g, origin_ns=0, speed=None):
         Spectrum (``freq_hz``, ``psd_g2_hz`` shape (3, m)) and waterfall arrays for the plot.
     """
     n = t_ns.size
-    mag = np.sqrt(np.sum(a_g ** 2, axis=1))
     axes = ('x', 'y', 'z')
-    peak = {k: float(np.max(np.abs(a_g[:, i]))) for i, k in enumerate(axes)}
-    peak['magnitude'] = float(mag.max())
-    rms = {k: float(np.sqrt(np.mean(a_g[:, i] ** 2))) for i, k in enumerate(axes)}
-    rms['magnitude'] = float(np.sqrt(np.mean(mag ** 2)))
+    a_g = np.asarray(a_g, dtype=float)
+    bad = ~np.isfinite(a_g)
+    nonfinite = {k: int(bad[:, i].sum()) for i, k in enumerate(axes)}
+    if bad.any():
+        # NaN or inf samples: left out of peak and RMS (None for an axis without a finite
+        # one), the magnitude over the finite components, and the spectra with each such
+        # sample replaced by its axis' finite mean (no power added)
+        finite_mean = [float(np.mean(a_g[~bad[:, i], i])) if (~bad[:, i]).any() else 0.0
+                       for i in range(3)]
+        a_g = np.where(bad, np.asarray(finite_mean)[None, :], a_g)
+    mag_rows = ~bad.all(axis=1)
+    mag = np.sqrt(np.sum(np.where(bad, 0.0, a_g) ** 2, axis=1))[mag_rows]
+
+    def stat(values, ok, fn):
+        return float(fn(values[ok])) if ok.any() else None
+
+    peak = {k: stat(np.abs(a_g[:, i]), ~bad[:, i], np.max) for i, k in enumerate(axes)}
+    peak['magnitude'] = float(mag.max()) if mag.size else None
+    rms = {k: stat(a_g[:, i] ** 2, ~bad[:, i], lambda v: np.sqrt(np.mean(v)))
+           for i, k in enumerate(axes)}
+    rms['magnitude'] = float(np.sqrt(np.mean(mag ** 2))) if mag.size else None
     dt = np.diff(t_ns) * 1e-9
     step = float(np.median(dt)) if n > 1 else 0.0
     fs = 1.0 / step if step > 0 else None
     entry = {'samples': int(n), 'sample_rate_hz': fs,
              'gaps': int(np.sum(dt > 1.5 * step)) if step > 0 else 0,
              'duration_s': (int(t_ns[-1]) - int(t_ns[0])) * 1e-9, 'peak_g': peak, 'rms_g': rms,
-             'spectrum': None, 'waterfall': None}
+             'nonfinite_samples': nonfinite, 'spectrum': None, 'waterfall': None}
     arrays = {}
     if fs is None or n < 16:
         return entry, arrays
@@ -595,6 +616,14 @@ def sensor_report(t_ns, a_g, origin_ns=0, speed=None):
         entry['waterfall'], more = _waterfall(t_ns, a_g, fs, speed, origin_ns)
         arrays.update(more)
     return entry, arrays
+
+
+def nonfinite_text(entry):
+    """``'non-finite samples (NaN or inf): x 10 of 2000, ...'`` of a sensor entry."""
+    bad = entry['nonfinite_samples']
+    return ('non-finite samples (NaN or inf): '
+            + ', '.join(f"{axis} {count} of {entry['samples']}"
+                        for axis, count in bad.items() if count))
 
 
 def welch(x, fs, nperseg):
@@ -849,7 +878,7 @@ def plot(report, series, path):
             ax.set_xlim(freq[0], freq[-1])
             ax.set_ylabel('rotor speed (rpm)')
             ax.set_title(f"waterfall {s['topic']}")
-            ax.legend(fontsize=7, loc='upper left')
+            ax.legend(fontsize=8, loc='upper left')
         else:
             psd = arrays['psd_g2_hz'][:, 1:]
             top = float(psd.max()) if psd.size else 0.0
@@ -864,13 +893,15 @@ def plot(report, series, path):
                 ax.set_ylim(floor, top * 3)
             if quiet:
                 ax.text(0.99, 0.02, f"{', '.join(quiet)}: no signal (not drawn)",
-                        ha='right', va='bottom', fontsize=7, transform=ax.transAxes)
+                        ha='right', va='bottom', fontsize=8, transform=ax.transAxes)
             ax.axvline(s['spectrum']['dominant_hz']['total'], color='k', ls=':',
                        label=f"{s['spectrum']['dominant_hz']['total']:.4g} Hz")
             ax.set_ylabel('PSD (g$^2$/Hz)')
-            ax.set_title(f"spectrum {s['topic']} (peak {s['peak_g']['magnitude']:.3g} g, "
-                         f"RMS {s['rms_g']['magnitude']:.3g} g)")
-            ax.legend(fontsize=7)
+            peak, rms = s['peak_g']['magnitude'], s['rms_g']['magnitude']
+            ax.set_title(f"spectrum {s['topic']} (peak "
+                         + ('n/a' if peak is None else f'{peak:.3g} g') + ', RMS '
+                         + ('n/a' if rms is None else f'{rms:.3g} g') + ')')
+            ax.legend(fontsize=8)
         ax.set_xlabel('frequency (Hz)')
         ax.grid(True, alpha=0.3)
     if report['impacts']:
@@ -897,7 +928,7 @@ def plot(report, series, path):
         ax.set_ylabel('impacts/s')
         ax.set_ylim(bottom=0)
         ax.set_title(f'impact rate ({BIN_S:g} s bins)')
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=8)
         ax.grid(True, alpha=0.3)
     if report['impactor_state']:
         ax, level = axes.pop(0), 0
@@ -908,16 +939,21 @@ def plot(report, series, path):
         colors = plt.get_cmap('tab20' if len(lanes) > 10 else 'tab10')
         for k, (st, name, (t, stuck)) in enumerate(lanes):
             frac = st['impactors'][name]['stuck_fraction']
-            ax.step((t - origin) * 1e-9, stuck * 0.8 + level, where='post',
-                    color=colors(k % colors.N))
-            # each lane labelled on the axis itself: no legend colours to match up
-            ticks.append(level + 0.4)
-            names.append(f'{name} ({100 * frac:.2g} %)' if frac is not None else name)
+            color = colors(k % colors.N)
+            ax.step((t - origin) * 1e-9, stuck * 0.6 + level, where='post', color=color,
+                    gid=f'lane:{name}')
+            # each lane labelled on the axis itself, in its colour, at its free (low) level,
+            # drawn as a dotted baseline: no label floating away from a flat trace
+            ax.axhline(level, color=color, lw=0.6, ls=':', gid=f'lane:{name}')
+            ticks.append(level)
+            names.append(f'{name} ({100 * frac:.3g} % stuck)' if frac is not None else name)
             level += 1
         ax.set_xlabel('time (s)')
-        ax.set_yticks(ticks, names, fontsize=7)
-        ax.set_ylim(-0.2, max(level, 1))
-        ax.set_title('stuck state (high = stuck; time stuck in brackets)')
+        ax.set_yticks(ticks, names, fontsize=8)
+        for label, k in zip(ax.get_yticklabels(), range(len(lanes))):
+            label.set_color(colors(k % colors.N))
+        ax.set_ylim(-0.3, max(level - 0.2, 0.9))
+        ax.set_title('stuck state (a lane per impactor: low = free, high = stuck)')
     for ax in axes:   # a log with nothing to plot
         ax.text(0.5, 0.5, 'no sensor, impact or impactor-state topics', ha='center',
                 transform=ax.transAxes)
@@ -993,6 +1029,10 @@ def print_report(r):
                         + [_g(dom, 5)])
         print(_table(['sensor', 'samples', 'fs (Hz)', 'peak x', 'peak y', 'peak z', 'peak |a|',
                       'rms x', 'rms y', 'rms z', 'rms |a|', 'dominant (Hz)'], rows))
+        for s in r['sensors']:
+            if any(s['nonfinite_samples'].values()):
+                print(f"{s['topic']}: {nonfinite_text(s)} (left out of peak and RMS; 'n/a' "
+                      'for an axis without a finite sample)')
         for s in r['sensors']:
             w = s['waterfall']
             if w:

@@ -411,46 +411,81 @@ def plot(result, path):
     from .display import axis_unit
     unit, factor = axis_unit(result['kcc_key'], [row['kcc'] for row in result['rows']])
     unit, factor = (unit, factor) if unit else ('N/m', 1.0)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    from .plot_style import log_ticks
     groups = {}
     for row in result['rows']:
         if row['kcc_N_m'] is not None and row['verdict'] != 'error':
             groups.setdefault((row['impactors'], row['weight'], row['clearance']), []).append(row)
-    finite = [row['rms_radial_m'] for rows in groups.values() for row in rows
-              if row['rms_radial_m'] is not None]
-    # diverged runs (and absurd amplitudes) sit on a band at the top, not at 1e43 m
-    top = max(finite) if finite else 1.0
-    cap = min(top, 1.0) * 3.0
-    diverged_label = True
-    for (imp, w, c), rows in groups.items():
+    # diverged runs and absurd amplitudes (over 1 m) sit in a strip above the axes, not at
+    # 1e43 m and not at a made-up value inside the scale
+    off_m = 1.0
+
+    def on_scale(r):
+        return r['rms_radial_m'] is not None and r['rms_radial_m'] <= off_m
+
+    rows_all = [r for rows in groups.values() for r in rows]
+    off = [r for r in rows_all if not on_scale(r)]
+    if off:
+        fig, (strip, ax) = plt.subplots(2, 1, sharex=True, figsize=(7, 4.9), dpi=120,
+                                        gridspec_kw={'height_ratios': [1, 8]})
+        strip.set_ylim(0, 1)
+        strip.set_yticks([])
+        strip.set_ylabel('off\nscale', rotation=0, ha='right', va='center', fontsize=8)
+        strip.tick_params(axis='x', labelbottom=False)
+        strip.grid(True, axis='x', alpha=0.3)
+    else:
+        fig, ax = plt.subplots(figsize=(7, 4.5), dpi=120)
+    for k, ((imp, w, c), rows) in enumerate(groups.items()):
+        color = f'C{k % 10}'
         label = 'no impactors' if not imp else (
             f"W={w if w is not None else result.get('scene_weight')}, "
             f"D={c if c is not None else result.get('scene_clearance')}")
-        xs = [r['kcc_N_m'] / factor for r in rows]
-        ys = [min(r['rms_radial_m'], cap) if r['rms_radial_m'] is not None else np.nan
-              for r in rows]
-        line, = ax.plot(xs, ys, '-', label=label)
-        for x, y, r in zip(xs, ys, rows):
-            if r['rms_radial_m'] is None or r['rms_radial_m'] > cap:
-                ax.plot(x, cap, '^', color=line.get_color(), ms=8,
-                        label=f'diverged, or above {cap:.2g} m (off scale)'
-                        if diverged_label else None)
-                diverged_label = False
-            else:
-                ax.plot(x, y, 'o' if r['verdict'] == 'stable' else 'x',
-                        color=line.get_color())
+        xs = np.array([r['kcc_N_m'] / factor for r in rows])
+        ys = np.array([r['rms_radial_m'] if on_scale(r) else np.nan for r in rows])
+        stable = np.array([r['verdict'] == 'stable' for r in rows])
+        # the group's legend entry is its line when it has a point on the scale, else
+        # its off-scale markers
+        segment = bool((np.isfinite(ys[1:]) & np.isfinite(ys[:-1])).any())
+        drawn = bool(np.isfinite(ys).any())
+        ax.plot(xs, ys, '-', color=color, label=label if segment else None)
+        ax.plot(xs[stable], ys[stable], 'o', color=color,
+                label=label if drawn and not segment and np.isfinite(ys[stable]).any()
+                else None)
+        ax.plot(xs[~stable], ys[~stable], 'x', color=color,
+                label=label if drawn and not segment and not np.isfinite(ys[stable]).any()
+                else None)
+        if off and not np.isfinite(ys).all():
+            strip.plot(xs[~np.isfinite(ys)], np.full((~np.isfinite(ys)).sum(), 0.5), '^',
+                       color=color, ms=8,
+                       label=None if drawn else f'{label} (all off scale)')
     if result['onset']:
         ax.axvline(result['onset']['onset_kcc_N_m'] / factor, color='k', ls=':',
                    label='linear onset')
-    ax.set_yscale('log')
+        if off:
+            strip.axvline(result['onset']['onset_kcc_N_m'] / factor, color='k', ls=':')
+    finite = [r['rms_radial_m'] for r in rows_all if on_scale(r) and r['rms_radial_m'] > 0]
     if finite:
-        ax.set_ylim(top=cap * 1.5)
+        ax.set_yscale('log')
+        log_ticks(ax.yaxis, min(finite) / 1.15, max(finite) * 1.15)
+    else:       # every run off scale (or none): an empty linear axis says so
+        ax.set_ylim(0, 1)
+        ax.set_yticks([])
+        ax.text(0.5, 0.5, 'no run on the scale', ha='center', va='center', fontsize=10,
+                transform=ax.transAxes)
+    xs = [r['kcc_N_m'] / factor for r in rows_all] + (
+        [result['onset']['onset_kcc_N_m'] / factor] if result['onset'] else [])
+    if xs:      # the onset line too, off the frame
+        pad = 0.05 * (max(xs) - min(xs)) or 0.05 * abs(max(xs)) or 1.0
+        ax.set_xlim(min(xs) - pad, max(xs) + pad)
     ax.set_xlabel(f'Kcc ({unit})')
     ax.set_ylabel('RMS radial amplitude, last window (m)')
-    ax.set_title(f"stability: {result['scene']} (o stable, x unstable, ^ diverged)")
+    (strip if off else ax).set_title(
+        f"stability: {result['scene']} (o stable, x unstable"
+        + (f', ^ diverged or > {off_m:g} m)' if off else ')'))
     ax.grid(True, alpha=0.3)
-    if groups or result['onset']:
-        ax.legend(fontsize=7)
-    fig.tight_layout()
+    handles = [h for a in fig.axes for h in a.get_legend_handles_labels()[0]]
+    if handles:
+        ax.legend(handles=handles, fontsize=8)
+    fig.tight_layout(h_pad=0.3)
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -311,12 +311,12 @@ def plot(result, path):
     others = [k for k in keys if k != xkey]
     given = next(g['values'] for g in result['grid'] if g['key'] == xkey)
     xunit, xfactor = axis_unit(xkey, given)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig, ax = plt.subplots(figsize=(7, 4.5), dpi=120)
     groups = {}
     for row in result['rows']:
         groups.setdefault(tuple(row[k] for k in others), []).append(row)
     numeric = True
-    for group, rows in groups.items():
+    for g, (group, rows) in enumerate(groups.items()):
         xs = [row[f'{xkey}_si'] for row in rows]
         if any(x is None or not isinstance(x, (int, float)) for x in xs):
             xs, numeric = list(range(len(rows))), False
@@ -325,14 +325,15 @@ def plot(result, path):
         label = ', '.join(f'{k}={v}' for k, v in zip(others, group)) or 'with impactors'
         for phase, style in zip([p['name'] for p in result['phases']], ('-o', '--s', ':^')):
             ys = [row[f'{phase}_worst_{obj}_{field}'] for row in rows]
+            # one colour per group, one line style per phase
             ax.plot(xs, [float('nan') if y is None else y for y in ys], style, ms=4,
-                    label=f'{label} ({phase})')
+                    color=f'C{g % 10}', label=f'{label} ({phase})')
     ax.set_xlabel(f'{xkey} ({xunit})' if numeric and xunit else
                   xkey if numeric else f'{xkey} (point index)')
     ax.set_ylabel(f'worst {obj} over the sensors ({ylabel})')
     ax.set_title(f"sweep: {result['scene']}")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
