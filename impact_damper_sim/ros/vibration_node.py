@@ -34,7 +34,8 @@ from ..recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS,
 from ..scene.schema import SceneError
 from . import interface as itf
 from .cdr import serialize
-from .parameters import PARAMETERS, ParameterError, check, declare_all, parameters_markdown
+from .parameters import PARAMETERS, RCLPY_PARAMETERS, ParameterError, check, declare_all, \
+    parameters_markdown
 from .wire import ImuPacker, Outlet, freeze_start_up_heap, guard_services, \
     ignore_further_interrupts, settle_interrupt, shutdown_quietly, spin_guarded, stamp
 
@@ -162,6 +163,9 @@ class VibrationNode(Node):
         self._last_log = {}
         self._pending = collections.deque()   # (sim ns, outlet, message or bytes, wire)
         p, unknown = declare_all(self)
+        # declared by rclpy, not by us; any other name is refused (rclpy lets an undeclared
+        # '' through: it tests its names with any(), and '' is false)
+        self._rclpy_parameters = set(self._parameters) & set(RCLPY_PARAMETERS)
         for name in unknown:
             self.get_logger().warning(f'parameter {name!r} is not one of this node\'s; '
                                       f"ignored (known: {', '.join(PARAMETERS)})")
@@ -346,6 +350,8 @@ class VibrationNode(Node):
         changes = {}
         for prm in params:
             name, value = prm.name, prm.value
+            if name in self._rclpy_parameters:
+                continue   # rclpy's own (use_sim_time): rclpy checks and applies it
             why = check(name, value)
             if why:
                 return SetParametersResult(successful=False, reason=f'{name}: {why}')
