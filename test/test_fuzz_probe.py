@@ -21,10 +21,9 @@ default selection runs each probe at scale 1: 30-40 s wall (14 s CPU) for the mo
 runs the ``long`` variants at 10 times the counts (3.5 to 6.5 minutes, most of it loading
 scenes with 5,000-item lists), and ``FUZZ_SCALE=N`` multiplies every count by N.
 
-Known defects found by the probe are each pinned by an ``xfail(strict=True)`` case at the end
-of the module, with a minimal reproduction (they turn red once fixed); until then the fuzz
-loops tolerate exactly their signatures (``_known_tag_bug``, ``ReaderError``, ``Error with:``),
-which go once the defects are fixed.
+Defects found by the probe keep a minimal reproduction each at the end of the module (a
+known one is pinned there by an ``xfail(strict=True)`` case, and the fuzz loops tolerate
+exactly its signature, until it is fixed); the fuzz loops tolerate none now.
 """
 import contextlib
 import hashlib
@@ -698,17 +697,6 @@ def _deadline(seconds):
         timer.cancel()
 
 
-#: YAML tags whose constructors raise on a value they cannot convert (``!!int uy``): a
-#: traceback from the loader, pinned by test_a_mistyped_yaml_tag_is_a_scene_error; the fuzz
-#: tolerates exactly these until it is fixed
-_TYPED_TAGS = ('!!int', '!!float', '!!bool', '!!timestamp')
-
-
-def _known_tag_bug(kind, exc):
-    return (kind.startswith('tag:') and kind.split(':', 1)[1] in _TYPED_TAGS
-            and type(exc) in (ValueError, KeyError, AttributeError, TypeError))
-
-
 def test_bad_scene_files(tmp_path, capsys, scale):
     """Random mutations of a valid scene file (byte flips, truncation, nesting up to 20,000
     deep, alias bombs, huge numbers, wrong types, unknown keys, non-UTF-8, YAML tags, extra
@@ -735,12 +723,6 @@ def test_bad_scene_files(tmp_path, capsys, scale):
         except SceneError as exc:
             scene, refused = None, str(exc)
         except Exception as exc:
-            if _known_tag_bug(kind, exc):   # pinned by test_a_mistyped_yaml_tag_is_a_scene_error
-                outcomes['known bug: mistyped tag'] += 1
-                continue
-            if type(exc).__name__ == 'ReaderError':   # pinned by test_a_control_character...
-                outcomes['known bug: control character'] += 1
-                continue
             raise AssertionError(f'{where}: the loader raised {type(exc).__name__}: '
                                  f'{str(exc)[:300]}') from exc
         cpu = time.process_time() - t0
@@ -860,7 +842,8 @@ def test_broken_log_files(small_log, tmp_path, capsys, scale):
     through ``RosLog``, ``study report``, replay's ``prepare`` and ``study recover``: each
     is read or refused in one line naming the file (exit 2), within 10 s; recover keeps at
     least every message of the chunks before the first damaged byte and, for a byte flipped
-    inside one chunk that defines no channel, every message outside that chunk; the input is
+    inside one chunk (the first, which holds every channel record, too), every message
+    outside that chunk; the input is
     never changed and an existing output is never replaced without --overwrite."""
     from impact_damper_sim.ros.replay import prepare
     from impact_damper_sim.studies.report import LogError, RosLog
@@ -890,9 +873,6 @@ def test_broken_log_files(small_log, tmp_path, capsys, scale):
             assert all(line.startswith('study: warning: ') for line in err.splitlines()), (
                 where, err[:500])
         else:
-            if err.startswith('Error with: '):   # pinned by test_a_broken_schema_is_one_line
-                err = err.split('\n', 1)[1]
-                outcomes['known bug: Error with'] += 1
             assert _one_line(err) and err.startswith(f'study: error: {src}'), (where, err)
         outcomes[f'report exit {rc}'] += 1
         # replay's planning (every third case)
@@ -915,10 +895,9 @@ def test_broken_log_files(small_log, tmp_path, capsys, scale):
                 f'{intact}')
             if kind.startswith('flip_in_chunk:'):
                 c = chunks[int(kind.split(':')[1])]
-                if not c['channels']:
-                    assert report['messages'] >= total - c['messages'], (
-                        f'{where}: recovered {report["messages"]} of {total}; the broken chunk '
-                        f'held {c["messages"]}')
+                assert report['messages'] >= total - c['messages'], (
+                    f'{where}: recovered {report["messages"]} of {total}; the broken chunk '
+                    f'held {c["messages"]}')
             summary, n = _read_back(out_path)
             assert summary is not None and n == report['messages'], (where, n)
             # an existing output is not replaced without --overwrite
@@ -1077,23 +1056,21 @@ def test_use_sim_time_is_not_an_unknown_parameter(ros_context):
         node.destroy_node()
 
 
-@pytest.mark.xfail(strict=True, reason="a YAML tag whose constructor cannot convert the value "
-                   "('dof: !!int uy', '!!float abc', '!!bool maybe', '!!timestamp x') raises "
-                   'ValueError, KeyError or AttributeError out of the scene loader: a traceback '
-                   'and exit 1 from study (and the node) instead of one line and exit 2')
 @pytest.mark.parametrize('tagged', ['!!int uy', '!!float abc', '!!bool maybe', '!!timestamp x'])
 def test_a_mistyped_yaml_tag_is_a_scene_error(tmp_path, capsys, tagged):
+    """A YAML tag whose constructor cannot convert the value raised ValueError, KeyError or
+    AttributeError out of the scene loader (a traceback and exit 1 from study and the node);
+    now one line naming the line and column, exit 2."""
     path = tmp_path / 'tag.yaml'
     path.write_text(fz.BASE_SCENE.replace('dof: uy\n', f'dof: {tagged}\n', 1))
     rc, _, err = _study(['simulate', str(path)], capsys)
     assert rc == 2 and _one_line(err), err
 
 
-@pytest.mark.xfail(strict=True, reason='study recover loses every message when the broken chunk '
-                   'is the first one: it holds every schema and channel record (the recorder '
-                   'registers all topics at start), so all later messages are skipped as '
-                   "'unknown channels' although the file's summary repeats the channels")
 def test_recover_keeps_what_follows_a_broken_first_chunk(small_log, tmp_path):
+    """The first chunk holds every schema and channel record (the recorder registers all
+    topics at start): recover skipped every later message as of an 'unknown channel'; now it
+    takes the channels from the summary and keeps every message outside the broken chunk."""
     from impact_damper_sim.recording import recover
     _, blob, chunks, total = small_log
     first = chunks[0]
@@ -1108,23 +1085,21 @@ def test_recover_keeps_what_follows_a_broken_first_chunk(small_log, tmp_path):
                                                           report.skipped_messages)
 
 
-@pytest.mark.xfail(strict=True, reason='a control character in a scene file (a flipped bit: '
-                   "'a: \\x08') raises yaml.reader.ReaderError from the loader's constructor, "
-                   'outside its YAML-error handling: a traceback and exit 1 from study (and the '
-                   'node) instead of one line and exit 2')
 @pytest.mark.parametrize('char', ['\x08', '\x7f', '\x01'])
 def test_a_control_character_is_a_scene_error(tmp_path, capsys, char):
+    """A control character in a scene file (a flipped bit) raised yaml.reader.ReaderError from
+    the loader's constructor, outside its YAML-error handling (a traceback and exit 1); now
+    one line naming the character and its line and column, exit 2."""
     path = tmp_path / 'ctrl.yaml'
     path.write_text(fz.BASE_SCENE.replace('name: fuzz', f'name: fu{char}zz', 1))
     rc, _, err = _study(['simulate', str(path)], capsys)
     assert rc == 2 and _one_line(err), err
 
 
-@pytest.mark.xfail(strict=True, reason="study report on a log whose summary holds a broken "
-                   "schema text (a NUL in a '====' separator line) prints mcap_ros2's vendored "
-                   "rosidl parser's 'Error with: sensor_msgs PointCloud2 ====...' on stderr "
-                   'before its one-line error (two lines, the first with a NUL)')
 def test_a_broken_schema_is_one_line(small_log, tmp_path, capsys):
+    """A broken schema text in the summary (a NUL in a '====' separator line) made study
+    report print mcap_ros2's vendored rosidl parser's 'Error with: ...' before its one-line
+    error (two lines, the first with a NUL); now one line, control characters escaped."""
     _, blob, _, _ = small_log
     data = bytearray(blob)
     schema = data.rfind(b'sensor_msgs/msg/PointCloud2')   # the summary section's copy
@@ -1133,5 +1108,7 @@ def test_a_broken_schema_is_one_line(small_log, tmp_path, capsys):
     data[separator + 10] = 0
     src = tmp_path / 'schema.mcap'
     src.write_bytes(bytes(data))
-    rc, _, err = _study(['report', str(src)], capsys)
+    rc, out, err = _study(['report', str(src)], capsys)
     assert rc == 2 and _one_line(err) and err.startswith('study: error: '), err
+    assert not out.strip(), out   # the parser's own 'Error with:' line is not printed
+    assert not any(ord(c) < 32 for c in err.rstrip('\n')), repr(err)   # escaped: \x00

@@ -1065,12 +1065,22 @@ def test_a_new_real_time_factor_wakes_the_stepping_thread(ros_context, tiny):
     wait and killed the thread); setting 1.0 again resumes the stream at once."""
     node = VibrationNode(context=ros_context, parameter_overrides=[
         Parameter('scene', value='sdof')])
+    # a subscriber: the thread then waits for each sample's time (a stream nobody reads is
+    # sent as soon as it is stepped, and its thread never waits long)
+    node._accel_pubs[0].has_subscribers = lambda: True
     try:
         time.sleep(0.3)
         assert node.set_parameters([Parameter('real_time_factor', value=tiny)])[0].successful
-        time.sleep(0.5)
+        # the thread is in its longest wait (MAX_WAIT, 0.5 s, from the change on), about
+        # 0.35 s of it left when 1.0 is set
+        time.sleep(0.65)
         t0 = node.live.t
+        set_at = time.monotonic()
         assert node.set_parameters([Parameter('real_time_factor', value=1.0)])[0].successful
+        while node.live.t <= t0 + 0.02 and time.monotonic() < set_at + 1.0:
+            time.sleep(0.002)
+        # woken at once: the stream moves within 0.15 s, not after the rest of a 0.5 s wait
+        assert time.monotonic() - set_at < 0.15, time.monotonic() - set_at
         time.sleep(1.0)
         assert node._thread.is_alive()
         assert node.live.t - t0 > 0.5   # about 1 s of sim time in 1 s

@@ -10,6 +10,9 @@ import json
 import sys
 
 EXIT_USAGE = 2
+#: where :func:`.recovery.recover` took a lost channel definition from, in words
+_SOURCES = {'summary section': "the file's summary section",
+            'later record': 'later copies of their records in the file'}
 
 
 def add_recover_parser(sub):
@@ -80,10 +83,23 @@ def run_recover(args):
     else:
         print(f'input: used {report.bytes_used} of {report.bytes_total} bytes; '
               f'{report.stop_reason}')
-    if report.skipped_messages:
-        print(f'skipped {report.skipped_messages} messages of unknown channels')
     if report.corrupt_chunks:
-        print(f'skipped {report.corrupt_chunks} corrupt chunk'
-              f'{"" if report.corrupt_chunks == 1 else "s"} holding '
-              f'{report.corrupt_chunk_messages} messages; kept everything after them')
+        s = '' if report.corrupt_chunks == 1 else 's'
+        numbers = f'chunk{s} {", ".join(map(str, report.corrupt_chunk_numbers))}'
+        print(f'skipped {report.corrupt_chunks} corrupt chunk{s} ({numbers}, counting from 0) '
+              f'holding {report.corrupt_chunk_messages} messages; kept the chunks after them')
+    for where in sorted(set(report.restored_channels.values())):
+        topics = [t for t, w in report.restored_channels.items() if w == where]
+        print(f'took {len(topics)} channel definition{"" if len(topics) == 1 else "s"} '
+              f'from {_SOURCES.get(where, where)} (their records were in a corrupt chunk): '
+              f'{", ".join(topics)}')
+    if report.skipped_messages:
+        what = (f'{report.skipped_messages} messages on {report.skipped_channels} unknown '
+                f'channel{"" if report.skipped_channels == 1 else "s"}')
+        if report.corrupt_chunks:
+            print(f'skipped {what}: their channel definitions were lost with corrupt '
+                  f'{numbers} and the file has no readable summary repeating them, so these '
+                  'messages cannot be attributed to a topic')
+        else:
+            print(f'skipped {what}')
     return 0

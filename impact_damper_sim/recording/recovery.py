@@ -5,7 +5,11 @@ The input is read front to back with mcap's :class:`~mcap.stream_reader.StreamRe
 short read as the end of the data. A chunk whose contents are broken (CRC or size mismatch)
 while its framing is intact is skipped, and reading goes on with the records after it (the
 message indexes that follow it tell how many messages it held); reading stops at the first
-record that is itself incomplete or broken. Everything read is copied: schemas, channels
+record that is itself incomplete or broken. A channel whose record was in a skipped chunk
+(the recorder registers every topic at start, so the first chunk holds them all) is taken
+from the summary section (through the footer, or the summary offsets) or, failing that, from
+a later copy of the record; in a crash file with no summary its messages cannot be attributed
+and are counted as skipped. Everything read is copied: schemas, channels
 (with their QoS and type-hash metadata), messages (log and publish times and sequence kept),
 metadata records and attachments. A crashed recording therefore keeps everything up to its last complete chunk.
 The output is written in rosbag2's layout (:class:`.Rosbag2McapWriter`) with a fresh
@@ -50,9 +54,18 @@ class RecoveryReport:
     stop_reason : str or None
         Why reading stopped before the footer (None when complete).
     skipped_messages : int
-        Messages of unknown channels (not written).
+        Messages of unknown channels (not written): their channel records were in a corrupt
+        chunk or past the end of the readable data, with no copy elsewhere in the file.
+    skipped_channels : int
+        Distinct unknown channel ids of those messages.
+    restored_channels : dict of str to str
+        Topics whose channel record was not read before their first message (it was in a
+        corrupt chunk), to where it was taken from instead: ``'summary section'`` or
+        ``'later record'``.
     corrupt_chunks : int
         Chunks skipped because their contents were broken (chunks).
+    corrupt_chunk_numbers : list of int
+        Their places among the file's chunks (0 is the first chunk).
     corrupt_chunk_messages : int
         Messages those chunks held, from their message indexes (messages; 0 when the
         indexes are missing too).
@@ -71,7 +84,10 @@ class RecoveryReport:
     bytes_total: int = 0
     stop_reason: str | None = None
     skipped_messages: int = 0
+    skipped_channels: int = 0
+    restored_channels: dict = dataclasses.field(default_factory=dict)
     corrupt_chunks: int = 0
+    corrupt_chunk_numbers: list = dataclasses.field(default_factory=list)
     corrupt_chunk_messages: int = 0
     start_ns: int | None = None
     end_ns: int | None = None
@@ -123,8 +139,72 @@ def _check_source(path):
     return size
 
 
+def _summary_definitions(f, size):
+    """Schemas and channels of the summary section, found through the footer.
+
+    Used for channels whose records were in a chunk that is now corrupt (the recorder
+    registers every topic at start, so the first chunk holds them all). Each place the
+    footer points at is read on its own (the summary start, then every group start of the
+    summary offsets), up to its first broken record, keeping what was read before it.
+
+    Parameters
+    ----------
+    f : file
+        The input, open for binary reading (seekable).
+    size : int
+        Its size (bytes).
+
+    Returns
+    -------
+    schemas, channels : dict of int to mcap.records.Schema, dict of int to mcap.records.Channel
+        Empty when the file has no readable footer or summary (a crash file).
+    """
+    from mcap.records import Channel, Footer, Schema, SummaryOffset
+    from mcap.stream_reader import StreamReader
+
+    footer_size = 1 + 8 + 8 + 8 + 4   # opcode, length, summary start, offsets start, CRC
+    schemas, channels = {}, {}
+
+    def records_at(offset):
+        f.seek(offset)
+        return StreamReader(_StrictReader(f), skip_magic=True,
+                            record_size_limit=size).records
+
+    def collect(offset, kinds, stop):
+        found = []
+        try:
+            for record in records_at(offset):
+                if isinstance(record, stop):
+                    break
+                if isinstance(record, kinds):
+                    found.append(record)
+        except Exception:   # a broken record ends this place; keep what came before it
+            pass
+        return found
+
+    try:
+        footer = next(iter(records_at(size - footer_size - len(MAGIC))))
+    except Exception:   # no footer: a crash file (or a broken end)
+        return schemas, channels
+    if not isinstance(footer, Footer):
+        return schemas, channels
+    starts = [footer.summary_start] if 0 < footer.summary_start < size else []
+    if 0 < footer.summary_offset_start < size:
+        starts += [o.group_start for o in collect(footer.summary_offset_start, SummaryOffset,
+                                                  Footer) if 0 < o.group_start < size]
+    for offset in starts:
+        for record in collect(offset, (Schema, Channel), (SummaryOffset, Footer)):
+            (schemas if isinstance(record, Schema) else channels).setdefault(record.id, record)
+    return schemas, channels
+
+
 def recover(source, destination, *, overwrite=False):
     """Copy the readable part of a (crashed) MCAP file into a finished rosbag2-layout file.
+
+    Schemas and channels come from where they are first read in the file; for one whose
+    record was in a corrupt chunk (the first chunk holds them all), from the summary section
+    or, failing that, from a later copy of the record (then the input is read twice). What
+    stays unattributed is counted in ``skipped_messages``.
 
     Parameters
     ----------
@@ -147,15 +227,38 @@ def recover(source, destination, *, overwrite=False):
     FileExistsError
         If the output exists and ``overwrite`` is false.
     """
-    from mcap.records import (Attachment, Channel, Chunk, Footer, Header, Message,
-                              MessageIndex, Metadata, Schema)
-    from mcap.stream_reader import StreamReader
-
     source, destination = os.fspath(source), os.fspath(destination)
     size = _check_source(source)
     if os.path.exists(destination) and os.path.samefile(source, destination):
         raise RecoveryError(f'{destination}: the output must not be the input file')
+    with open(source, 'rb') as f:
+        fallback = _summary_definitions(f, size)
+    report, late = _copy(source, destination, size, overwrite, fallback)
+    if late:   # definitions found only after their messages: a second pass with them
+        schemas, channels = fallback
+        report, _ = _copy(source, destination, size, True,
+                          ({**late[0], **schemas}, {**late[1], **channels}))
+        for topic in report.restored_channels:
+            if not any(c.topic == topic for c in channels.values()):
+                report.restored_channels[topic] = 'later record'
+    return report
+
+
+def _copy(source, destination, size, overwrite, fallback):
+    """One pass of :func:`recover`: copy ``source`` into ``destination``.
+
+    ``fallback`` is ``(schemas, channels)`` by id, for channels whose record is not read
+    before their first message. Returns the report and, when messages were skipped whose
+    channel record turned up later in the file, ``(schemas, channels)`` found in the file
+    (else None).
+    """
+    from mcap.records import (Attachment, Channel, Chunk, Footer, Header, Message,
+                              MessageIndex, Metadata, Schema)
+    from mcap.stream_reader import StreamReader
+
     report = RecoveryReport(source, destination, bytes_total=size)
+    fallback_schemas, fallback_channels = fallback
+    skipped_ids = set()
     with open(source, 'rb') as f:
         stream = _StrictReader(f)
         records = iter(StreamReader(stream, emit_chunks=True, record_size_limit=size).records)
@@ -173,18 +276,28 @@ def recover(source, destination, *, overwrite=False):
         schemas, in_channels, out_channels = {}, {}, {}
         writer = Rosbag2McapWriter(destination, overwrite=overwrite, fsync_period=None)
 
+        def add_channel(record, restored):
+            in_channels[record.id] = record
+            schema = schemas.get(record.schema_id) or fallback_schemas.get(record.schema_id)
+            out_channels[record.id] = _copy_channel(writer, record, schema)
+            report.topics.setdefault(record.topic, 0)
+            if restored:
+                report.restored_channels[record.topic] = 'summary section'
+
         def copy(record):
             if isinstance(record, Schema):
                 schemas.setdefault(record.id, record)
             elif isinstance(record, Channel):
                 if record.id not in in_channels:
-                    in_channels[record.id] = record
-                    out_channels[record.id] = _copy_channel(writer, record, schemas)
-                    report.topics.setdefault(record.topic, 0)
+                    add_channel(record, False)
             elif isinstance(record, Message):
                 channel = out_channels.get(record.channel_id)
+                if channel is None and record.channel_id in fallback_channels:
+                    add_channel(fallback_channels[record.channel_id], True)
+                    channel = out_channels[record.channel_id]
                 if channel is None:
                     report.skipped_messages += 1
+                    skipped_ids.add(record.channel_id)
                     return
                 writer._add_message(channel, record.data, record.log_time, record.publish_time,
                                     record.sequence)
@@ -202,7 +315,7 @@ def recover(source, destination, *, overwrite=False):
                                             record.media_type, record.data)
                 report.attachments += 1
 
-        after_corrupt_chunk = False
+        after_corrupt_chunk, n_chunks = False, 0
         try:
             while True:
                 try:
@@ -210,10 +323,13 @@ def recover(source, destination, *, overwrite=False):
                     try:
                         inner = _chunk_records(record) if isinstance(record, Chunk) else [record]
                     except Exception:   # its framing held: skip it, keep what follows
+                        report.corrupt_chunk_numbers.append(n_chunks)
+                        n_chunks += 1
                         report.corrupt_chunks += 1
                         after_corrupt_chunk = True
                         report.bytes_used = stream.position
                         continue
+                    n_chunks += isinstance(record, Chunk)
                     if isinstance(record, MessageIndex):
                         if after_corrupt_chunk:   # the skipped chunk's messages, counted
                             report.corrupt_chunk_messages += len(record.records)
@@ -241,17 +357,20 @@ def recover(source, destination, *, overwrite=False):
             writer.close()
     if writer.error is not None:
         raise OSError(f'{destination}: writing failed: {writer.error}') from writer.error
-    return report
+    report.skipped_channels = len(skipped_ids)
+    if skipped_ids & in_channels.keys():
+        return report, (schemas, {i: in_channels[i] for i in skipped_ids & in_channels.keys()})
+    return report, None
 
 
-def _copy_channel(writer, channel, schemas):
-    """Register ``channel`` (and its schema) in the output; return the output channel."""
+def _copy_channel(writer, channel, schema):
+    """Register ``channel`` (and its ``schema``, or None) in the output; return the output
+    channel."""
     import yaml
-    schema = schemas.get(channel.schema_id)
     metadata = dict(channel.metadata)
     try:
         qos = yaml.safe_load(metadata.get('offered_qos_profiles', '')) or []
-    except yaml.YAMLError:
+    except Exception:   # damaged text: PyYAML raises ValueError etc. too ('!!int x')
         qos = []
     out = writer._register(
         channel.topic, schema.name if schema else '', schema.encoding if schema else '',

@@ -38,8 +38,10 @@ complete ROS 2 MCAP and turns every problem with it into a one-line :class:`LogE
 from __future__ import annotations
 
 import contextlib
+import io
 import math
 import os
+import re
 from stat import S_ISREG
 
 import numpy as np
@@ -74,6 +76,27 @@ class LogError(Exception):
     """A log that cannot be used; the message is one line, meant for the user."""
 
 
+_CONTROL = re.compile('[\x00-\x1f\x7f-\x9f\u2028\u2029]')
+
+
+def printable(text):
+    """Return ``text`` with every control character (and line separator) escaped as
+    :func:`repr` does (``\\x00``, ``\\n``).
+
+    Messages quote names and text from damaged files: escaped, they stay on one line and
+    cannot garble a terminal.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    str
+    """
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], text)
+
+
 # --- reading ----------------------------------------------------------------------------------
 
 @contextlib.contextmanager
@@ -87,7 +110,7 @@ def _reading(path, what='corrupt MCAP file'):
         raise LogError(f'{path}: cannot read: {exc.strerror or exc}') from None
     except Exception as exc:   # the mcap reader raises many kinds on bad bytes
         text = ' '.join(str(exc).split()) or type(exc).__name__
-        raise LogError(f'{path}: {what} ({type(exc).__name__}: {text})') from None
+        raise LogError(printable(f'{path}: {what} ({type(exc).__name__}: {text})')) from None
 
 
 def type_name(name):
@@ -368,7 +391,10 @@ def analyze(path):
         if cid not in wanted:
             continue
         if cid not in decoders:
-            with _reading(log.path, f'cannot decode schema of topic {ch.topic}'):
+            # mcap_ros2's vendored rosidl parser prints 'Error with: ...' before it raises
+            with _reading(log.path, f'cannot decode schema of topic {ch.topic}'), \
+                    contextlib.redirect_stderr(io.StringIO()), \
+                    contextlib.redirect_stdout(io.StringIO()):
                 decoders[cid] = factory.decoder_for(ch.message_encoding, log.schema_of(ch))
             if decoders[cid] is None:
                 warnings.append(f'topic {ch.topic}: cannot decode (message encoding '
@@ -981,7 +1007,7 @@ def run_report(args):
     try:
         report, series = analyze(args.file)
     except LogError as exc:
-        _error(str(exc))
+        _error(printable(str(exc)))
         return EXIT_USAGE
     try:
         if args.csv:
@@ -996,7 +1022,7 @@ def run_report(args):
     else:
         print_report(report)
     for w in report['warnings']:
-        print(f'study: warning: {w}', file=sys.stderr)
+        print(f'study: warning: {printable(w)}', file=sys.stderr)
     return 0
 
 
