@@ -11,8 +11,12 @@ import sys
 
 from ..divergence import StudyDiverged
 
-from .study import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists, _error,
-                    _g, _print_json, _table, refuse_existing)
+from ..studies.output import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists,
+                              refuse_existing)
+from ..studies.output import fmt as _g
+from ..studies.output import print_error as _error
+from ..studies.output import print_json as _print_json
+from ..studies.output import table as _table
 
 _SHORTHANDS = ('duration', 'method', 'dt', 'window')
 

@@ -39,16 +39,15 @@ subcommands that need them.
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 import time
 
-EXIT_USAGE = 2
-#: Default document of ``study validate --quick`` (the full one is docs/validation.md).
-QUICK_VALIDATION_OUT = 'validation-quick.md'
-#: A run diverged (same value as :data:`impact_damper_sim.divergence.EXIT_DIVERGED`).
-EXIT_DIVERGED = 3
+from ..studies.output import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists,
+                              refuse_existing)
+from ..studies.output import fmt as _g
+from ..studies.output import print_error as _error
+from ..studies.output import print_json as _print_json
+from ..studies.output import table as _table
 _METHODS_HELP = 'exact, newmark, newmark_step_end or direct'
 
 
@@ -300,33 +299,6 @@ def main(argv=None):
         return 0
 
 
-class OutputExists(Exception):
-    """An output file exists and ``--overwrite`` was not given (exit 2)."""
-
-
-def refuse_existing(paths, overwrite):
-    """Refuse, before any work, to replace existing output files without ``--overwrite``.
-
-    Parameters
-    ----------
-    paths : iterable of str or None
-        Output paths (None: not requested).
-    overwrite : bool
-        ``--overwrite`` was given.
-
-    Raises
-    ------
-    OutputExists
-        Naming the existing files.
-    """
-    import os
-    existing = [p for p in paths if p and os.path.exists(p)]
-    if existing and not overwrite:
-        raise OutputExists(f"{', '.join(existing)} exist{'s' if len(existing) == 1 else ''}; "
-                           'pass --overwrite to replace '
-                           f"{'it' if len(existing) == 1 else 'them'}")
-
-
 #: What Matplotlib's savefig writes (its file-type registry), so that a --plot name is
 #: checked before the computation it would follow, without importing Matplotlib.
 PLOT_FORMATS = ('avif', 'eps', 'gif', 'jpeg', 'jpg', 'pdf', 'pgf', 'png', 'ps', 'raw', 'rgba',
@@ -362,38 +334,6 @@ def _check_scene_file(scene):
         return   # the loader says what it is instead (missing, a directory, a FIFO)
     if not scene.endswith(('.yaml', '.yml')):
         raise SceneError(f'{scene}: not a scene file (a scene is a .yaml or .yml file)')
-
-
-def _error(message):
-    lines = message.splitlines() or ['']
-    print('\n'.join([f'study: error: {lines[0]}'] + [f'  {line}' for line in lines[1:]]),
-          file=sys.stderr)
-
-
-def _print_json(data):
-    print(json.dumps(_finite(data), indent=2))
-
-
-def _finite(value):
-    """Replace non-finite floats by None so that the output is strict JSON."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
-    return value
-
-
-def _g(x, digits=6):
-    return 'n/a' if x is None else f'{x:.{digits}g}'
-
-
-def _table(header, rows):
-    """Left-aligned text columns."""
-    cells = [header] + [[str(c) for c in row] for row in rows]
-    widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
-    return '\n'.join('  '.join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in cells)
 
 
 # --- keys -------------------------------------------------------------------------------------

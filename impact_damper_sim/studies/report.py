@@ -1003,7 +1003,9 @@ def run_report(args):
         0 on success, 2 for a file that cannot be read or output that cannot be written.
     """
     import sys
-    from ..cli.study import EXIT_USAGE, _error, _print_json
+    from .output import EXIT_USAGE
+    from .output import print_error as _error
+    from .output import print_json as _print_json
     try:
         report, series = analyze(args.file)
     except LogError as exc:
@@ -1033,7 +1035,8 @@ def _short(value, width=70):
 
 def print_report(r):
     """Print a report as text (the ``study report`` default output)."""
-    from ..cli.study import _g, _table
+    from .output import fmt as _g
+    from .output import table as _table
     print(f"log {r['file']} (profile {r['profile']}, written by {r['library'] or 'unknown'})")
     print(f"{r['message_count']} messages over {_g(r['duration_s'])} s of log time")
     for name, record in r['metadata'].items():
