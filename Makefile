@@ -16,7 +16,8 @@ SCENE ?= hpotp
 NODE_ARGS ?=
 PYTEST_ARGS ?=
 
-.PHONY: run test test-slow bench constraints clean validation convergence ros2cli
+.PHONY: run test test-slow bench constraints clean validation convergence ros2cli \
+        impact-cost docs-tables check-validation check-docs
 
 # runtime only (requirements.txt); the test tooling comes with $(DEV). The editable install
 # then becomes an ament package of the venv (tools/ament_develop.py: the ament index marker,
@@ -53,19 +54,49 @@ ros2cli: $(ROS2CLI)
 
 # with the wheels beside the checkout (as in CI), the tests of the real tools run
 # (test/test_ros2_tools.py); without them those tests skip and say why
-test: $(DEV) $(if $(wildcard $(ROS2CLI_WHEELS)/install.sh),$(ROS2CLI))
+# make test runs the validation check first (docs/validation.md regenerated and compared, 1.5-3
+# min on 2 cores); `make test CHECK_VALIDATION=` skips it for a quick local run
+CHECK_VALIDATION ?= check-validation
+test: $(DEV) $(if $(wildcard $(ROS2CLI_WHEELS)/install.sh),$(ROS2CLI)) $(CHECK_VALIDATION)
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 test-slow: $(DEV)
 	$(PY) -m pytest -m slow $(PYTEST_ARGS)
 
-# the paper's results next to ours (docs/validation.md and docs/validation/*.png; minutes)
+# Generated documents (tools/generated_docs.py). Fast ones are regenerated and compared by CI;
+# slow ones record their commit, command and a digest of their sources in docs/generated.json,
+# and test/test_generated_docs.py fails when those sources change.
+
+# the paper's results next to ours (docs/validation.md and docs/validation/*.png; the run
+# time is in the document's header)
 validation: $(DEV)
 	$(VENV)/bin/impact_damper_study validate --out docs/validation.md --overwrite
 
-# speed/accuracy trade: docs/convergence.md, docs/convergence/*.{csv,json,png} (about 10 min)
+# regenerate docs/validation.md into a temporary directory and fail on any difference in
+# results (dates and wall times aside); make test runs it first
+check-validation: $(DEV)
+	$(PY) -m pytest -q -m slow test/test_generated_docs.py -k validation
+
+# speed/accuracy trade: docs/convergence.md, docs/convergence/*.{csv,json,png} (slow: the
+# wall time of each scene is in the document), recorded in docs/generated.json
 convergence: $(DEV)
-	$(PY) -m impact_damper_sim.studies.convergence docs/convergence.md
+	$(PY) tools/generated_docs.py make convergence
+
+# the impact-cost curve: docs/impact-cost/cost_curve.{csv,png} (bench/impact_cost.py --curve;
+# CPU times: on a quiet machine), recorded in docs/generated.json
+impact-cost: $(DEV)
+	$(PY) tools/generated_docs.py make impact-cost
+
+# tables printed from recorded data: docs/fidelity.md's from docs/fidelity/*.json, the copies
+# of docs/validation.md's tables in docs/hpotp-model.md and docs/rbs-model.md, the scene key
+# table of docs/scenes.md from the schema
+docs-tables: $(DEV)
+	$(PY) tools/generated_docs.py tables
+	$(PY) tools/generated_docs.py keys
+
+# every check of the generated documents (fast: the slow ones by their digests)
+check-docs: check-validation
+	$(PY) -m pytest -q test/test_generated_docs.py
 
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
 BENCHES := bench/sdof_methods.py bench/ivp_baseline.py bench/modal_vs_direct.py \
