@@ -16,6 +16,26 @@ import pytest
 
 # --- GetParameters with an unset parameter ------------------------------------------------
 
+def _ask(ros_context, node, service, *names_lists):
+    """GetParameters answers of ``node``'s ``service`` to each list of names, asked by a
+    peer node over DDS."""
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    peer = Node('get_parameters_peer', context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    executor.add_node(peer)
+    try:
+        client = peer.create_client(GetParameters, service)
+        assert client.wait_for_service(timeout_sec=10.0)
+        return [_call(peer, client, GetParameters.Request(names=names), executor)
+                for names in names_lists]
+    finally:
+        executor.shutdown()
+        peer.destroy_node()
+
+
 def _call(node, client, request, executor, timeout=10.0):
     future = client.call_async(request)
     end = time.monotonic() + timeout
@@ -29,38 +49,25 @@ def _call(node, client, request, executor, timeout=10.0):
 def test_get_parameters_answers_every_name_including_an_unset_one(ros_context):
     pytest.importorskip('rclpy')
     from rcl_interfaces.msg import ParameterType
-    from rcl_interfaces.srv import GetParameters
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
     from rclpy.parameter import Parameter
 
     from impact_damper_sim.ros.vibration_node import VibrationNode
 
     node = VibrationNode(context=ros_context, start_stepping=False, clock=lambda: 1000.0,
                          parameter_overrides=[Parameter('scene', value='sdof')])
-    peer = Node('get_parameters_peer', context=ros_context)
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(node)
-    executor.add_node(peer)
     try:
-        client = peer.create_client(GetParameters, '/vibration_node/get_parameters')
-        assert client.wait_for_service(timeout_sec=10.0)
         names = ['scene', 'overrides', 'real_time_factor']
-        answer = _call(peer, client, GetParameters.Request(names=names), executor)
-        assert len(answer.values) == len(names)
-        scene, overrides, rtf = answer.values
+        both, alone, stranger = _ask(ros_context, node, '/vibration_node/get_parameters',
+                                     names, ['overrides'], ['scene', 'no_such'])
+        assert len(both.values) == len(names)
+        scene, overrides, rtf = both.values
         assert scene.type == ParameterType.PARAMETER_STRING and scene.string_value == 'sdof'
         assert overrides.type == ParameterType.PARAMETER_NOT_SET   # ROS 2: unset
         assert rtf.type == ParameterType.PARAMETER_DOUBLE
         # alone, too, and an undeclared name keeps rclpy's answer (no values)
-        answer = _call(peer, client, GetParameters.Request(names=['overrides']), executor)
-        assert [v.type for v in answer.values] == [ParameterType.PARAMETER_NOT_SET]
-        answer = _call(peer, client, GetParameters.Request(names=['scene', 'no_such']),
-                       executor)
-        assert len(answer.values) == 0
+        assert [v.type for v in alone.values] == [ParameterType.PARAMETER_NOT_SET]
+        assert len(stranger.values) == 0
     finally:
-        executor.shutdown()
-        peer.destroy_node()
         node.destroy_node()
 
 
@@ -68,27 +75,16 @@ def test_get_parameters_answers_every_name_including_an_unset_one(ros_context):
 def test_the_monitor_answers_an_unset_sensors_parameter(ros_context):
     pytest.importorskip('rclpy')
     from rcl_interfaces.msg import ParameterType
-    from rcl_interfaces.srv import GetParameters
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
 
     from impact_damper_sim.ros.monitor import VibrationMonitor
 
     monitor = VibrationMonitor(context=ros_context, namespace='/unset_probe')
-    peer = Node('get_parameters_peer', context=ros_context)
-    executor = SingleThreadedExecutor(context=ros_context)
-    executor.add_node(monitor)
-    executor.add_node(peer)
     try:
-        client = peer.create_client(GetParameters, '/unset_probe/monitor/get_parameters')
-        assert client.wait_for_service(timeout_sec=10.0)
-        answer = _call(peer, client, GetParameters.Request(names=['sensors', 'window']),
-                       executor)
+        answer, = _ask(ros_context, monitor, '/unset_probe/monitor/get_parameters',
+                       ['sensors', 'window'])
         assert [v.type for v in answer.values] == [ParameterType.PARAMETER_NOT_SET,
                                                    ParameterType.PARAMETER_DOUBLE]
     finally:
-        executor.shutdown()
-        peer.destroy_node()
         monitor.destroy_node()
 
 
