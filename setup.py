@@ -81,7 +81,7 @@ setup(
     # what the package imports outside the standard library and ROS (ROS packages: package.xml;
     # test/test_dependencies.py checks both). mcap: recording, replay, study report/recover;
     # mcap-ros2-support: study report
-    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'pyyaml', 'mcap',
+    install_requires=['setuptools', 'numpy', 'scipy', 'numba', 'llvmlite', 'pyyaml', 'mcap',
                       'mcap-ros2-support'],
     # plots: study --plot and the validation/convergence figures; dask: parallel sweeps
     extras_require={'test': ['pytest'], 'plots': ['matplotlib'],

@@ -11,6 +11,12 @@ it is called), timed from just before it is started (wall s):
   those. It then steps and publishes one simulated second flat out, whose real-time factor
   shows that nothing is left to compile after the first samples.
 
+Each run also reports its CPU time (user + system s of the process and of the compile helpers
+it waited for, :mod:`impact_damper_sim.integrate.kernels`): on a shared machine the wall time
+of a cold start depends on the other jobs, its CPU time much less. A cold start compiles in
+up to as many processes as there are cores, so its wall time on an idle machine is about
+its CPU time divided by the cores it could use, plus the serial parts.
+
 "Cold" points ``NUMBA_CACHE_DIR`` at a fresh empty directory, so every kernel the run calls is
 compiled; "warm" runs again with the cache the cold run filled. Each tool gets its own
 directories (the node runs without the energy ledger, ``study simulate`` with it: they
@@ -26,6 +32,7 @@ import argparse
 import math
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -58,27 +65,37 @@ rclpy.try_shutdown()
 '''
 
 
+def children_cpu():
+    """CPU time (user + system s) of the finished child processes so far, theirs included."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def run_node(scene, cache_dir):
     """One node process: ``[rclpy imported, node built, first samples published]`` (wall s
-    from the start) and the real-time factor of the next simulated second (dimensionless)."""
+    from the start), the real-time factor of the next simulated second (dimensionless) and
+    the process's CPU time (s; it runs about a second more after its first samples)."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir,
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    cpu = children_cpu()
     t0 = time.time()
     out = subprocess.run([sys.executable, '-c', NODE_CHILD, repr(t0), scene], env=env,
                          capture_output=True, text=True, check=True).stdout.split()
-    return [float(x) for x in out[-4:]]
+    return [float(x) for x in out[-4:]] + [children_cpu() - cpu]
 
 
 def run_study(scene, duration, cache_dir):
-    """One ``study simulate`` process: ``[wall s to its exit, real-time factor it reports]``."""
+    """One ``study simulate`` process: ``[wall s to its exit, real-time factor it reports,
+    CPU s]``."""
     env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    cpu = children_cpu()
     t0 = time.perf_counter()
     out = subprocess.run([sys.executable, '-m', 'impact_damper_sim.cli.study', 'simulate',
                           scene, '--duration', str(duration)], env=env, capture_output=True,
                          text=True, check=True).stdout
     wall = time.perf_counter() - t0
     rtf = re.search(r'real-time factor ([0-9.eE+-]+)', out)
-    return [wall, float(rtf.group(1)) if rtf else math.nan]
+    return [wall, float(rtf.group(1)) if rtf else math.nan, children_cpu() - cpu]
 
 
 def cold_and_warm(run, repeat):
@@ -113,7 +130,8 @@ def main(argv=None):
         print(f'study simulate {args.scene} --duration {args.duration:g}, to its result:')
         for name, rows in (('cold', cold), ('warm', warm)):
             print(f'  {name} Numba cache  {spread([r[0] for r in rows])} s; its run '
-                  f'{spread([r[1] for r in rows], "{:.1f}")} x real time')
+                  f'{spread([r[1] for r in rows], "{:.1f}")} x real time; CPU '
+                  f'{spread([r[2] for r in rows], "{:.1f}")} s')
     if args.only != 'study':
         cold, warm = cold_and_warm(lambda c: run_node(args.scene, c), args.repeat)
         print('vibration_node: rclpy imported / node built / first samples published; the next '
@@ -121,7 +139,8 @@ def main(argv=None):
         for name, rows in (('cold', cold), ('warm', warm)):
             print(f'  {name} Numba cache  {spread([r[0] for r in rows])} / '
                   f'{spread([r[1] for r in rows])} / {spread([r[2] for r in rows])} s; '
-                  f'{spread([r[3] for r in rows], "{:.1f}")} x real time')
+                  f'{spread([r[3] for r in rows], "{:.1f}")} x real time; CPU '
+                  f'{spread([r[4] for r in rows], "{:.1f}")} s')
         ratio = statistics.median(r[2] for r in cold) / statistics.median(r[2] for r in warm)
         print(f'  cold / warm to first samples: {ratio:.1f}x')
 

@@ -26,6 +26,8 @@ PYPI = {
     'numpy': ('numpy', 'python3-numpy'),
     'scipy': ('scipy', 'python3-scipy'),
     'numba': ('numba', 'python3-numba'),
+    # numba's own dependency; noble's python3-numba depends on python3-llvmlite
+    'llvmlite': ('llvmlite', 'python3-numba'),
     'yaml': ('pyyaml', 'python3-yaml'),
     'mcap': ('mcap', 'mcap-ros2-support'),
     'mcap_ros2': ('mcap-ros2-support', 'mcap-ros2-support'),

@@ -1522,7 +1522,7 @@ def test_planar_realignment_release_leaves_without_a_new_contact():
 # ============================================================== whole runs of the exact twins
 EXACT_KERNELS = ('grace_shift', 'fn_taylor', 'near_eval', 'refine_root', 'third_bound',
                  'out_of_reach', 'sort_candidates', 'search', 'switch_slot', 'release_normals',
-                 'record', 'impact', 'advance')
+                 'record', 'impact', 'quiet_window', 'advance')
 
 
 def _scenario(name):

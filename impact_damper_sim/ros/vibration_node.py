@@ -171,7 +171,7 @@ class VibrationNode(Node):
                                       f"ignored (known: {', '.join(PARAMETERS)})")
         rate_limit = p['speed_rate_limit'] or None
         busy = _Busy(self.get_logger().info, 'loading the scene and the compiled kernels '
-                     '(a cold Numba cache compiles them once: about 45 s on 2 cores, longer on a '
+                     '(a cold Numba cache compiles them once: about 40 s on 2 cores, longer on a '
                      'busy machine; 2 s after that)')
         try:
             scene, target = live_scene(p['scene'], p['overrides'] or (),

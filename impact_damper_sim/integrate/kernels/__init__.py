@@ -14,14 +14,22 @@ scan), :mod:`.ledger` (energy ledger quadrature), :mod:`.exact` (the exact propa
 loop), :mod:`.newmark` and :mod:`.filters`.
 
 Compile time (an empty cache compiles the kernels a run calls, once): a kernel is compiled
-for the first call that needs it, once per argument types (:class:`Kernel`), and Numba links
-each callee's code into its caller and optimizes it there again, so the cost grows with the
-depth of the calls (``advance`` holds them all). Small helpers of the hot loops are inlined
-by LLVM (``forceinline=True``), not by Numba: ``inline='always'`` copies a helper's Numba IR
-into every call site and types and lowers each copy (hpotp's node start: 58 s of compile
-CPU that way, 46 s this way, the same speed after). What a run does not use is not compiled:
-:func:`.exact.advance` leaves out the energy ledger, or the ledger form a model does not
-need, by the types of its arguments.
+for the first call that needs it, once per argument types (:class:`Kernel`). Numba links a
+callee's LLVM code into each caller and optimizes it there again, so the cost grew with the
+depth of the calls (``advance`` re-optimized the whole event search); here a kernel calls
+another through an exported symbol (:func:`_bind`), so each kernel's code is optimized once,
+and kernels call a twin compiled without Numba's CPython wrapper, which only Python calls
+need (:meth:`Kernel.internal`). Small helpers of the hot loops are linked and inlined by
+LLVM (``forceinline=True``), not by Numba: ``inline='always'`` copies a helper's Numba IR into
+every call site and types and lowers each copy (12 s more of hpotp's node start). hpotp's
+node start, compile CPU in one process: 53 s with Numba's linking, 44 s by symbol, 37 s
+without the wrappers, the same speed after (events and outputs bit for bit;
+docs/impact-cost.md). A kernel with a declared return type (``kernel(returns=...)``: the
+event search, its fallback scan and the ledger's two main forms) is compiled by a helper
+process when a caller is typed on a cold start (:func:`_farm`), so a cold start uses the
+machine's cores (``IMPACT_DAMPER_SIM_COMPILE_HELPERS=0``: none). What a run does not use is
+not compiled: :func:`.exact.advance` leaves out the energy ledger, or the ledger form a model
+does not need, by the types of its arguments.
 
 Numba keys a cached function on its own source file only, not on the files of the functions
 it calls; the kernels here call across modules, so a stale cache could pair new code with an
@@ -30,12 +38,23 @@ changes (on import, before anything is compiled or loaded).
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import importlib
+import inspect
 import os
+import pickle
+import subprocess
+import sys
+import types as pytypes
 from pathlib import Path
 
+from llvmlite import binding as llvm_binding
 from numba import njit, types
+from numba.core import cgutils
+from numba.core.imputils import fix_returning_optional, impl_ret_new_ref
 from numba.core.registry import CPUDispatcher
+from numba.core.typing.templates import make_concrete_template
 
 _STAMP = 'impact_damper_sim_kernels.fingerprint'
 
@@ -60,20 +79,266 @@ class Kernel(CPUDispatcher):
     three times (``point_eval``, ``scan_multi``, ``ledger_modal``, ...; a tenth of its cold
     start). The kernels never branch on a literal's value, so a call is typed with the
     plain types.
+
+    A kernel with a declared return type (``returns``) that is neither compiled nor cached
+    when a caller is typed is compiled by a helper process (:func:`_farm`) while the caller
+    goes on; the caller waits for it only when its own machine code is finalized.
+
+    The dispatcher a module holds compiles what Python calls, with Numba's CPython wrapper
+    (the unboxing of every argument). Calls from other kernels go to its twin without that
+    wrapper (:meth:`internal`; a tenth of the compile time was wrappers never called).
     """
 
+    #: Called by other kernels through its symbol (:func:`_bind`) instead of linked into them.
+    by_symbol = False
+    #: The declared return type (a Numba type), or ``None``.
+    returns = None
+    #: The twin that kernels call (the public dispatcher: ``None`` until first needed), or
+    #: the public dispatcher itself (the twin)
+    _twin = None
+    _public = True
+
+    def internal(self):
+        """The twin of this kernel that other kernels call: same code and options, without
+        the CPython wrapper, cached apart (its own name, ``NAME_py.internal``)."""
+        if not self._public:
+            return self
+        if self._twin is None:
+            py_func = self.py_func
+            func = pytypes.FunctionType(py_func.__code__, py_func.__globals__,
+                                        py_func.__name__, py_func.__defaults__,
+                                        py_func.__closure__)
+            func.__qualname__ = f'{py_func.__qualname__}.internal'
+            func.__module__ = py_func.__module__
+            func.__doc__ = py_func.__doc__
+            cached = type(self._cache).__name__ != 'NullCache'
+            options = {k: v for k, v in self.targetoptions.items() if k != 'nopython'}
+            twin = njit(**options, no_cpython_wrapper=True, cache=cached)(func)
+            twin.__class__ = Kernel
+            twin.by_symbol = self.by_symbol
+            twin.returns = self.returns
+            twin._public = False
+            twin._twin = self
+            self._twin = twin
+        return self._twin
+
     def get_call_template(self, args, kws):
-        return super().get_call_template(tuple(types.unliteral(a) for a in args),
-                                         {k: types.unliteral(v) for k, v in kws.items()})
+        if self._public:
+            return self.internal().get_call_template(args, kws)
+        args = tuple(types.unliteral(a) for a in args)
+        kws = {k: types.unliteral(v) for k, v in kws.items()}
+        if self.returns is not None and not kws and args not in self.overloads and \
+                _farm(self, args):
+            pysig, args = self._compiler.fold_argument_types(args, kws)
+            template = make_concrete_template(f'CallTemplate({self.py_func.__name__})',
+                                              key=self.py_func.__name__,
+                                              signatures=[self.returns(*args)])
+            return template, pysig, args, {}
+        return super().get_call_template(args, kws)
+
+    def get_overload(self, args):
+        if self._public:
+            return self.internal().get_overload(args)
+        args = tuple(args)
+        if args not in self.overloads and (self, args) in _FARMED:
+            return _FARMED[self, args]   # the key of its call by symbol (_farm)
+        return super().get_overload(args)
+
+    def add_overload(self, cres):
+        super().add_overload(cres)
+        if self.by_symbol and not cres.objectmode:
+            _bind(self, cres)
 
 
-def kernel(**options):
+@dataclasses.dataclass(frozen=True)
+class _Load:
+    """Load (or compile) kernel ``module.name`` for argument types ``args`` (numba types).
+
+    Kept in the cache entry of every kernel that calls it by symbol: Numba runs it before it
+    loads that caller's machine code, whose reference to the symbol must then resolve.
+    """
+    module: str
+    name: str
+    args: tuple
+
+    def __call__(self):
+        getattr(importlib.import_module(self.module), self.name).internal().compile(self.args)
+
+
+def _symbol(load):
+    """The process-wide symbol of a kernel's compiled function (stable across processes)."""
+    key = f'{load.module}.{load.name}({", ".join(str(a) for a in load.args)})'
+    return f'impact_damper_sim.{load.name}.{hashlib.sha256(key.encode()).hexdigest()[:20]}'
+
+
+def _load_of(dispatcher, args):
+    """The :class:`_Load` of a kernel's internal twin, or ``None`` when its module does not
+    hold its public dispatcher under its name (a test's own dispatcher: callers link it as
+    Numba does)."""
+    func = dispatcher.py_func
+    name = func.__name__[:-3] if func.__name__.endswith('_py') else func.__name__
+    module = sys.modules.get(func.__module__)
+    if dispatcher._public or getattr(module, name, None) is not dispatcher._twin:
+        return None
+    return _Load(func.__module__, name, tuple(args))
+
+
+def _call_by_symbol(load, argtypes, restype, argnames, wait):
+    """Numba's lowering of a call to a kernel, made a call to its symbol (:func:`_symbol`).
+
+    The caller's cache entry gets ``load``; with ``wait`` (compiled by a helper process) its
+    machine code is finalized only after the kernel is loaded and its symbol defined.
+    """
+    symbol = _symbol(load)
+
+    def call(context, builder, sig, args):
+        fnty = context.call_conv.get_function_type(restype, argtypes)
+        fn = cgutils.get_or_insert_function(builder.module, fnty, symbol)
+        context.apply_target_attributes(fn, argtypes, restype)
+        context.call_conv.decorate_function(fn, argnames, argtypes)
+        library = context.active_code_library
+        library._reload_init.add(load)
+        if wait:
+            _load_before_finalize(library, load)
+        status, retval = context.call_conv.call_function(builder, fn, restype, argtypes, args)
+        with cgutils.if_unlikely(builder, status.is_error):
+            context.call_conv.return_status_propagate(builder, status)
+        retval = fix_returning_optional(context, builder, sig, status, retval)
+        return impl_ret_new_ref(context, builder, restype, retval)
+
+    call.signature = argtypes
+    call.libs = ()
+    return call
+
+
+def _bind(dispatcher, cres):
+    """Export a compiled kernel under :func:`_symbol` and make callers call it there.
+
+    Numba links a callee's LLVM module into every caller and optimizes it there again, so
+    the cost of a kernel grew with everything below it (``advance`` re-optimized the whole
+    event search). Here a call is a plain call to an external symbol that the JIT resolves
+    to the callee's machine code, compiled once; LLVM cannot inline across it, so the small
+    hot helpers stay ``forceinline`` (linked) kernels.
+    """
+    load = _load_of(dispatcher, cres.signature.args)
+    if load is None:
+        return
+    fndesc = cres.fndesc
+    if dispatcher.returns is not None and fndesc.restype != dispatcher.returns:
+        raise TypeError(f'kernel {load.name} returns {fndesc.restype}, declared '
+                        f'{dispatcher.returns}')
+    llvm_binding.add_symbol(_symbol(load),
+                            cres.library.get_pointer_to_function(fndesc.llvm_func_name))
+    overloads = dispatcher.targetctx._defns[cres.entry_point]
+    call = _call_by_symbol(load, fndesc.argtypes, fndesc.restype, fndesc.args, wait=False)
+    overloads.versions = [(call.signature, call)]   # replaces Numba's linking call
+    overloads._cache.clear()
+
+
+#: Kernels being compiled by helper processes: ``(dispatcher, args) -> _Load``.
+_FARMED = {}
+#: The helper process of each :class:`_Load`.
+_HELPERS = {}
+#: Environment variable: how many helper processes this process may still start.
+HELPERS_ENV = 'IMPACT_DAMPER_SIM_COMPILE_HELPERS'
+_HELPER_CODE = """
+import pickle, sys
+sys.path[:] = pickle.load(sys.stdin.buffer)
+pickle.load(sys.stdin.buffer)()
+"""
+
+
+def _helper_budget():
+    """Helper processes this process may start: ``$IMPACT_DAMPER_SIM_COMPILE_HELPERS``, by
+    default the number of cores (none on one core). A helper may start helpers of its own,
+    within what its parent had left."""
+    try:
+        return int(os.environ[HELPERS_ENV])
+    except (KeyError, ValueError):
+        cores = os.cpu_count() or 1
+        return cores if cores > 1 else 0
+
+
+def _in_cache(dispatcher, args):
+    """True when Numba's cache holds the kernel for ``args`` (it is loaded, not compiled)."""
+    try:
+        cache = dispatcher._cache
+        key = cache._index_key(args, dispatcher.targetctx.codegen())
+        return cache._cache_file._load_index().get(key) is not None
+    except Exception:   # noqa: BLE001 - no cache, or a Numba without these internals
+        return False
+
+
+def _farm(dispatcher, args):
+    """Have a helper process compile a kernel that a caller being typed needs.
+
+    Numba compiles a callee when it types the call, so a cold start compiled the kernels one
+    after another on one core. A kernel whose return type is declared can be typed without
+    it: a helper process (a fresh interpreter, sharing the cache directory) compiles and
+    caches it while this one goes on, and this one loads it before it finalizes the caller.
+    Returns True when the kernel is (already) being compiled elsewhere.
+    """
+    if (dispatcher, args) in _FARMED:
+        return True
+    budget = _helper_budget() - len(_HELPERS)
+    if budget <= 0 or _CACHE_DIR is None or not dispatcher._can_compile or \
+            type(dispatcher._cache).__name__ == 'NullCache' or _in_cache(dispatcher, args):
+        return False   # nothing to share the result through, or nothing to compile
+    load = _load_of(dispatcher, args)
+    if load is None:
+        return False
+    env = dict(os.environ, **{HELPERS_ENV: str(budget - 1)})
+    try:
+        helper = subprocess.Popen([sys.executable, '-c', _HELPER_CODE], stdin=subprocess.PIPE,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                  env=env)
+        with helper.stdin:
+            pickle.dump(sys.path, helper.stdin)
+            pickle.dump(load, helper.stdin)
+    except (OSError, TypeError, ValueError, pickle.PicklingError):
+        return False   # no interpreter to start (an embedded Python): compile here
+    _HELPERS[load] = helper
+    _FARMED[dispatcher, args] = load
+    call = _call_by_symbol(load, args, dispatcher.returns,
+                           list(inspect.signature(dispatcher.py_func).parameters), wait=True)
+    dispatcher.targetctx._defns[load].append(call, call.signature)
+    return True
+
+
+def _load_before_finalize(library, load):
+    """Finalize ``library`` (a caller's code) only after ``load`` is loaded: its helper process
+    has finished (or failed: then this process compiles it)."""
+    pending = library.__dict__.setdefault('_impact_damper_sim_loads', [])
+    if not pending:
+        finalize = library.finalize
+
+        def finalize_after_loads():
+            for item in pending:
+                helper = _HELPERS.get(item)
+                if helper is not None:
+                    helper.wait()
+                item()
+            finalize()
+        library.finalize = finalize_after_loads
+    if load not in pending:
+        pending.append(load)
+
+
+def kernel(*, linked=False, returns=None, **options):
     """The decorator of a kernel: ``numba.njit`` with :data:`KERNEL_OPTIONS` and ``options``
-    (such as ``forceinline=True``), dispatched by :class:`Kernel`."""
+    (such as ``forceinline=True``), dispatched by :class:`Kernel`.
+
+    Other kernels call it by symbol (:func:`_bind`) unless it is ``forceinline`` or
+    ``linked`` (its LLVM code then goes into every caller, where it can be inlined).
+    ``returns`` (a Numba type) declares its return type: a caller is then typed without it,
+    and a cold start compiles it in a helper process (:func:`_farm`).
+    """
     def compile_lazily(func):
         dispatcher = njit(**{**KERNEL_OPTIONS, **options})(func)
         if type(dispatcher) is CPUDispatcher:   # not the plain function of NUMBA_DISABLE_JIT
             dispatcher.__class__ = Kernel
+            dispatcher.by_symbol = not (linked or options.get('forceinline', False))
+            dispatcher.returns = returns if dispatcher.by_symbol else None
         return dispatcher
     return compile_lazily
 
@@ -122,4 +387,5 @@ def guard_cache():
     return cache_dir
 
 
-guard_cache()
+#: The kernels' cache directory (``Path``), ``None`` when it cannot be written.
+_CACHE_DIR = guard_cache()

@@ -39,6 +39,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import types
+
 from . import kernel
 
 from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
@@ -548,7 +550,7 @@ def search_py(t_cur, horizon, yh, lam, lam_max, W, w0, ws, part_plus, part_minus
     return undecided
 
 
-search = kernel()(search_py)
+search = kernel(returns=types.int64)(search_py)
 
 
 def quiet_window_py(T, yh, lam, W, part_plus, part_minus, omegas, u_grid, k0, k1, house_abs,

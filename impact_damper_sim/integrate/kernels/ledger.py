@@ -11,6 +11,8 @@ flow evaluations, is the independent reference the tests hold them to. Conventio
 from __future__ import annotations
 
 import numpy as np
+from numba import types
+
 from . import kernel
 
 from .flow import _PHI1_SERIES, cabs, flow_factors, phis_from, point_eval, propagate
@@ -550,7 +552,7 @@ def ledger_modal_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us
     return n_pan
 
 
-ledger_modal = kernel()(ledger_modal_py)
+ledger_modal = kernel(returns=types.int64)(ledger_modal_py)
 
 
 #: Largest ``(|c|^2 max(1, |e^(lam tau)|^2) + |a|^2 + |b tau|^2) / (|y0|^2 + |w0 tau|^2 +
@@ -803,4 +805,4 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
     return 1
 
 
-ledger_closed = kernel()(ledger_closed_py)
+ledger_closed = kernel(returns=types.int64)(ledger_closed_py)

@@ -12,6 +12,8 @@ Conventions as in :mod:`.flow`.
 from __future__ import annotations
 
 import numpy as np
+from numba import types
+
 from . import kernel
 
 from .flow import derivative_bounds, point_eval, row_bound, row_derivs
@@ -229,4 +231,4 @@ def scan_multi_py(n_cand, cand_j, cand_fid, Th, t_cur, yh, lam, W, w0, ws, part_
     return undecided
 
 
-scan_multi = kernel()(scan_multi_py)
+scan_multi = kernel(returns=types.int64)(scan_multi_py)
