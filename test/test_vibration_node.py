@@ -1163,3 +1163,21 @@ def test_main_freezes_the_start_up_heap_before_stepping(ros_context, monkeypatch
         assert not any(id(o) in walked for o in kept)
     finally:
         gc.unfreeze()
+
+
+def test_the_schedule_begins_when_stepping_starts(ros_context):
+    """Whatever runs between building the node and starting its thread (main's heap freeze,
+    0.15-0.3 s) is no deficit: the schedule and the first diagnostics period start with the
+    thread, so the first samples do not leave in a catch-up burst (the first 1 s window of
+    rbs read 0.665 and the next 1.21 before)."""
+    clock = FakeClock()
+    node = make_node(ros_context, 'sdof', clock=clock)
+    try:
+        t0 = node.live.t
+        clock.now += 0.3   # the time main spends before start()
+        assert node.pacer.sim_at(clock.now) == pytest.approx(t0 + 0.3)
+        node.start()
+        assert node.pacer.sim_at(clock.now) == pytest.approx(t0, abs=1e-12)
+        assert node.stats.wall == clock.now
+    finally:
+        node.destroy_node()
