@@ -79,6 +79,9 @@ What is measured, per scene:
   ``span_s`` up to ``window_end_s`` (judged when that is 50 or more; impact batches are
   placed at the middle of their interval, so a count is exact to about a batch at each
   end). The largest ``last_sample_age_s`` it reported is shown.
+* **The hypervisor's steal**: the share of the CPU time ``/proc/stat`` counts as stolen
+  over each scene (a virtual machine's cores given to other guests; over 2 % flags the run
+  as not quiet, whatever this machine's own load).
 * **Other processes**: the machine's busy CPU (``/proc/stat``) less the bench's processes
   (and the ``--load`` loop) over the run, in % of one core; over 25 % the scene line says
   the machine was not quiet.
@@ -1062,6 +1065,24 @@ def _f(x, fmt, width):
     return f'{x:{width}{fmt}}'
 
 
+def _cpu_ticks():
+    """The machine's CPU time counters (``/proc/stat``'s first line: user ... steal)."""
+    try:
+        with open('/proc/stat') as f:
+            return [int(x) for x in f.readline().split()[1:9]]
+    except (OSError, ValueError):
+        return None
+
+
+def _steal_percent(before, after):
+    """Share of the CPU time the hypervisor gave to other guests in between (%): a virtual
+    machine's cores taken away while its own load looks light."""
+    if not before or not after:
+        return math.nan
+    d = [b - a for a, b in zip(before, after)]
+    return 100.0 * d[7] / sum(d) if sum(d) > 0 else math.nan
+
+
 def print_scene(res):
     s = res["scene"] + (" (cold start)" if res.get("cold") else "")
     if res.get('first_attempt'):
@@ -1081,8 +1102,10 @@ def print_scene(res):
           f'{res["proc_cpu_mean"]:.1f}); {res["samples_per_s"]:.0f} samples/s per '
           f'accelerometer, {res["impacts_per_s"]:.0f} impacts/s (peak window '
           f'{res["impacts_per_s_peak"]:.0f}); status {res["node_status"]}; other processes '
-          f'{_f(res["others_cpu"], ".0f", 0)} % of a core'
-          + (' (NOT A QUIET MACHINE)' if res['others_cpu'] > 25 else ''))
+          f'{_f(res["others_cpu"], ".0f", 0)} % of a core, the hypervisor\'s steal '
+          f'{_f(res.get("steal_percent", math.nan), ".1f", 0)} % of the CPU time'
+          + (' (NOT A QUIET MACHINE)' if res['others_cpu'] > 25
+             or res.get('steal_percent', 0) > 2.0 else ''))
     print(f'  {"topic":34s} {"type":15s} {"msg/s":>7s} {"src":>6s} {"raw %":>6s} '
           f'{"raw lag":>7s} {"py %":>6s} {"py CPU":>6s} {"py lag":>6s} {"p99":>6s} '
           f'{"drift":>6s} {"from":>5s}')
@@ -1226,6 +1249,7 @@ def main(argv=None):
                     print(flush=True)
                     domain = pick_domain(domain + 1)
                 res = None
+                steal0 = _cpu_ticks()
                 for attempt in range(2):
                     first = res
                     try:
@@ -1243,6 +1267,7 @@ def main(argv=None):
                     print(f'{scene}: {res["reason"]}; once more', flush=True)
                     domain = pick_domain(domain + 1)
                     time.sleep(2.0)
+            res['steal_percent'] = _steal_percent(steal0, _cpu_ticks())
             results.append(res)
             print_scene(res)
             print(flush=True)
