@@ -6,15 +6,14 @@ modes, impactors and stuck configurations up front, ``build`` refuses an over-bu
 in one line before building it (``study``: exit 2; the node: one line, exit 2), and the
 stuck configurations a run keeps are bounded.
 """
-import os
 import re
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from node_refusal import node_refusal
 
 from impact_damper_sim import divergence
 from impact_damper_sim.cli.study import main as study
@@ -135,12 +134,7 @@ def test_the_configurations_a_run_keeps_are_bounded(monkeypatch):
 def test_the_node_refuses_an_over_budget_scene_in_one_line(tmp_path):
     pytest.importorskip('rclpy')
     path = many_impactors(tmp_path / 'many.yaml', MAX_IMPACTORS + 1)
-    proc = subprocess.run(
-        [sys.executable, '-m', 'impact_damper_sim.ros.vibration_node', '--ros-args',
-         '-p', f'scene:={path}'], capture_output=True, text=True, timeout=120,
-        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
-    assert proc.returncode == 2, proc.stderr
-    lines = [x for x in proc.stderr.splitlines() if x.startswith('vibration_node:')]
+    lines, stderr = node_refusal(path, timeout=120)
     assert len(lines) == 1 and '1,001 impactors, over the limit of 1,000' in lines[0], \
-        proc.stderr
-    assert 'Traceback' not in proc.stderr
+        stderr
+    assert 'Traceback' not in stderr

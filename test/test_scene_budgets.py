@@ -1,11 +1,11 @@
 """Scene files under abuse: every bad file is refused in one line before anything is built,
 by the loader that ``study`` and ``vibration_node`` share, within bounded time and memory."""
 import os
-import subprocess
-import sys
 import time
 
 import pytest
+
+from node_refusal import node_refusal
 
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.schema import (MAX_SCENE_BYTES, MAX_SCENE_DEPTH, SceneError,
@@ -81,14 +81,9 @@ def test_the_node_refuses_them_in_one_line_with_exit_2(tmp_path, content, why):
     pytest.importorskip('rclpy')
     path = tmp_path / 'g.yaml'
     path.write_bytes(content)
-    proc = subprocess.run(
-        [sys.executable, '-m', 'impact_damper_sim.ros.vibration_node', '--ros-args',
-         '-p', f'scene:={path}'], capture_output=True, text=True, timeout=60,
-        env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST'))
-    assert proc.returncode == 2, proc.stderr
-    lines = [x for x in proc.stderr.splitlines() if x.startswith('vibration_node:')]
-    assert len(lines) == 1 and why in lines[0], proc.stderr
-    assert 'Traceback' not in proc.stderr
+    lines, stderr = node_refusal(path, timeout=60)
+    assert len(lines) == 1 and why in lines[0], stderr
+    assert 'Traceback' not in stderr
 
 
 def test_a_time_step_below_a_nanosecond_is_refused_in_one_line(capsys):
