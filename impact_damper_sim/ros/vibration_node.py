@@ -171,8 +171,8 @@ class VibrationNode(Node):
                                       f"ignored (known: {', '.join(PARAMETERS)})")
         rate_limit = p['speed_rate_limit'] or None
         busy = _Busy(self.get_logger().info, 'loading the scene and the compiled kernels '
-                     '(a cold Numba cache compiles them once: about 40 s on 2 cores, longer on a '
-                     'busy machine; 2 s after that)')
+                     '(a cold Numba cache compiles them once: 26 s on 2 quiet cores, 40 s or '
+                     'more on a busy machine; 2 s after that)')
         try:
             scene, target = live_scene(p['scene'], p['overrides'] or (),
                                        speed_rate_limit=rate_limit)
