@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from impact_damper_sim.divergence import Divergence
+from impact_damper_sim.integrate.divergence import Divergence
 from impact_damper_sim.scene.build import build, load, resolve_scene
 from impact_damper_sim.scene.schema import apply_overrides, load_yaml, validate
 from impact_damper_sim.scene.spec import SCHEMA

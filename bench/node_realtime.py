@@ -12,7 +12,7 @@ triaxial accelerometer, 800 Hz low-pass, 2 kHz), for each case:
 
 CPU is this process's CPU time over wall time (all threads: stepping, executor, DDS), in %
 of one core. It is set against the **bare stepping cost measured in the same run**: the same
-scene stepped by :class:`~impact_damper_sim.realtime.LiveSimulation` alone, as CPU per sim
+scene stepped by :class:`~impact_damper_sim.live.realtime.LiveSimulation` alone, as CPU per sim
 second; ``node/bare`` is the ratio and ``overhead`` the difference (the cost of ROS).
 
 Delivery: a stock subscriber in another process (``qos_profile_sensor_data``: best effort,
@@ -53,7 +53,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
-from impact_damper_sim.realtime import LiveSimulation, live_scene  # noqa: E402
+from impact_damper_sim.live.realtime import LiveSimulation, live_scene  # noqa: E402
 from impact_damper_sim.ros import interface as itf  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode  # noqa: E402
 

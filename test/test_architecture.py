@@ -35,6 +35,13 @@ def test_every_module_of_the_package_is_in_a_layer():
                               f'no such module: {sorted(in_layers - top)}')
 
 
+def test_the_package_root_holds_packages_only():
+    """Issue 27: every module lives in a package that names its layer (private set-up aside)."""
+    loose = sorted(m.name for m in pkgutil.iter_modules(impact_damper_sim.__path__)
+                   if not m.ispkg and not m.name.startswith('_'))
+    assert loose == [], f'modules at the package root, outside every layer: {loose}'
+
+
 @pytest.mark.skipif(not os.path.exists(LINT), reason='import-linter is not installed '
                     '(make installs it from requirements-dev.txt)')
 def test_imports_keep_the_layers_and_rclpy_inside_ros():

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from impact_damper_sim.analysis import refined_peak, stuck_fraction
+from impact_damper_sim.studies.analysis import refined_peak, stuck_fraction
 from impact_damper_sim.dampers.impactors import Impactor
 from impact_damper_sim.fem.system import AssembledSystem
 from impact_damper_sim.integrate.basis_switch import BasisSwitch

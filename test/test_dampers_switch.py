@@ -48,7 +48,7 @@ def test_off_is_the_linear_oscillator_and_the_state_is_continuous():
     off = sim.advance_to(2.5).displacement[:, 0]
     # reference: the same structure with a wall so far away that it is never reached
     from impact_damper_sim.integrate.exact import ExactPropagator
-    from impact_damper_sim.simulation import Simulation
+    from impact_damper_sim.integrate.simulation import Simulation
     ref = Simulation(scene.model, scene.forcing, dt=1e-3, q0=q, qd0=qd, t0=1.5,
                      stick_fraction=scene.scene['simulation']['stick_fraction'])
     ref.set_impacts_enabled(False)

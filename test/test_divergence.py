@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.cli.study import main
-from impact_damper_sim.divergence import (EXIT_DIVERGED, MAX_DISPLACEMENT, Divergence,
+from impact_damper_sim.integrate.divergence import (EXIT_DIVERGED, MAX_DISPLACEMENT, Divergence,
                                           TooLarge, check_allocation, check_samples,
                                           from_engine_error, sample_bytes, scene_advice)
 from impact_damper_sim.integrate.events import Samples
 from impact_damper_sim.scene.build import load
-from impact_damper_sim.simulation import CHECK_EVERY
+from impact_damper_sim.integrate.simulation import CHECK_EVERY
 
 HUGE_FORCE = 'forcing.0.amplitude=1e300 N'
 

@@ -1,4 +1,4 @@
-"""Rotor speed profiles and unbalance forcing (``impact_damper_sim.excitation``).
+"""Rotor speed profiles and unbalance forcing (``impact_damper_sim.scene.excitation``).
 
 Tolerances are stated per test; the closed forms are exact, so they are round-off bounds.
 """
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from impact_damper_sim.excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
+from impact_damper_sim.scene.excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
                                           PiecewiseLinearSpeed, UnbalanceForce,
                                           unbalance_forcing)
 from impact_damper_sim.integrate.exact import ExactPropagator

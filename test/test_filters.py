@@ -4,7 +4,7 @@ import pytest
 from scipy.signal import butter, sosfilt, sosfreqz
 
 from impact_damper_sim.cli.study import main
-from impact_damper_sim.filters import SensorLowpass, StreamingLowpass
+from impact_damper_sim.live.filters import SensorLowpass, StreamingLowpass
 from impact_damper_sim.scene.schema import SceneError
 
 
@@ -77,7 +77,7 @@ def test_own_butterworth_equals_scipys(order, fc, fs):
     """Same filter as scipy.signal.butter + sosfilt, to round-off (1e-12 of the input)."""
     from scipy.signal import butter, sosfilt
 
-    from impact_damper_sim.filters import butter_lowpass_sos
+    from impact_damper_sim.live.filters import butter_lowpass_sos
     x = np.random.default_rng(order).normal(size=(400, 2))
     ref = sosfilt(butter(order, fc, output='sos', fs=fs), x, axis=0)
     own = sosfilt(butter_lowpass_sos(order, fc, fs), x, axis=0)
@@ -93,7 +93,7 @@ def test_own_butterworth_equals_scipys(order, fc, fs):
 def test_sosfilt_kernel_and_twin_equal_scipy_across_chunks():
     from scipy.signal import sosfilt
 
-    from impact_damper_sim.filters import butter_lowpass_sos
+    from impact_damper_sim.live.filters import butter_lowpass_sos
     from impact_damper_sim.integrate.kernels.filters import sosfilt as kernel
     from impact_damper_sim.integrate.kernels.filters import sosfilt_py
     sos = butter_lowpass_sos(4, 800.0, 10000.0)

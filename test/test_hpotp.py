@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.scene.build import load
-from impact_damper_sim.units import MIL, POUND_MASS, parse_quantity
+from impact_damper_sim.scene.units import MIL, POUND_MASS, parse_quantity
 
 W = 25.0 * POUND_MASS   # the paper's selected total impactor weight (= housing weight)
 FULL_SPEED_HZ = 2400.0 / (2.0 * np.pi)   # Omega_f = 2400 rad/s, the paper's "381 Hz"

@@ -28,8 +28,8 @@ import functools
 import numpy as np
 import pytest
 
-from impact_damper_sim.analysis import G0
-from impact_damper_sim.filters import scene_lowpass
+from impact_damper_sim.studies.analysis import G0
+from impact_damper_sim.live.filters import scene_lowpass
 from impact_damper_sim.integrate.exact import TAYLOR_ORDER
 from impact_damper_sim.scene.build import load
 

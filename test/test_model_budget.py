@@ -1,7 +1,7 @@
 """The model-size budget (issue 29): estimated from the scene before anything is built.
 
 10,000 impactors ran 64 s and reached 4.5 GB with exit 0: the 4 GiB refusal counted only
-the sample arrays. Now :func:`impact_damper_sim.divergence.model_estimate` counts DOFs,
+the sample arrays. Now :func:`impact_damper_sim.integrate.divergence.model_estimate` counts DOFs,
 modes, impactors and stuck configurations up front, ``build`` refuses an over-budget scene
 in one line before building it (``study``: exit 2; the node: one line, exit 2), and the
 stuck configurations a run keeps are bounded.
@@ -15,9 +15,9 @@ import pytest
 
 from node_refusal import node_refusal
 
-from impact_damper_sim import divergence
+from impact_damper_sim.integrate import divergence
 from impact_damper_sim.cli.study import main as study
-from impact_damper_sim.divergence import (MAX_IMPACTORS, ModelTooLarge, check_model,
+from impact_damper_sim.integrate.divergence import (MAX_IMPACTORS, ModelTooLarge, check_model,
                                           memory_limit, model_estimate)
 from impact_damper_sim.scene import build as build_mod
 from impact_damper_sim.scene.build import available_scenes, load, validated

@@ -1,4 +1,4 @@
-"""Rolling vibration statistics (impact_damper_sim.monitoring) against closed-form values.
+"""Rolling vibration statistics (impact_damper_sim.live.monitoring) against closed-form values.
 
 Samples are stamped ``t_k = t0 + (k + 1/2) / fs``; a window of W s ending on a sample holds
 exactly ``W fs`` of them (the one stamped ``now - W`` is outside).
@@ -9,8 +9,8 @@ import doctest
 import numpy as np
 import pytest
 
-from impact_damper_sim import monitoring
-from impact_damper_sim.monitoring import (G0, MAX_ACCELERATION, impactor_stuck_flags,
+from impact_damper_sim.live import monitoring
+from impact_damper_sim.live.monitoring import (G0, MAX_ACCELERATION, impactor_stuck_flags,
                                           RollingVibrationStats)
 
 FS = 1000.0   # sample rate (Hz)

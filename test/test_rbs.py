@@ -6,7 +6,7 @@ import pytest
 from impact_damper_sim.modal import least_damped_eigenvalue, onset_cross_coupling
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.studies.validation import PAPER_4_4_1
-from impact_damper_sim.units import parse_quantity
+from impact_damper_sim.scene.units import parse_quantity
 
 LBIN = parse_quantity('1 lb/in', 'stiffness')
 PAPER_ONSET = 8250.0 * LBIN

@@ -6,7 +6,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from impact_damper_sim.analysis import refined_peak
+from impact_damper_sim.studies.analysis import refined_peak
 from impact_damper_sim.dampers.analytic import (linear_steady_amplitude,
                                                 symmetric_two_impact_orbit)
 from impact_damper_sim.scene.build import available_scenes, load, resolve_scene, scene_dirs

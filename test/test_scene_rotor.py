@@ -4,11 +4,11 @@ import textwrap
 import numpy as np
 import pytest
 
-from impact_damper_sim.excitation import CommandedSpeed, ConstantSpeed, PaperRamp
+from impact_damper_sim.scene.excitation import CommandedSpeed, ConstantSpeed, PaperRamp
 from impact_damper_sim.modal.basis import harmonic_response
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.schema import SceneError
-from impact_damper_sim.units import parse_quantity
+from impact_damper_sim.scene.units import parse_quantity
 
 # A clamped-free steel shaft along X with a disk at the tip: a few well-separated modes.
 BEAM = textwrap.dedent("""

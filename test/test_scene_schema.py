@@ -562,7 +562,7 @@ def test_markdown_table():
 # --- import weight -----------------------------------------------------------------------------
 
 def test_core_import_is_light():
-    code = ('import sys, impact_damper_sim.scene, impact_damper_sim.units; '
+    code = ('import sys, impact_damper_sim.scene, impact_damper_sim.scene.units; '
             "heavy = [m for m in ('numpy', 'scipy', 'numba', 'rclpy') if m in sys.modules]; "
             'assert not heavy, heavy')
     root = Path(__file__).resolve().parents[1]

@@ -7,9 +7,9 @@ batch encoder by round trips through rclpy, rosbags and mcap_ros2 readers.
 import numpy as np
 import pytest
 
-from impact_damper_sim.filters import (DECIMATION_PASSBAND_FRACTION, DECIMATION_STOPBAND_DB,
+from impact_damper_sim.live.filters import (DECIMATION_PASSBAND_FRACTION, DECIMATION_STOPBAND_DB,
                                        StreamingDecimator)
-from impact_damper_sim.realtime import LiveSimulation, accelerometers, default_imu_rate, \
+from impact_damper_sim.live.realtime import LiveSimulation, accelerometers, default_imu_rate, \
     live_scene
 from impact_damper_sim.recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP,
                                                  IMPACT_FIELDS, IMPACT_POINT_STEP,

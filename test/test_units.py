@@ -1,11 +1,11 @@
-"""Tests of impact_damper_sim.units: exact factors, parsing, rejection, formatting."""
+"""Tests of impact_damper_sim.scene.units: exact factors, parsing, rejection, formatting."""
 import math
 from fractions import Fraction
 
 import pytest
 
-from impact_damper_sim import units
-from impact_damper_sim.units import (
+from impact_damper_sim.scene import units
+from impact_damper_sim.scene.units import (
     UNITS, UnitError, allowed_units, format_quantity, normalize_unit, parse_quantity, to_unit,
     unit_factor,
 )

@@ -217,7 +217,7 @@ def test_numerical_blow_up_is_reported_and_the_node_stays_up(ros_context):
         node.live.sim.integrator._yh[:] = np.nan   # what an overflow leaves behind
         run_for(node, 0.1)
         assert node.live.failure is not None
-        # the core's blow-up check names what diverged and when (impact_damper_sim.divergence)
+        # the core's blow-up check names what diverged and when (impact_damper_sim.integrate.divergence)
         assert node.live.failure.startswith('diverged at t = '), node.live.failure
         t_failed = node.live.t
         run_for(node, 0.1)
@@ -551,7 +551,7 @@ SHIPPED_SCENES = sorted(p.stem for p in (
 @pytest.mark.parametrize('scene', SHIPPED_SCENES)
 def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
     """Default parameters only: the sample rate follows the scene's sensors' low-pass."""
-    from impact_damper_sim.realtime import LIVE_IMU_MAX_RATE, SAMPLE_RATE_OVER_CUTOFF
+    from impact_damper_sim.live.realtime import LIVE_IMU_MAX_RATE, SAMPLE_RATE_OVER_CUTOFF
     from impact_damper_sim.scene.build import load
     reason = load(scene).scene['offline_only']
     if reason:   # an offline stress test: refused in one line that says why
@@ -584,7 +584,7 @@ def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
 
 
 def test_default_sample_rates_of_the_shipped_scenes(ros_context):
-    from impact_damper_sim.realtime import default_sample_rate
+    from impact_damper_sim.live.realtime import default_sample_rate
     from impact_damper_sim.scene.build import load
     assert default_sample_rate(load('hpotp')) == 2000.0   # 800 Hz low-pass, 0.1 ms
     assert default_sample_rate(load('rbs')) == 20000.0    # 5 kHz low-pass, 50 us

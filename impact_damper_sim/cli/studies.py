@@ -9,7 +9,7 @@ import csv
 import os
 import sys
 
-from ..divergence import StudyDiverged
+from ..integrate.divergence import StudyDiverged
 
 from ..studies.output import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists,
                               refuse_existing)
@@ -132,7 +132,7 @@ def _runner(args):
 
 
 def _length(text, option):
-    from ..units import parse_quantity
+    from ..scene.units import parse_quantity
     try:
         return parse_quantity(text, 'length')
     except ValueError as exc:
@@ -181,7 +181,7 @@ def _frf(args):
         raise _Usage(f'--{unit}: frequencies must be > 0')
     max_duration = None
     if args.max_duration is not None:
-        from ..units import parse_quantity
+        from ..scene.units import parse_quantity
         max_duration = parse_quantity(args.max_duration, 'time', key='--max-duration')
     if not args.tol >= 0:
         raise _Usage(f'--tol must be >= 0, got {args.tol}')
@@ -283,7 +283,7 @@ def _print_sweep(r):
         print(f"without impactors the run diverged (at t = {_g(diverged[0], 4)} s first): the "
               "structure is unbounded without them, so 'red' is n/a (unbounded)")
     if r['best']:
-        from ..analysis import G0
+        from ..studies.analysis import G0
         disp = r['objective'] == 'displacement'
         field = f"worst_{r['objective']}_{'m' if disp else 'm_s2'}"
         scale = 1.0 if disp else 1.0 / G0   # in the table's units: m, or g
@@ -301,7 +301,7 @@ def _print_sweep(r):
 def _stability(args):
     from ..studies.stability import stability
     from ..studies.sweep import split_values
-    from ..units import parse_quantity
+    from ..scene.units import parse_quantity
     kccs = split_values(args.kcc)
     if not kccs and not args.onset:
         raise _Usage('stability needs --kcc values, --onset, or both')
@@ -376,7 +376,7 @@ def _print_stability(r):
 def _convergence(args):
     from ..studies.convergence import convergence
     from ..studies.sweep import split_values
-    from ..units import parse_quantity
+    from ..scene.units import parse_quantity
 
     def times(text, option):
         return [parse_quantity(v, 'time', key=option) for v in split_values(text)]

@@ -264,7 +264,7 @@ def main(argv=None):
         args = _parser().parse_args(argv)
     except SystemExit as exc:   # argparse has printed usage and the problem
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
-    from ..divergence import Divergence, TooLarge
+    from ..integrate.divergence import Divergence, TooLarge
     from ..scene.schema import SceneError
     try:
         if getattr(args, 'scene', None) is not None:
@@ -431,7 +431,7 @@ def run(scene):
     dict
         The ``study simulate --json`` data (see the README). Accelerations are the mean
         acceleration per sample period (impacts included) passed through the sensor's
-        ``lowpass`` (4th-order Butterworth, :mod:`impact_damper_sim.filters`) if it has one.
+        ``lowpass`` (4th-order Butterworth, :mod:`impact_damper_sim.live.filters`) if it has one.
 
     Raises
     ------
@@ -442,10 +442,10 @@ def run(scene):
     Divergence
         If the run diverges; its ``setting`` names the scene keys to change.
     """
-    from ..analysis import summarize
-    from ..divergence import (Divergence, TooLarge, check_allocation, model_estimate,
+    from ..studies.analysis import summarize
+    from ..integrate.divergence import (Divergence, TooLarge, check_allocation, model_estimate,
                               scene_advice)
-    from ..filters import scene_lowpass
+    from ..live.filters import scene_lowpass
     from ..scene.schema import SceneError
     from ..integrate.events import EVENT_KINDS
     cfg = scene.scene['simulation']

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..divergence import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS,
+from .divergence import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS,
                           cache_limit, configuration_bytes)
 from .kernels import exact as kernels
 from .kernels import flow as flow_kernels
@@ -58,7 +58,7 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
 # kernel; a scene with more, e.g. many impactors on distinct housings, switches through
 # Python) and the configurations kept when switching through Python (cache_limit,
 # MAX_CACHED_CONFIGURATIONS) are memory budgets, stated with the others in
-# impact_damper_sim.divergence.
+# impact_damper_sim.integrate.divergence.
 #: Largest table whose configurations are all built when the engine is made (0.5 to 1 ms
 #: each at 10 modes): the event loop then never returns to Python to build one, and a live
 #: node never stalls for a build in the middle of a run. Larger tables build on first use.

@@ -74,6 +74,8 @@ from __future__ import annotations
 
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 
+from ..scene.units import G0  # standard gravity (m/s^2), for reports in g
+
 ACCEL_PREFIX = 'accel/'
 BATCH_SUFFIX = '/batch'
 IMPACTS = 'impacts'
@@ -129,8 +131,6 @@ CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 #: /diagnostics: reliable, volatile, keep last 10 (diagnostic_updater publishes with the
 #: default QoS, keep last 10, reliable).
 DIAGNOSTICS_QOS = COMMAND_QOS
-
-G0 = 9.80665   # standard gravity (m/s^2), for reports in g
 
 
 def accel_topic(sensor):

@@ -1,6 +1,6 @@
 """``monitor``: rolling vibration statistics of a running ``vibration_node``, on /diagnostics.
 
-A thin adapter over :class:`impact_damper_sim.monitoring.RollingVibrationStats`: it
+A thin adapter over :class:`impact_damper_sim.live.monitoring.RollingVibrationStats`: it
 subscribes to each accelerometer, to ``impacts`` and to ``impactor_state``
 (sensor_msgs/JointState, latched) with the QoS of :mod:`impact_damper_sim.ros.interface`,
 feeds their header stamps (sim time) and values to the core, and every ``report_period``
@@ -64,7 +64,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
-from ..monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
+from ..live.monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
 from ..recording.batches import BATCH_SUFFIX, rows_of, sample_times_ns
 from .interface import (ACCEL_PREFIX, accel_topic, BATCH_QOS, DIAGNOSTICS, DIAGNOSTICS_QOS,
                         EVENT_QOS, IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS)

@@ -1,8 +1,8 @@
 """``vibration_node``: a scene's vibration, stepped paced to the wall clock, on ROS 2 topics.
 
-A thin adapter over :class:`~impact_damper_sim.realtime.LiveSimulation`: it declares and
+A thin adapter over :class:`~impact_damper_sim.live.realtime.LiveSimulation`: it declares and
 validates the parameters, feeds commands to the core, paces it with
-:class:`~impact_damper_sim.realtime.Pacer` and publishes what it produces. The topics and
+:class:`~impact_damper_sim.live.realtime.Pacer` and publishes what it produces. The topics and
 their encodings are in :mod:`impact_damper_sim.ros.interface` and docs/node.md.
 
 Run it with ``ros2 run impact_damper_sim vibration_node`` (or the ``vibration_node`` console
@@ -28,7 +28,7 @@ from sensor_msgs.msg import Imu, JointState, PointCloud2
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool
 
-from ..realtime import CommandError, LiveSimulation, Pacer, live_scene
+from ..live.realtime import CommandError, LiveSimulation, Pacer, live_scene
 from ..recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS,
                                  IMPACT_POINT_STEP, BatchEncoder)
 from ..scene.schema import SceneError

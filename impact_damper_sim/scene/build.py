@@ -22,7 +22,7 @@ import numpy as np
 
 import impact_damper_sim
 
-from ..units import UNITS
+from .units import UNITS
 from .schema import SceneError, apply_overrides, file_kind, load_yaml, validate
 from .spec import DOF_NAMES, ROTATIONS, SCHEMA, SDOF_NODE, STUCK_MODELS
 
@@ -518,7 +518,7 @@ class SceneModel:
         Active (uy, uz) DOF indices of each ``rotor.unbalance`` entry; their force inputs
         follow the ``forcing`` inputs (see :attr:`input_dofs`, :attr:`input_names`).
     speed_profile : SpeedProfile or None
-        The rotor speed profile (rad/s); a :class:`~impact_damper_sim.excitation.CommandedSpeed`
+        The rotor speed profile (rad/s); a :class:`~impact_damper_sim.scene.excitation.CommandedSpeed`
         takes run-time commands. None without ``rotor``.
     unbalance : UnbalanceForce or None
         The unbalance forces (N), None without unbalance.
@@ -576,7 +576,7 @@ class SceneModel:
 
     def _make_rotor(self):
         """The speed profile and the unbalance force (None, None without a rotor)."""
-        from ..excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
+        from .excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
                                   PiecewiseLinearSpeed, UnbalanceForce)
         rotor = self.scene['rotor']
         if rotor is None:
@@ -603,7 +603,7 @@ class SceneModel:
         return profile, force
 
     def _make_forcing(self):
-        from ..excitation import unbalance_forcing
+        from .excitation import unbalance_forcing
         from ..integrate.forcing import Forcing, Harmonic
         omega1 = float(self.basis.omega[0])
         forcing = Forcing(len(self.input_dofs))
@@ -710,7 +710,7 @@ class SceneModel:
         gyro = rotor['gyroscopic'] if rotor else None
         if gyro is None:
             return np.zeros((n, n))
-        from ..excitation import ConstantSpeed
+        from .excitation import ConstantSpeed
         if not isinstance(self.speed_profile, ConstantSpeed):
             raise SceneError("scene key 'rotor.gyroscopic': needs rotor.speed.kind constant "
                              '(the flow is linear time-invariant per configuration)',
@@ -776,7 +776,7 @@ class SceneModel:
             input_names=self.model.input_names)
 
     def make_simulation(self, method=None, dt=None, **options):
-        """Return a :class:`~impact_damper_sim.simulation.Simulation` of this scene.
+        """Return a :class:`~impact_damper_sim.integrate.simulation.Simulation` of this scene.
 
         Parameters
         ----------
@@ -806,7 +806,7 @@ class SceneModel:
         SceneError
             ``stuck_model='basis_switch'`` with a method other than ``'exact'``.
         """
-        from ..simulation import Simulation
+        from ..integrate.simulation import Simulation
         cfg = self.scene['simulation']
         method = cfg['method'] if method is None else method
         dt = cfg['dt'] if dt is None else dt
@@ -958,11 +958,11 @@ def build(scene, *, source=None, overrides=()):
     ------
     SceneError
         For model problems, each naming the scene key; before anything is built, for a model
-        whose estimated memory (:func:`impact_damper_sim.divergence.model_estimate`: DOFs,
+        whose estimated memory (:func:`impact_damper_sim.integrate.divergence.model_estimate`: DOFs,
         modes, impactors, stuck configurations) is over the limit, in one line with the
         estimate and the limit.
     """
-    from ..divergence import ModelTooLarge, check_model
+    from ..integrate.divergence import ModelTooLarge, check_model
     try:
         check_model(scene)
     except ModelTooLarge as exc:

@@ -13,7 +13,7 @@ A schema is a tree of fields::
 
 Rules
 -----
-* Every physical value goes through :func:`impact_damper_sim.units.parse_quantity`; the
+* Every physical value goes through :func:`impact_damper_sim.scene.units.parse_quantity`; the
   result holds SI floats only (m, kg, s, N, rad, ...). A bare number is already SI.
 * Unknown keys, wrong types, wrong units, out-of-range values and missing required keys
   are errors. Nothing is silently ignored or silently defaulted: a key written with no
@@ -45,7 +45,7 @@ from typing import NamedTuple
 
 import yaml
 
-from ..units import SI_UNIT, UNITS, UnitError, _parse, allowed_units, format_quantity
+from .units import SI_UNIT, UNITS, UnitError, _parse, allowed_units, format_quantity
 
 __all__ = [
     'REQUIRED', 'SceneError', 'Field', 'Quantity', 'Integer', 'Boolean', 'Choice', 'String',
@@ -270,7 +270,7 @@ class Quantity(Field):
     Parameters
     ----------
     dimension : str
-        A key of :data:`impact_damper_sim.units.UNITS` (``'length'``, ``'stiffness'``, ...).
+        A key of :data:`impact_damper_sim.scene.units.UNITS` (``'length'``, ``'stiffness'``, ...).
     default : object, optional
         Raw default (``'2.5 mil'``, ``0.0``, ``{value: 25, unit: lb}``), ``REQUIRED`` or ``None``.
     min, max : float or str, optional

@@ -36,8 +36,8 @@ import math
 
 from ..dampers.law import IMPACT_LAWS
 from ..integrate.events import STICK_RULES
-from ..simulation import METHODS
-from ..units import UNITS
+from ..integrate.simulation import METHODS
+from .units import UNITS
 from .schema import (
     Boolean, Choice, Integer, ListOf, MapOf, Optional, Quantity, Section, String, Vector,
 )

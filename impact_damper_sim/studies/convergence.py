@@ -87,7 +87,7 @@ def run_case(point):
 
 def _rms_acceleration(value, scene, coarse, window, duration):
     """RMS over the trailing window of the mean acceleration per coarse period (m/s^2)."""
-    from ..filters import scene_lowpass
+    from ..live.filters import scene_lowpass
     v = np.asarray(value['velocity_coarse'], dtype=float)
     v = np.vstack([np.zeros((1, v.shape[1])), v])       # from rest
     acc = scene_lowpass(scene, coarse).apply(np.diff(v, axis=0) / coarse)
@@ -249,7 +249,7 @@ def convergence(scene, methods=METHODS, dts=None, modes=None, overrides=(), *, r
     wall = time.perf_counter() - start
     ref = results[0]
     if ref.diverged:
-        from ..divergence import StudyDiverged
+        from ..integrate.divergence import StudyDiverged
         raise StudyDiverged(f'the reference run diverged: {ref.error}')
     if not ref.ok:
         raise ValueError(f'the reference run failed: {ref.error}')

@@ -21,7 +21,7 @@ def key_dimension(key):
     """
     from ..scene.schema import describe
     from ..scene.spec import SCHEMA
-    from ..units import SI_UNIT
+    from ..scene.units import SI_UNIT
     pattern = _INDEX_RE.sub('[]', key)
     for row in describe(SCHEMA):
         if row.key == pattern:
@@ -39,7 +39,7 @@ def given_unit(texts, dimension):
     dimension : str
         Their dimension.
     """
-    from ..units import SI_UNIT, UnitError, parse_quantity
+    from ..scene.units import SI_UNIT, UnitError, parse_quantity
     units = set()
     for text in texts:
         m = re.match(r'^\s*[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?\s*(.*?)\s*$',
@@ -61,7 +61,7 @@ def axis_unit(key, texts):
     The unit the values were written in if they share one, else the key's SI unit, else
     ``('', 1.0)`` (dimensionless or unknown key).
     """
-    from ..units import SI_UNIT, to_unit
+    from ..scene.units import SI_UNIT, to_unit
     dim = key_dimension(key)
     if dim is None:
         return '', 1.0

@@ -64,7 +64,7 @@ def steady_amplitude(point):
     """
     import numpy as np
 
-    from ..analysis import refined_peak
+    from .analysis import refined_peak
     from .measure import load_point, start, window_impact_rates
     scene = load_point(point)
     cfg = scene.scene['simulation']

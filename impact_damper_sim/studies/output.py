@@ -13,7 +13,7 @@ import sys
 
 #: Exit status of a usage or input error (one line on stderr), as argparse exits.
 EXIT_USAGE = 2
-#: A run diverged (same value as :data:`impact_damper_sim.divergence.EXIT_DIVERGED`).
+#: A run diverged (same value as :data:`impact_damper_sim.integrate.divergence.EXIT_DIVERGED`).
 EXIT_DIVERGED = 3
 #: Default document of ``study validate --quick`` (the full one is docs/validation.md).
 QUICK_VALIDATION_OUT = 'validation-quick.md'

@@ -48,8 +48,7 @@ import numpy as np
 
 from ..recording.batches import BATCH_SUFFIX, POINTCLOUD2, rows_of, sample_times_ns
 
-#: standard gravity (m/s^2); the same constant as ``ros.interface.G0``, which imports rclpy
-G0 = 9.80665
+from ..scene.units import G0  # standard gravity (m/s^2), exact
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 IMU = 'sensor_msgs/msg/Imu'
 WRENCH_STAMPED = 'geometry_msgs/msg/WrenchStamped'

@@ -120,10 +120,10 @@ def point_seed(base_seed, key):
 def _execute(point):
     """Run one point on a worker; never raises (the error becomes the result).
 
-    A :class:`~impact_damper_sim.divergence.Divergence` gets the point scene's advice
+    A :class:`~impact_damper_sim.integrate.divergence.Divergence` gets the point scene's advice
     (which setting to change) and its message starts with ``Divergence:``.
     """
-    from ..divergence import Divergence
+    from ..integrate.divergence import Divergence
     start = time.perf_counter()
     try:
         value = point.task(point)
@@ -138,7 +138,7 @@ def _execute(point):
 def _advised(exc, point):
     if exc.setting:
         return exc
-    from ..divergence import scene_advice
+    from ..integrate.divergence import scene_advice
     try:
         from .measure import load_point
         return exc.with_setting(scene_advice(load_point(point), exc))

@@ -47,7 +47,7 @@ def verdict(point):
     """
     import numpy as np
 
-    from ..divergence import Divergence
+    from ..integrate.divergence import Divergence
     from .measure import finite_or_none, load_point, lookup, start, window_impact_rates
     p = point.params
     scene = load_point(point)
@@ -386,7 +386,7 @@ def _scene_impactors(base):
 
 def _si(text):
     """Kcc override text to N/m (None if unreadable)."""
-    from ..units import UnitError, parse_quantity
+    from ..scene.units import UnitError, parse_quantity
     try:
         return abs(parse_quantity(text, 'stiffness'))
     except (UnitError, ValueError, TypeError):

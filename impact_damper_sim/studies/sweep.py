@@ -73,10 +73,10 @@ def peaks(point):
     """
     import numpy as np
 
-    from ..analysis import refined_peak
-    from ..filters import scene_lowpass
+    from .analysis import refined_peak
+    from ..live.filters import scene_lowpass
     from .measure import load_point, lookup, start, window_impact_rates
-    from ..divergence import Divergence
+    from ..integrate.divergence import Divergence
     scene = load_point(point)
     cfg = scene.scene['simulation']
     sim = start(scene)
@@ -228,7 +228,7 @@ def sweep(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, best_over=None,
 
 def tabulate(results, keys, phase_names):
     """One flat row per grid point (see :func:`sweep`)."""
-    from ..analysis import G0
+    from .analysis import G0
     refs = {tuple(sorted(r.point.labels['grid'].items())): r for r in results
             if r.point.labels['reference']}
     rows = []

@@ -26,7 +26,7 @@ from .runner import Point, run_points
 LBF = 4.4482216152605          # N
 MIL = 25.4e-6                  # m
 LB_IN = LBF / 0.0254           # N/m per lb/in
-G0 = 9.80665
+from ..scene.units import G0  # standard gravity (m/s^2)
 
 # --- paper numbers (docs/paper/impact-dampers-mdof.md) --------------------------------
 # Table 4.3.1 (W = 25 lb, D = 1.7 mil): X -> (disp mode, disp mils, disp reduct,

@@ -1,7 +1,7 @@
 """Streaming Butterworth low-pass filters for the accelerometer outputs.
 
 The simulators report, per sensor, the *mean acceleration over each sample period*
-(:meth:`~impact_damper_sim.simulation.Simulation.mean_acceleration`). A sensor with a
+(:meth:`~impact_damper_sim.integrate.simulation.Simulation.mean_acceleration`). A sensor with a
 ``lowpass`` cutoff (scene key ``sensors[].lowpass``, Hz) reports that signal passed through a
 digital Butterworth low-pass (second-order sections, zero initial state: the structure starts
 at rest, so the acceleration history before t = 0 is zero). The filter carries its state
@@ -107,7 +107,7 @@ class StreamingLowpass:
         ndarray
             Filtered samples, same shape and unit as ``x``.
         """
-        from .integrate.kernels.filters import sosfilt
+        from ..integrate.kernels.filters import sosfilt
         x = np.asarray(x, dtype=float)
         flat = x.ndim == 1
         x2 = x[:, None] if flat else x
@@ -278,7 +278,7 @@ class SensorLowpass:
     """
 
     def __init__(self, sensors, dt, order=4, source=None):
-        from .scene.schema import SceneError
+        from ..scene.schema import SceneError
         rate = 1.0 / float(dt)
         groups, errors = {}, []
         for i, s in enumerate(sensors):

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .analysis import G0
+from ..scene.units import G0
 
 #: Fewest uniformly spaced samples for which a dominant frequency is reported.
 MIN_FFT_SAMPLES = 8

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .integrate.forcing import CallableForce, Forcing, Harmonic
+from ..integrate.forcing import CallableForce, Forcing, Harmonic
 
 
 def _finite(value, name, low=None, strict=False, unit=''):

@@ -9,16 +9,16 @@ Everything is in SI units. Typical use::
     sim.energy()                         # energy ledger (J)
 
 :meth:`Simulation.advance` checks every chunk of :data:`CHECK_EVERY` samples: a run that
-diverges raises :class:`~impact_damper_sim.divergence.Divergence` at once (what, when), and
+diverges raises :class:`~impact_damper_sim.integrate.divergence.Divergence` at once (what, when), and
 a request whose samples would not fit in memory raises
-:class:`~impact_damper_sim.divergence.TooLarge` before anything is allocated.
+:class:`~impact_damper_sim.integrate.divergence.TooLarge` before anything is allocated.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .divergence import check_allocation, check_samples, check_state, from_engine_error
-from .integrate.events import EVENT_KINDS, Samples
+from .events import EVENT_KINDS, Samples
 
 METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
 
@@ -50,10 +50,10 @@ def make_integrator(method, model, forcing, dt, physical_model=None, **options):
         ``q0``, ``qd0``, ...). Unknown options raise ``TypeError``.
     """
     if method == 'exact':
-        from .integrate.exact import ExactPropagator
+        from .exact import ExactPropagator
         return ExactPropagator(model, forcing, dt, **options)
     if method in ('newmark', 'newmark_step_end', 'direct'):
-        from .integrate.newmark import NewmarkIntegrator
+        from .newmark import NewmarkIntegrator
         impacts = 'step_end' if method == 'newmark_step_end' else 'located'
         target = model
         if method == 'direct':

@@ -14,7 +14,7 @@ validated scene before anything is built and refused by :func:`check_model`
 which refuses up front a run whose sample arrays, with the model, would not fit
 (:class:`TooLarge`). Both use :func:`memory_limit`.
 
-Pure NumPy, no rclpy: :class:`~impact_damper_sim.simulation.Simulation` checks every chunk
+Pure NumPy, no rclpy: :class:`~impact_damper_sim.integrate.simulation.Simulation` checks every chunk
 it advances, the ``study`` command turns :class:`Divergence` into exit status
 :data:`EXIT_DIVERGED`, and a node reports ``str(exc)`` in its diagnostics.
 """
@@ -549,7 +549,7 @@ def scene_advice(scene, cause=None):
 def _linear_growth(scene):
     """Largest real part of the scene's linear eigenvalues without impactors (1/s)."""
     try:
-        from .modal.stability import least_damped_eigenvalue
+        from ..modal.stability import least_damped_eigenvalue
         return float(least_damped_eigenvalue(scene.basis.stiffness_matrix(),
                                              scene.basis.damping_matrix()).real)
     except Exception:   # advice only: a failure here must not hide the divergence

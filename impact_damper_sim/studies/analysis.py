@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-G0 = 9.80665  # standard gravity (m/s^2)
+from ..scene.units import G0  # standard gravity (m/s^2)
 
 
 def refined_peak(signal):
@@ -53,7 +53,7 @@ def stuck_fraction(events, n_impactors, t_start, t_end, stuck_at_start=None):
     ndarray, shape (n_impactors,)
         Stuck time fraction (dimensionless).
     """
-    from .integrate.events import EVENT_KINDS
+    from ..integrate.events import EVENT_KINDS
     stick = EVENT_KINDS.index('stick')
     release = EVENT_KINDS.index('release')
     total = np.zeros(n_impactors)
@@ -101,7 +101,7 @@ def summarize(samples, mean_acc, events, sensor_names, impactor_names, energy, *
     dict
         See the README ("study simulate --json") for the schema.
     """
-    from .integrate.events import EVENT_KINDS
+    from ..integrate.events import EVENT_KINDS
     t = samples.t
     duration = float(t[-1] - t[0] + (t[1] - t[0])) if t.size > 1 else 0.0
     t0 = float(t[0] - (t[1] - t[0])) if t.size > 1 else 0.0

@@ -24,8 +24,8 @@ import time
 
 import numpy as np
 
-from .divergence import Divergence, scene_advice
-from .scene.schema import SceneError
+from ..integrate.divergence import Divergence, scene_advice
+from ..scene.schema import SceneError
 
 _TRANSLATIONS = ('ux', 'uy', 'uz')
 _ROTATIONS = ('rx', 'ry', 'rz')
@@ -177,7 +177,7 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
         Any scene problem, naming the key; a scene whose ``offline_only`` says why it
         cannot run live.
     """
-    from .scene.build import load
+    from ..scene.build import load
     model = load(scene, overrides=list(overrides))
     if model.scene['offline_only']:
         raise SceneError(f"scene {model.name!r} is for offline studies only: "
