@@ -2,7 +2,8 @@
 
 Each command gets only its required arguments. It either runs (exit 0) or, where the scene
 cannot answer the question (an FRF of a scene without harmonic forcing, a stability map of a
-scene without cross-coupled stiffness), refuses it up front in one line (exit 2). Never a
+scene without cross-coupled stiffness, a Campbell diagram of a scene without a rotor),
+refuses it up front in one line (exit 2). Never a
 traceback, never exit 1 (every point failed) or 3 (diverged) on a shipped scene.
 
 The default selection shortens each run (``--duration 0.1 --window 0.05``: the option
@@ -13,7 +14,8 @@ scenes (short runs) and runs the other commands with the scenes' own durations.
 import pytest
 
 from impact_damper_sim.cli.study import main
-from impact_damper_sim.scene.build import available_scenes, load
+from impact_damper_sim.scene.build import load
+from impact_damper_sim.scene.catalog import available_scenes
 
 SCENES = available_scenes()
 SHORT = ['--duration', '0.1', '--window', '0.05']
@@ -44,10 +46,13 @@ def command(name, scene):
                 '--executor', 'serial'], *expect
     if name == 'convergence':
         return ['convergence', scene, '--executor', 'serial'], 0, None
+    if name == 'campbell':
+        expect = (0, None) if s['rotor'] else (2, 'a Campbell diagram needs a rotor')
+        return ['campbell', scene, '--speeds', '0:10000:11'], *expect
     raise ValueError(name)
 
 
-COMMANDS = ['modes', 'simulate', 'frf', 'sweep', 'stability', 'convergence']
+COMMANDS = ['modes', 'simulate', 'frf', 'sweep', 'stability', 'convergence', 'campbell']
 DURATION_COMMANDS = {'simulate', 'frf', 'sweep', 'stability', 'convergence'}
 
 

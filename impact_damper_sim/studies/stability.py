@@ -184,7 +184,7 @@ def onset(scene, kcc_key, overrides=(), *, bracket=None, start_hi=None, rtol=1e-
     def matrices(kcc):
         count[0] += 1
         s = load(scene, base + [f'{kcc_key}={float(kcc)!r}'])
-        return s.basis.stiffness_matrix(), s.basis.damping_matrix()
+        return s.model.K, s.model.C   # the simulated matrices: gyroscopic coupling included
 
     def growth(kcc):
         return least_damped_eigenvalue(*matrices(kcc)).real
