@@ -7,8 +7,8 @@ closes within its stated bound. The bounds: the exact propagator integrates damp
 and circulatory work by Gauss quadrature accurate to about 1e-10 relative (1e-9 here); Newmark
 matches its own discrete energy balance to round-off (1e-10 here). Runs with the paper's
 ``lumped_mass`` law (the ``rbs`` scenes) use ``effective_mass`` here: the lumped law does not
-conserve the simulated model's momentum, so its ledger does not close by design (measured:
-0.6 % to 7 % of the energy on ``rbs`` runs with impacts).
+conserve the simulated model's momentum (its ledger books what the model loses, so it closes
+all the same; test/test_energy_balance.py).
 
 Each extreme also asserts the physics that must hold there (restitution of every impact,
 a linear response when nothing can impact, step-independent impact times of the exact

@@ -15,9 +15,14 @@ modal model ``G = sum_k phi_k^2``, the inverse of the driving-point effective ma
   is conserved, and the energy lost is ``0.5 (1 - e^2) v_n^2 / (1/m + n^T G n)``.
 * Lumped-mass law (the paper's): ``G`` is replaced by ``I / m_h`` with ``m_h`` the lumped
   housing mass. It is exact only when every mode is retained; with truncated modes the
-  simulated restitution and momentum are off, which ``study`` can quantify.
+  simulated restitution and momentum are off, which ``study`` can quantify. The energy
+  ledger books what the simulated model loses, ``J v_n - J^2 (1/m + n^T G n) / 2`` with the
+  model's ``G``, not the law's own ``0.5 (1 - e^2) v_n^2 / (1/m + 1/m_h)`` (issue 26: the two
+  differed by 13 % on rbs_kcc and the energy balance did not close).
 * Lock (stuck entry): a plastic impulse that cancels the whole relative velocity,
-  ``P = (I/m + G)^{-1} v_rel``; loss ``0.5 v_rel^T (I/m + G)^{-1} v_rel``.
+  ``P = (I/m + G)^{-1} v_rel``; loss ``0.5 v_rel^T (I/m + G)^{-1} v_rel`` with the
+  effective-mass law (the lumped-mass law's loss, as booked: ``integrate/kernels/exact.py``,
+  ``impact``).
 """
 from __future__ import annotations
 

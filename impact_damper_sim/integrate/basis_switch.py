@@ -69,8 +69,9 @@ class BasisSwitch:
     system with every stuck impactor's mass added at its housing DOF(s) (one DOF for an SDOF
     impactor, both in-plane translations for a planar one), keeping the free basis' number of
     modes (all of them if the free basis is complete) and its tare damping ratios by mode
-    index; physical dashpots and cross-coupled stiffness are projected as usual. The stuck
-    masses are then inside the basis, so :meth:`model` returns zero stuck masses.
+    index; physical dashpots and cross-coupled stiffness are projected as usual, and so is a
+    rotor's gyroscopic coupling (``gyroscopic``). The stuck masses are then inside the basis,
+    so :meth:`model` returns zero stuck masses.
 
     Parameters
     ----------
@@ -84,11 +85,17 @@ class BasisSwitch:
         ``housing_indices[j]``: active DOF indices of impactor ``j``'s housing, one (sdof) or
         two (planar), in the order of its rows (dimensionless).
     sensor_indices, force_indices : sequence of int, optional
-        Active DOF index of each sensor row and force input (dimensionless). Default: found
-        by matching the model's rows against every active DOF's mode-shape row (an error if
-        that is ambiguous).
+        Active DOF index of each sensor row and force input (dimensionless); a rotor's
+        unbalance inputs count as force inputs. Default: found by matching the model's rows
+        against every active DOF's mode-shape row (an error if that is ambiguous).
     method : {'auto', 'dense', 'sparse'}
         Eigen solver for the stuck bases, see :func:`~impact_damper_sim.modal.modal_reduction`.
+    gyroscopic : sequence of (int, int, float), optional
+        The physical gyroscopic matrix of a spinning rotor as ``(ry, rz, c)`` triples: active
+        DOF indices of a disk's tilts (dimensionless) and ``c = Ip Omega`` (kg m^2/s), its
+        polar inertia times the spin speed; the damping matrix gets ``+c`` at ``[ry, rz]``
+        and ``-c`` at ``[rz, ry]``. Each stuck model gets this matrix projected on its basis;
+        the model's own damping must hold it projected on ``free_basis``.
 
     Notes
     -----
@@ -98,7 +105,7 @@ class BasisSwitch:
     """
 
     def __init__(self, system, free_basis, model, housing_indices, *, sensor_indices=None,
-                 force_indices=None, method='auto'):
+                 force_indices=None, method='auto', gyroscopic=()):
         n = free_basis.n_modes
         if model.n != n:
             raise ValueError(f'model has {model.n} coordinates, free basis {n} modes')
@@ -125,6 +132,8 @@ class BasisSwitch:
         self.method = method
         self.sensor_indices = self._indices(model.sensors, sensor_indices, 'sensor')
         self.force_indices = self._indices(model.B.T, force_indices, 'force')
+        self.gyroscopic = tuple((int(ry), int(rz), float(c)) for ry, rz, c in gyroscopic)
+        self._check_gyroscopic()
         free = _key([0] * len(model.impactors))
         self._free_key = free
         self._bases = {free: free_basis}
@@ -149,8 +158,31 @@ class BasisSwitch:
         """
         return cls(scene_model.system, scene_model.basis, scene_model.model,
                    scene_model.impactor_dofs, sensor_indices=scene_model.sensor_dofs,
-                   force_indices=scene_model.force_dofs,
-                   method=scene_model.scene['modal']['solver'])
+                   force_indices=scene_model.input_dofs,
+                   method=scene_model.scene['modal']['solver'],
+                   gyroscopic=scene_model.gyroscopic_terms())
+
+    def _gyroscopic_coupling(self, basis):
+        """``Phi^T G Phi`` of :attr:`gyroscopic` on ``basis`` (1/s), skew-symmetric."""
+        n = basis.n_modes
+        coupling = np.zeros((n, n))
+        for ry, rz, c in self.gyroscopic:
+            rows = basis.rows([ry, rz])
+            coupling += c * (np.outer(rows[0], rows[1]) - np.outer(rows[1], rows[0]))
+        return coupling
+
+    def _check_gyroscopic(self):
+        """Refuse a model whose damping's skew part is not :attr:`gyroscopic` projected on
+        the free basis: the stuck models would lose (or invent) the coupling."""
+        C = self.base.C
+        skew = 0.5 * (C - C.T)
+        expected = self._gyroscopic_coupling(self.free_basis)
+        scale = max(np.abs(C).max(), np.abs(expected).max(), 1e-300)
+        if not np.allclose(skew, expected, rtol=0, atol=_ROWS_RTOL * scale):
+            raise ValueError('the model\'s damping has a skew-symmetric (gyroscopic) part that '
+                             'gyroscopic does not give (largest mismatch '
+                             f'{np.abs(skew - expected).max():.3g} 1/s); pass the rotor\'s '
+                             'gyroscopic terms so that the stuck bases keep the coupling')
 
     def _indices(self, rows, given, what):
         """Active DOF index of each row of ``rows`` (free-basis mode-shape rows)."""
@@ -243,7 +275,8 @@ class BasisSwitch:
                  else np.zeros((0, n)))
             impactors = tuple(imp.with_rows(basis.rows(list(idx)))
                               for imp, idx in zip(base.impactors, self.housing_indices))
-            found = LinearModel(M=np.eye(n), C=basis.damping_matrix(),
+            found = LinearModel(M=np.eye(n),
+                                C=basis.damping_matrix() + self._gyroscopic_coupling(basis),
                                 K=basis.stiffness_matrix(), B=B, sensors=S,
                                 sensor_names=base.sensor_names, impactors=impactors,
                                 kind='modal', input_names=base.input_names)

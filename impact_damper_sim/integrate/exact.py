@@ -415,7 +415,7 @@ class ExactPropagator(IntegratorBase):
         rule = _RULE_CODES[self.stick_rule]
         while True:
             key = self._key()
-            cfg = self._config()
+            self._config()   # built (or marked most recently used) before the kernel runs
             model = self._config_model()
             table = self._table(key)
             self._slot_state[0] = self._slot(key)

@@ -184,12 +184,14 @@ class _Config:
         n = model.n
         self.kick = np.zeros((ni, n, 2))          # M^{-1} R^T per impactor (1/kg)
         self.mobility = np.zeros((ni, 2, 2))      # law mobility (1/kg)
+        self.house_mobility = np.zeros((ni, 2, 2))   # the model's R M^{-1} R^T (1/kg)
         self.rel_T = np.zeros((ni, 2, 2))         # release transforms (I - m G_s)^{-1}
         for j, imp in enumerate(model.impactors):
             d = imp.dim
             MinvRt = self.solve_M(rows[j, :d].T)
             self.kick[j, :, :d] = MinvRt
             G = rows[j, :d] @ MinvRt
+            self.house_mobility[j, :d, :d] = G
             self.mobility[j, :d, :d] = law_mobility(G, imp.housing_mass, law)
             self.rel_T[j, :d, :d] = np.linalg.inv(np.eye(d) - stuck_masses[j] * G)
         self._S = {}
@@ -719,13 +721,15 @@ class NewmarkIntegrator(IntegratorBase):
         v_n = float(n_ @ vrel)
         m_i = self._imp_mass[j]
         G = cfg.mobility[j, :d, :d]
+        G_model = cfg.house_mobility[j, :d, :d]
         g_nn = float(n_ @ G @ n_)
         e_cor = self._imp_cor[j]
         same_wall = float(nrm @ self._imp_normal[j]) > 0.95
         dt_prev = t - self._imp_last_t[j]
         if v_n > 0.0:
             J = (1.0 + e_cor) * v_n / (1.0 / m_i + g_nn)
-            loss = 0.5 * (1.0 - e_cor * e_cor) * v_n * v_n / (1.0 / m_i + g_nn)
+            # what the impulse takes out of impactor and model (see kernels.exact.impact_py)
+            loss = 0.5 * J * (v_n * (1.0 - e_cor) + J * (g_nn - float(n_ @ G_model @ n_)))
             self._imp_v[j, :d] -= J * n_ / m_i
             self._v = self._v + cfg.kick[j, :, :d] @ (J * n_)
             self._ledger[0] += loss
@@ -754,14 +758,18 @@ class NewmarkIntegrator(IntegratorBase):
         if (stick and pushes) or chatter:
             # plastic completion of the bounce-down: cancel the relative velocity
             P = np.linalg.solve(np.eye(d) / m_i + G, vr)
-            lock_loss = 0.5 * float(vr @ P)
             self._imp_v[j, :d] -= P / m_i
             self._v = self._v + cfg.kick[j, :, :d] @ P
-            self._ledger[1] += lock_loss
             self._stuck[j] = 1
             self._imp_rel[j] = 0.0
             self._imp_rel[j, :d] = n_ * L
             vh_l = R @ self._v
+            # what the lock takes out of impactor and model; the stuck impactor rides with
+            # the housing's velocity (see kernels.exact.impact_py)
+            w = self._imp_v[j, :d] - vh_l
+            lock_loss = 0.5 * float(vr @ P + P @ (G - G_model) @ P
+                                    + m_i * (w @ (self._imp_v[j, :d] + vh_l)))
+            self._ledger[1] += lock_loss
             self._record(t, j, _EV_STICK, nrm, float(n_ @ vr), float(np.sqrt(P @ P)), lock_loss,
                          float(n_ @ (self._imp_v[j, :d] - vh_l)), float(n_ @ (vh_l - vh)))
             self.n_config_changes += 1

@@ -686,12 +686,18 @@ def impact_py(j, fid, n_rows, t_cur, X, yh, kick, mob, lawmob, imp_mass, imp_cor
     m_i = imp_mass[j]
     g_nn = (nrm0 * (lawmob[0, 0] * nrm0 + lawmob[0, 1] * nrm1)
             + nrm1 * (lawmob[1, 0] * nrm0 + lawmob[1, 1] * nrm1))
+    # the model's own n^T G n: what an impulse takes out of the simulated model
+    g_model = (nrm0 * (mob[0, 0] * nrm0 + mob[0, 1] * nrm1)
+               + nrm1 * (mob[1, 0] * nrm0 + mob[1, 1] * nrm1))
     e_cor = imp_cor[j]
     same_wall = (nrm0 * imp_normal[j, 0] + nrm1 * imp_normal[j, 1]) > 0.95
     dt_prev = t_cur - imp_last_t[j]
     if v_n > 0.0:
         J = (1.0 + e_cor) * v_n / (1.0 / m_i + g_nn)
-        loss = 0.5 * (1.0 - e_cor * e_cor) * v_n * v_n / (1.0 / m_i + g_nn)
+        # the kinetic energy the impulse takes out of impactor and model,
+        # J v_n - J^2 (1/m + g_model)/2, without cancellation; with the effective-mass law
+        # (g_model = g_nn) the law's 0.5 (1 - e^2) v_n^2 / (1/m + g_nn)
+        loss = 0.5 * J * (v_n * (1.0 - e_cor) + J * (g_nn - g_model))
         imp_v[j, 0] -= J * nrm0 / m_i
         imp_v[j, 1] -= J * nrm1 / m_i
         for i in range(yh.size):
@@ -759,22 +765,31 @@ def impact_py(j, fid, n_rows, t_cur, X, yh, kick, mob, lawmob, imp_mass, imp_cor
         det = a00 * a11 - a01 * a10
         P0 = (a11 * vr0 - a01 * vr1) / det
         P1 = (-a10 * vr0 + a00 * vr1) / det
-    lock_loss = 0.5 * (vr0 * P0 + vr1 * P1)
     imp_v[j, 0] -= P0 / m_i
     imp_v[j, 1] -= P1 / m_i
     for i in range(yh.size):
         yh[i] += kick[0, i] * P0
         if n_rows == 2:
             yh[i] += kick[1, i] * P1
-    ledger[1] += lock_loss
     imp_stuck[j] = 1
     imp_grace[j] = 1
     imp_rel[j, 0] = nrm0 * imp_limit[j]
     imp_rel[j, 1] = nrm1 * imp_limit[j] if n_rows == 2 else 0.0
     vh0a = X[1, 0] + mob[0, 0] * P0 + mob[0, 1] * P1
     vh1a = X[1, 1] + mob[1, 0] * P0 + mob[1, 1] * P1 if n_rows == 2 else 0.0
-    after_rel = nrm0 * (imp_v[j, 0] - vh0a) + (
-        nrm1 * (imp_v[j, 1] - vh1a) if n_rows == 2 else 0.0)
+    # The energy the lock takes out of impactor and model: the impulse's
+    # P.v_r - P^T (I/m + G_model) P / 2 = (P.v_r + P^T (G_law - G_model) P) / 2 (as
+    # (I/m + G_law) P = v_r), plus m (|v_i|^2 - |v_h|^2) / 2: the stuck impactor rides
+    # with the housing's velocity, so a relative velocity the law left is dropped. Both
+    # extra terms vanish with the effective-mass law (G_law = G_model).
+    dg0 = (lawmob[0, 0] - mob[0, 0]) * P0 + (lawmob[0, 1] - mob[0, 1]) * P1
+    dg1 = (lawmob[1, 0] - mob[1, 0]) * P0 + (lawmob[1, 1] - mob[1, 1]) * P1
+    w0 = imp_v[j, 0] - vh0a
+    w1 = imp_v[j, 1] - vh1a if n_rows == 2 else 0.0
+    drop = w0 * (imp_v[j, 0] + vh0a) + (w1 * (imp_v[j, 1] + vh1a) if n_rows == 2 else 0.0)
+    lock_loss = 0.5 * (vr0 * P0 + vr1 * P1 + P0 * dg0 + P1 * dg1 + m_i * drop)
+    ledger[1] += lock_loss
+    after_rel = nrm0 * w0 + nrm1 * w1
     after_jump = nrm0 * (vh0a - X[1, 0]) + (nrm1 * (vh1a - X[1, 1]) if n_rows == 2 else 0.0)
     record(ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, t_cur, j,
            EV_STICK, nrm0, nrm1, nrm0 * vr0 + nrm1 * vr1, np.sqrt(P0 * P0 + P1 * P1),
