@@ -1,0 +1,181 @@
+"""``study record`` and ``study dataset``: node logs offline, one or a labelled data set.
+
+::
+
+    study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
+                 [--noise-std A] [--set KEY=VALUE ...] [--overwrite] [--progress] [--json]
+    study dataset SPEC.yaml --out DIR [--executor process|serial|dask] [--workers N]
+                  [--dask-address ADDR] [--retry-failed] [--progress] [--json]
+
+``record`` (:mod:`..studies.record`): exit status 0 with a one-line summary on stdout (or
+JSON); 2 with one message per problem on stderr for a bad scene, override, duration or
+schedule, or an existing ``--out`` without ``--overwrite``; 3 when the simulation diverged
+(the log holds everything up to it, and the summary says so).
+
+``dataset`` (:mod:`..studies.dataset`): exit status 0 when every run is recorded (diverged
+runs are labelled, not failed), 1 when some failed (each with its reason in the manifest),
+2 for a bad spec. Importing this module is cheap: the engine is imported when a command runs.
+"""
+from __future__ import annotations
+
+import argparse
+
+from ..studies.output import EXIT_DIVERGED, refuse_existing
+from ..studies.output import fmt as _g
+from ..studies.output import print_error as _error
+from ..studies.output import print_json as _print_json
+
+
+def add_record_parser(sub, scene_args):
+    """Add the ``record`` subcommand to the ``study`` command's sub-parsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The sub-parser collection.
+    scene_args : callable
+        Adds SCENE, ``--set`` and ``--json`` to a parser.
+    """
+    p = sub.add_parser(
+        'record', help="write the node's log of a scripted run, as fast as the engine goes",
+        description="Step a scene without the wall clock and write the MCAP log "
+                    'vibration_node would record (same topics, types, CDR bytes, QoS '
+                    'metadata and rosbag2 layout; log time = sim time), playing a command '
+                    'schedule in sim time. Deterministic: the same scene, overrides, '
+                    'schedule, seed and version give the same message bytes. No '
+                    '/diagnostics (there is no wall-clock run to report).')
+    scene_args(p)
+    p.add_argument('--duration', required=True, metavar='S',
+                   help="sim time to record (s; units allowed, e.g. '500 ms')")
+    p.add_argument('--out', required=True, metavar='F.mcap', help='the log to write')
+    p.add_argument('--schedule', metavar='F.yaml',
+                   help='command schedule (speed, speed_rate, unbalance, dampers, noise_std, '
+                        'noise_seed at sim times; docs/node.md)')
+    p.add_argument('--seed', type=int, default=0,
+                   help="noise seed, the node's noise_seed (default 0)")
+    p.add_argument('--noise-std', default='0', metavar='A',
+                   help="accelerometer noise at start (m/s^2; units allowed, e.g. '0.05 g'); "
+                        'default 0')
+    p.add_argument('--overwrite', action='store_true', help='replace --out if it exists')
+    p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
+                   help='progress line on stderr (default: when stderr is a terminal)')
+
+
+def run_record(args):
+    """Run ``study record``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``scene``, ``overrides``, ``json``, ``duration``, ``out``, ``schedule``, ``seed``,
+        ``noise_std``, ``overwrite``, ``progress``.
+
+    Returns
+    -------
+    int
+        Exit status (0, or 3 when the run diverged); bad input raises ``SceneError`` or
+        ``OutputExists`` for :func:`.study.main` to report (exit 2).
+    """
+    from ..scene.schema import SceneError
+    from ..scene.units import UnitError, parse_quantity
+    from ..studies.record import record_log
+    try:
+        duration = parse_quantity(args.duration, 'time', key='--duration')
+        noise_std = parse_quantity(args.noise_std, 'acceleration', key='--noise-std')
+    except UnitError as exc:
+        raise SceneError(str(exc)) from None
+    if not duration > 0:
+        raise SceneError(f'--duration: must be > 0 s, got {args.duration}')
+    if not noise_std >= 0:
+        raise SceneError(f'--noise-std: must be >= 0 m/s^2, got {args.noise_std}')
+    if not 0 <= args.seed <= 2**31 - 1:
+        raise SceneError(f'--seed: must be in [0, 2147483647], got {args.seed}')
+    refuse_existing([args.out], args.overwrite)
+    try:
+        result = record_log(args.scene, args.out, duration, schedule=args.schedule,
+                            overrides=args.overrides, seed=args.seed, noise_std=noise_std,
+                            overwrite=args.overwrite, progress=args.progress)
+    except FileExistsError as exc:   # created between the check and the open
+        raise SceneError(str(exc)) from None
+    if args.json:
+        _print_json(dict(result))
+    else:
+        stuck = result['stuck_fraction']
+        print(f"{result['path']}: {_g(result['sim_time_s'])} s of sim time in "
+              f"{result['wall_s']:.2f} s ({result['real_time_factor']:.1f} x real time), "
+              f"{result['messages']} messages, {result['bytes'] / 1e6:.2f} MB; "
+              f"{result['commands']} schedule commands; {result['impacts_per_s']:.1f} "
+              f"impacts/s, stuck {'-' if stuck is None else f'{100 * stuck:.1f} %'}, "
+              f"peak {_g(result['peak_g'])} g, RMS {_g(result['rms_g'])} g")
+    if result['diverged']:
+        _error(f"the simulation stopped at {_g(result['sim_time_s'])} s: {result['failure']}"
+               f" (the log holds everything before)")
+        return EXIT_DIVERGED
+    return 0
+
+
+def add_dataset_parser(sub):
+    """Add the ``dataset`` subcommand to the ``study`` command's sub-parsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The sub-parser collection.
+    """
+    p = sub.add_parser(
+        'dataset', help='a labelled data set of node logs: a grid or a seeded sample of runs',
+        description='Record one node log per run of a spec (a grid or a seeded random sample '
+                    'over scene keys, command schedules and noise seeds) on a process pool or '
+                    'a Dask cluster, and write DIR/manifest.json and DIR/manifest.csv (run id, '
+                    'every parameter, impacts/s, stuck fraction, peak and RMS g, diverged, '
+                    'file and sha256; a failed run with its reason). Resumable: runs whose '
+                    'inputs and file are unchanged are skipped.')
+    p.add_argument('spec', metavar='SPEC.yaml', help='the data set spec (docs/study.md)')
+    p.add_argument('--out', required=True, metavar='DIR',
+                   help='data set directory (logs in DIR/runs; shared by every worker)')
+    p.add_argument('--executor', choices=('process', 'serial', 'dask'), default='process',
+                   help='where runs go (default process)')
+    p.add_argument('--workers', type=int, metavar='N',
+                   help='worker processes or local Dask workers (default: CPU count)')
+    p.add_argument('--dask-address', metavar='ADDR',
+                   help='Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)')
+    p.add_argument('--retry-failed', action='store_true',
+                   help='run again the runs the manifest records as failed')
+    p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
+                   help='progress line on stderr (default: when stderr is a terminal)')
+    p.add_argument('--json', action='store_true', help='print the summary as JSON')
+
+
+def run_dataset(args):
+    """Run ``study dataset``; return the exit status (0 all recorded, 1 some failed).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``spec``, ``out``, ``executor``, ``workers``, ``dask_address``, ``retry_failed``,
+        ``progress``, ``json``.
+    """
+    from ..scene.schema import SceneError
+    from ..studies.dataset import run_dataset as run
+    try:
+        result = run(args.spec, args.out, executor=args.executor, workers=args.workers,
+                     dask_address=args.dask_address, retry_failed=args.retry_failed,
+                     progress=args.progress)
+    except ValueError as exc:   # a bad executor option (SceneError is reported by main)
+        if isinstance(exc, SceneError):
+            raise
+        raise SceneError(str(exc)) from None
+    if args.json:
+        _print_json({k: v for k, v in result.items() if k != 'rows'})
+    else:
+        print(f"{result['planned']} runs planned: {result['skipped']} already done, "
+              f"{result['recorded']} recorded now, {result['failed']} failed; "
+              f"manifest {result['manifest']}")
+    for row in result['rows']:
+        if row['status'] != 'ok':
+            _error(f"run {row['id']} ({', '.join(row['overrides']) or 'no overrides'}): "
+                   f"{row['error']}")
+    return 1 if result['failed'] else 0
+
+
+__all__ = ['add_dataset_parser', 'add_record_parser', 'run_dataset', 'run_record']

@@ -1,0 +1,498 @@
+"""The messages of ``vibration_node`` as CDR bytes, without ROS: one packer for node and log.
+
+:class:`NodeMessages` turns what :class:`~impact_damper_sim.live.realtime.LiveSimulation`
+steps into serialized messages, each with its sim time (ns) and the stream it belongs to:
+per-sample ``sensor_msgs/Imu`` (one NumPy pass per chunk), full-rate and impact batches
+(``sensor_msgs/PointCloud2``, :mod:`.batches`), ``/clock``, ``rotor/speed``,
+``rotor/joint_states`` and ``impactor_state``; and the records of commands
+(``std_msgs/Float64``) and accepted parameter changes (``rcl_interfaces/ParameterEvent``).
+``vibration_node`` publishes these bytes and records them; ``study record`` writes them to
+a log at the speed of the engine. The packing therefore exists once, and the two logs carry
+equal bytes for equal simulations.
+
+The CDR written here is canonical little-endian XCDR1 as rosbags writes it (alignment counted
+after the 4-byte encapsulation header, pads zero, nothing after the last field), so equal
+messages are equal bytes; ``test/test_node_messages.py`` checks every encoder against rclpy's
+message classes and :func:`impact_damper_sim.ros.cdr.serialize`. The live simulation and
+scene are read by attribute (duck-typed): nothing here imports rclpy or :mod:`..live`.
+"""
+from __future__ import annotations
+
+import math
+import struct
+from typing import NamedTuple
+
+import numpy as np
+
+from . import node_topics as nt
+from .batches import ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS, IMPACT_POINT_STEP, BatchEncoder
+
+_IMPACT = 0   # EVENT_KINDS index of an impact
+_HEADER = b'\x00\x01\x00\x00'   # CDR encapsulation: little-endian
+#: rcl_interfaces/ParameterType values
+PARAMETER_BOOL, PARAMETER_INTEGER, PARAMETER_DOUBLE, PARAMETER_STRING = 1, 2, 3, 4
+
+
+class _Cdr:
+    """A little-endian XCDR1 writer; alignment is counted after the encapsulation header."""
+
+    def __init__(self):
+        self.parts = [_HEADER]
+        self.size = 0
+
+    def align(self, n):
+        pad = -self.size % n
+        if pad:
+            self.raw(b'\x00' * pad)
+
+    def raw(self, data):
+        self.parts.append(data)
+        self.size += len(data)
+
+    def put(self, fmt, *values):
+        """Primitives of one struct code (``'d'``, ``'I'``, ``'q'``, ...), aligned to it."""
+        self.align(struct.calcsize(fmt.lstrip('0123456789')[0]))
+        self.raw(struct.pack('<' + fmt, *values))
+
+    def stamp(self, ns):
+        sec, nsec = divmod(int(ns), 1_000_000_000)
+        self.put('iI', sec, nsec)
+
+    def string(self, text):
+        data = text.encode() + b'\x00'
+        self.put('I', len(data))
+        self.raw(data)
+
+    def doubles(self, values):
+        """A ``float64[]`` sequence: its length, then the values (aligned only if any)."""
+        values = [float(v) for v in values]
+        self.put('I', len(values))
+        if values:
+            self.put(f'{len(values)}d', *values)
+
+    def strings(self, texts):
+        self.put('I', len(texts))
+        for text in texts:
+            self.string(text)
+
+    def bytes(self):
+        return b''.join(self.parts)
+
+
+def clock_cdr(ns):
+    """``rosgraph_msgs/Clock`` bytes for sim time ``ns`` (ns, >= 0)."""
+    w = _Cdr()
+    w.stamp(ns)
+    return w.bytes()
+
+
+def float64_cdr(value):
+    """``std_msgs/Float64`` bytes of ``value`` (in the unit of the topic)."""
+    return _HEADER + struct.pack('<d', float(value))
+
+
+def vector3_stamped_cdr(ns, frame_id, vector):
+    """``geometry_msgs/Vector3Stamped`` bytes.
+
+    Parameters
+    ----------
+    ns : int
+        ``header.stamp`` (ns, >= 0).
+    frame_id : str
+        ``header.frame_id``.
+    vector : sequence of 3 float
+        x, y, z (in the unit the topic states).
+    """
+    w = _Cdr()
+    w.stamp(ns)
+    w.string(frame_id)
+    w.put('3d', *(float(v) for v in vector))
+    return w.bytes()
+
+
+def joint_state_cdr(ns, names, position=(), velocity=(), effort=(), frame_id=''):
+    """``sensor_msgs/JointState`` bytes.
+
+    Parameters
+    ----------
+    ns : int
+        ``header.stamp`` (ns, >= 0).
+    names : sequence of str
+        Joint names.
+    position, velocity, effort : sequence of float
+        Per joint (m or rad, m/s or rad/s, N or N m); empty when not given.
+    frame_id : str
+        ``header.frame_id``.
+    """
+    w = _Cdr()
+    w.stamp(ns)
+    w.string(frame_id)
+    w.strings(list(names))
+    w.doubles(position)
+    w.doubles(velocity)
+    w.doubles(effort)
+    return w.bytes()
+
+
+def parameter_value_type(value):
+    """The ``rcl_interfaces/ParameterType`` of a bool, int, float or str value."""
+    if isinstance(value, bool):
+        return PARAMETER_BOOL
+    if isinstance(value, (int, np.integer)):
+        return PARAMETER_INTEGER
+    if isinstance(value, (float, np.floating)):
+        return PARAMETER_DOUBLE
+    if isinstance(value, str):
+        return PARAMETER_STRING
+    raise TypeError(f'parameter value {value!r}: only bool, int, float and str are recorded')
+
+
+def parameter_event_cdr(ns, node, changed):
+    """``rcl_interfaces/ParameterEvent`` bytes: parameters of ``node`` changed at ``ns``.
+
+    Parameters
+    ----------
+    ns : int
+        ``stamp`` (ns, >= 0).
+    node : str
+        Fully qualified node name (``/vibration_node``).
+    changed : sequence of (str, bool or int or float or str)
+        ``changed_parameters``: name and new value, in order.
+    """
+    w = _Cdr()
+    w.stamp(ns)
+    w.string(node)
+    w.put('I', 0)                       # new_parameters
+    w.put('I', len(changed))            # changed_parameters
+    for name, value in changed:
+        kind = parameter_value_type(value)
+        w.string(name)
+        w.put('B', kind)
+        w.put('?', kind == PARAMETER_BOOL and bool(value))
+        w.put('q', int(value) if kind == PARAMETER_INTEGER else 0)
+        w.put('d', float(value) if kind == PARAMETER_DOUBLE else 0.0)
+        w.string(value if kind == PARAMETER_STRING else '')
+        for _ in range(5):              # the five array values: empty
+            w.put('I', 0)
+    w.put('I', 0)                       # deleted_parameters
+    return w.bytes()
+
+
+class ImuEncoder:
+    """Writes chunks of ``sensor_msgs/Imu`` that differ only in stamp and readings.
+
+    Every other field is fixed: the frame, orientation unknown (``orientation_covariance[0]
+    = -1``, REP-145; the quaternion rclpy's default, w = 1), ``angular_velocity_covariance``
+    zero (unknown) and ``linear_acceleration_covariance`` diagonal with the noise variance.
+
+    Parameters
+    ----------
+    frame_id : str
+        ``header.frame_id``.
+    noise_variance : float
+        Diagonal of ``linear_acceleration_covariance`` ((m/s^2)^2; 0 = unknown).
+    """
+
+    def __init__(self, frame_id, noise_variance=0.0):
+        var = float(noise_variance)
+        w = _Cdr()
+        w.stamp(0)
+        w.string(frame_id)
+        w.put('4d', 0.0, 0.0, 0.0, 1.0)                 # orientation (not measured)
+        w.put('9d', -1.0, *[0.0] * 8)                   # orientation_covariance
+        angular_at = w.size
+        w.put('3d', 0.0, 0.0, 0.0)                      # angular_velocity
+        w.put('9d', *[0.0] * 9)                         # angular_velocity_covariance
+        linear_at = w.size
+        w.put('3d', 0.0, 0.0, 0.0)                      # linear_acceleration
+        w.put('9d', var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var)
+        raw = w.bytes()
+        head = len(_HEADER)
+        self.size = len(raw)
+        self.dtype = np.dtype({'names': ['sec', 'nsec', 'lin', 'ang'],
+                               'formats': ['<i4', '<u4', ('<f8', 3), ('<f8', 3)],
+                               'offsets': [head, head + 4, head + linear_at, head + angular_at],
+                               'itemsize': self.size})
+        self._template = np.frombuffer(raw, np.uint8).copy()
+
+    def pack(self, t_ns, linear_acceleration, angular_velocity):
+        """Serialized messages (list of bytes), one per row.
+
+        Parameters
+        ----------
+        t_ns : ndarray of int, shape (k,)
+            Stamps (ns, >= 0).
+        linear_acceleration : ndarray, shape (k, 3)
+            Readings (m/s^2).
+        angular_velocity : ndarray, shape (k, 3)
+            Readings (rad/s).
+        """
+        k = len(t_ns)
+        buf = np.empty(k, self.dtype)
+        buf.view(np.uint8).reshape(k, self.size)[:] = self._template
+        buf['sec'], buf['nsec'] = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
+        buf['lin'] = linear_acceleration
+        buf['ang'] = angular_velocity
+        raw = buf.tobytes()
+        n = self.size
+        return [raw[i:i + n] for i in range(0, k * n, n)]
+
+
+class Stream(NamedTuple):
+    """One topic the node writes: fully qualified name, ROS type and QoS (a dict)."""
+
+    topic: str
+    type_name: str
+    qos: dict
+
+
+class NodeMessages:
+    """The node's topics and the bytes a stepped simulation puts on them.
+
+    Parameters
+    ----------
+    live : LiveSimulation
+        The simulation (read: ``accelerometers``, ``imu_delay``, ``noise_std``, ``t``,
+        ``has_rotor``, ``rotor_state()``, ``profile``, ``impactor_states()``,
+        ``dampers_enabled``).
+    scene : SceneModel
+        Its scene (``name``, ``impactors``, ``scene['impactors']``).
+    namespace : str
+        Namespace of the relative topic names (``/`` or ``/rig``).
+    node_name : str
+        Fully qualified node name, for ``/parameter_events``.
+    publish_clock : bool
+        Whether ``/clock`` is one of the streams.
+
+    Attributes
+    ----------
+    streams : list of Stream
+        Every topic, indexed by the stream numbers below and in the items.
+    imu, batch : list of int
+        Per accelerometer, the stream of its ``accel/<name>`` and ``accel/<name>/batch``.
+    impacts, state, speed, joint, clock, speed_command, unbalance_command, parameter_events
+        Stream numbers (``clock`` None without ``/clock``).
+    """
+
+    def __init__(self, live, scene, *, namespace='/', node_name='/vibration_node',
+                 publish_clock=True):
+        self.live = live
+        self.scene = scene
+        self.node_name = node_name
+        self.streams = []
+
+        def add(topic, qos):
+            type_name = nt.TYPES[nt.ACCEL_PREFIX if topic.startswith(nt.ACCEL_PREFIX)
+                                 and not topic.endswith(nt.BATCH_SUFFIX) else
+                                 nt.BATCH_SUFFIX if topic.endswith(nt.BATCH_SUFFIX) else topic]
+            self.streams.append(Stream(nt.qualified(topic, namespace), type_name, qos))
+            return len(self.streams) - 1
+
+        self.imu, self.batch = [], []
+        self._batch_encoders = []
+        for acc in live.accelerometers:
+            self.imu.append(add(nt.accel_topic(acc.name), nt.SENSOR_QOS))
+            self.batch.append(add(nt.accel_batch_topic(acc.name), nt.BATCH_QOS))
+            self._batch_encoders.append(BatchEncoder(acc.frame_id, ACCEL_FIELDS,
+                                                     ACCEL_POINT_STEP))
+        self.impacts = add(nt.IMPACTS, nt.EVENT_QOS)
+        self.state = add(nt.IMPACTOR_STATE, nt.LATCHED_QOS)
+        self.speed = add(nt.ROTOR_SPEED, nt.COMMAND_QOS)
+        self.joint = add(nt.ROTOR_JOINT_STATES, nt.COMMAND_QOS)
+        self.clock = add(nt.CLOCK, nt.CLOCK_QOS) if publish_clock else None
+        self.speed_command = add(nt.SPEED_COMMAND, nt.COMMAND_QOS)
+        self.unbalance_command = add(nt.UNBALANCE_COMMAND, nt.COMMAND_QOS)
+        self.parameter_events = add(nt.PARAMETER_EVENTS, nt.PARAMETER_EVENTS_QOS)
+        self.set_noise_variance(live.noise_std ** 2)
+        # per modal-model impactor (a zero-mass scene entry has none), matched by name
+        spec_of = {spec['name']: spec for spec in scene.scene['impactors']}
+        specs = [spec_of[imp.name] for imp in scene.impactors]
+        dofs_of = [[spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
+                   for spec in specs]
+        axis_of = {'ux': 0, 'uy': 1, 'uz': 2}
+        self.impactor_axes = [[axis_of[d] for d in dofs] for dofs in dofs_of]
+        # per impactor, the frame axis of each normal component; 3 (a dropped column) where
+        # a one-directional impactor has no second one
+        self._axis_table = np.full((max(1, len(dofs_of)), 2), 3, np.int64)
+        for j, axes in enumerate(self.impactor_axes):
+            self._axis_table[j, :len(axes)] = axes
+        self.joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
+                            for d in dofs]
+        # the housings' frame; with housings at several nodes, the scene's (axes are global)
+        housings = sorted({spec['node'] for spec in specs})
+        impact_frame = (self._frame_of_node(housings[0]) if len(housings) == 1
+                        else scene.name)
+        self._impact_encoder = BatchEncoder(impact_frame, IMPACT_FIELDS, IMPACT_POINT_STEP)
+        # the start of the interval the next impact batch covers (ns)
+        self.impacts_from = int(round(live.t * 1e9))
+
+    def _frame_of_node(self, node):
+        for acc in self.live.accelerometers:
+            if acc.node == node:
+                return acc.frame_id
+        return f'{self.scene.name}_node{node}'
+
+    def set_noise_variance(self, variance):
+        """Write ``variance`` ((m/s^2)^2) into the Imu covariance from now on."""
+        self._imu_encoders = [ImuEncoder(acc.frame_id, variance)
+                              for acc in self.live.accelerometers]
+
+    # -- what a chunk produces -------------------------------------------------------------
+    def batch_items(self, batch):
+        """The messages of a stepped chunk, in the order of their send times.
+
+        Per accelerometer one full-rate batch (sent at its last sample's time) and the
+        decimated samples one by one (each sent when the filter has it, a filter delay after
+        its stamp); the chunk's impacts as one batch (sent at the chunk's end).
+
+        Parameters
+        ----------
+        batch : Batch
+            What ``live.step`` returned (the simulation is at the chunk's end).
+
+        Returns
+        -------
+        list of (int, int, bytes)
+            Send time (sim ns), stream, CDR bytes; sorted by send time, then accelerometer.
+        """
+        live = self.live
+        delay_ns = int(round(live.imu_delay * 1e9))
+        imu_ns = np.rint(batch.imu_t * 1e9).astype(np.int64)
+        items = []
+        for a, encoder in enumerate(self._imu_encoders):
+            data = encoder.pack(imu_ns, batch.imu_linear_acceleration[:, a, :],
+                                batch.imu_angular_velocity[:, a, :])
+            stream = self.imu[a]
+            items += [(ns + delay_ns, a, stream, d) for ns, d in zip(imu_ns.tolist(), data)]
+        t_ns = np.rint(batch.t * 1e9).astype(np.int64)
+        if t_ns.size:
+            for a, encoder in enumerate(self._batch_encoders):
+                rows = np.empty(t_ns.size, encoder.dtype)
+                rows['t'] = (t_ns - t_ns[0]) * 1e-9
+                for name, column in zip(('ax', 'ay', 'az'), batch.linear_acceleration[:, a].T):
+                    rows[name] = column
+                for name, column in zip(('wx', 'wy', 'wz'), batch.angular_velocity[:, a].T):
+                    rows[name] = column
+                items.append((int(t_ns[-1]), a, self.batch[a], encoder.encode(t_ns[0], rows)))
+        end_ns = int(round(live.t * 1e9))
+        if self.scene.impactors:
+            ev = batch.events
+            items.append((end_ns, len(self.imu), self.impacts,
+                          self._impact_batch(ev[ev['kind'] == _IMPACT])))
+        self.impacts_from = end_ns
+        items.sort(key=lambda item: item[:2])   # by send time, then accelerometer
+        return [(ns, stream, data) for ns, _, stream, data in items]
+
+    def _impact_batch(self, impacts):
+        """The CDR bytes of the impact batch covering the chunk just stepped."""
+        encoder = self._impact_encoder
+        rows = np.zeros(impacts.size, encoder.dtype)
+        if impacts.size:
+            t_ns = np.rint(impacts['t'] * 1e9).astype(np.int64)
+            rows['t'] = (t_ns - self.impacts_from) * 1e-9
+            which = impacts['impactor'].astype(np.int64)
+            rows['impactor'] = which
+            # plane DOFs -> x, y, z of the frame, in one scatter per DOF of the plane
+            impulse = np.zeros((impacts.size, 4))   # column 3 takes a DOF a plane lacks
+            axes = self._axis_table[which]
+            index = np.arange(impacts.size)
+            for k in range(axes.shape[1]):
+                impulse[index, axes[:, k]] = impacts['impulse'] * impacts['normal'][:, k]
+            rows['jx'], rows['jy'], rows['jz'] = impulse[:, :3].T
+            rows['v_approach'] = np.abs(impacts['v_n'])
+            rows['v_separation'] = np.abs(impacts['v_n_after'])
+            rows['energy'] = impacts['loss']
+            order = np.argsort(t_ns, kind='stable')
+            rows = rows[order]
+        return encoder.encode(self.impacts_from, rows)
+
+    def time_items(self):
+        """``/clock``, ``rotor/speed`` and ``rotor/joint_states`` now: list of (ns, stream,
+        bytes) (only ``/clock`` without a rotor)."""
+        live = self.live
+        ns = int(round(live.t * 1e9))
+        items = []
+        if self.clock is not None:
+            items.append((ns, self.clock, clock_cdr(ns)))
+        if live.has_rotor:
+            speed, rate, x = live.rotor_state()
+            items.append((ns, self.speed, vector3_stamped_cdr(ns, '', (speed, rate, x))))
+            angle = float(live.profile.angle(np.asarray(live.t))) % (2.0 * math.pi)
+            items.append((ns, self.joint, joint_state_cdr(ns, ['rotor'], [angle], [speed])))
+        return items
+
+    def state_message(self):
+        """``impactor_state`` now (bytes): positions (m), velocities (m/s), stuck flags
+        (effort 1 stuck, 0 free, -1 dampers off)."""
+        live = self.live
+        pos, vel, eff = [], [], []
+        enabled = live.dampers_enabled
+        for s in live.impactor_states():
+            d = len(s['position'])
+            pos += [float(x) for x in s['position']]
+            vel += [float(x) for x in s['velocity']]
+            eff += [(1.0 if s['stuck'] else 0.0) if enabled else -1.0] * d
+        return joint_state_cdr(int(round(live.t * 1e9)), self.joint_names, pos, vel, eff)
+
+    def parameter_event(self, changed):
+        """``/parameter_events`` bytes for parameters of this node changed now.
+
+        Parameters
+        ----------
+        changed : sequence of (str, value)
+            Name and new value of each parameter.
+        """
+        return parameter_event_cdr(int(round(self.live.t * 1e9)), self.node_name, changed)
+
+
+def run_metadata(scene_model, overrides, parameters, node_name):
+    """The ``impact_damper_sim`` metadata record that opens the node's logs (str to str).
+
+    Parameters
+    ----------
+    scene_model : SceneModel
+        The scene run (``name``, ``source``, ``scene``: its resolved SI tree).
+    overrides : sequence of str
+        The ``key=value`` scene overrides.
+    parameters : dict
+        The node's parameters (or ``study record``'s equivalents), as YAML-safe values.
+    node_name : str
+        Fully qualified node name.
+
+    Returns
+    -------
+    dict of str to str
+        Software version, scene, overrides, the resolved scene in SI, the parameters, the
+        node name and the time base; nothing that changes from run to run.
+    """
+    import yaml
+
+    import impact_damper_sim
+    return {
+        'software_version': impact_damper_sim.__version__,
+        'scene': scene_model.name, 'scene_source': str(scene_model.source),
+        'overrides': yaml.safe_dump(list(overrides or ()), default_flow_style=True).strip(),
+        'resolved_scene_si': yaml.safe_dump(plain(scene_model.scene), sort_keys=False),
+        'node_parameters': yaml.safe_dump(plain(dict(parameters)), sort_keys=True),
+        'node_name': node_name,
+        'time_base': 'sim time (log_time = publish_time = sim time of the publish call)',
+    }
+
+
+def plain(value):
+    """A value as plain YAML-safe data (tuples to lists, NumPy to Python)."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+__all__ = ['ImuEncoder', 'NodeMessages', 'PARAMETER_BOOL', 'PARAMETER_DOUBLE',
+           'PARAMETER_INTEGER', 'PARAMETER_STRING', 'Stream', 'clock_cdr', 'float64_cdr',
+           'joint_state_cdr', 'parameter_event_cdr', 'parameter_value_type',
+           'plain', 'run_metadata', 'vector3_stamped_cdr']

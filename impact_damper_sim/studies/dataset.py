@@ -1,0 +1,451 @@
+"""``study dataset``: many labelled node logs from one spec, on a process pool or a Dask cluster.
+
+::
+
+    study dataset SPEC.yaml --out DIR [--executor process|serial|dask] [--workers N]
+                  [--dask-address ADDR] [--retry-failed] [--progress | --no-progress] [--json]
+
+A spec names a scene, a duration and either a grid or a seeded random sample over scene keys,
+command schedules and noise seeds (units allowed wherever a scene takes them)::
+
+    scene: hpotp
+    duration: 2 s
+    noise_std: 0.05 g            # optional, at start (m/s^2 or units)
+    overrides: [rotor.multiplier=2]   # optional, every run
+    grid:                        # every combination ...
+      impactors.0.clearance: [2 mil, 3 mil]
+      impactors.0.cor: [0.5, 0.7]
+    schedules: [ramp.yaml, dampers_off.yaml]   # ... with each schedule (paths: from the spec)
+    seeds: [0, 1]                # ... and each noise seed
+
+    # or, instead of grid/schedules/seeds:
+    sample:
+      n: 50
+      seed: 7                    # the sample's own seed: the same spec draws the same runs
+      keys:
+        impactors.0.clearance: {low: 1.5, high: 4, unit: mil}   # uniform
+        impactors.0.cor: [0.5, 0.6, 0.7]                        # one of
+      schedules: [ramp.yaml, dampers_off.yaml]                  # one of (optional)
+
+Each run is one ``study record`` (:func:`.record.record_log`) into ``DIR/runs/<id>.mcap``;
+its id is a digest of everything that decides its bytes (scene, overrides, schedule text,
+seed, noise, duration, software version), so a run whose inputs are unchanged keeps its id.
+``DIR/manifest.json`` and ``DIR/manifest.csv`` list every run: id, every parameter, the
+summary labels (impacts per second, stuck fraction, peak and RMS acceleration in g, diverged
+or not, the sim time reached), the file, its size and its sha256, and for a failed run its
+one-line reason. The manifest is rewritten after every finished run, so a data set that is
+interrupted continues where it stopped: a run already in the manifest whose file is there
+with its recorded sha256 is skipped (a failed run too, unless ``--retry-failed``). A failing
+run does not stop the others. Runs are written to ``<id>.mcap.part`` and renamed when
+complete, so no half-written log carries a run's name.
+
+On a multi-machine Dask cluster every worker writes to ``DIR`` itself: give a directory that
+all workers see at the same path (a shared file system), see docs/study.md.
+"""
+from __future__ import annotations
+
+import contextlib
+import csv
+import hashlib
+import io
+import itertools
+import json
+import math
+import os
+import sys
+import time
+
+from ..scene.schema import SceneError
+
+#: label columns of the manifest, from :func:`.record.record_log`'s result
+LABELS = ('impacts_per_s', 'stuck_fraction', 'peak_g', 'rms_g', 'diverged', 'failure',
+          'sim_time_s', 'wall_s', 'real_time_factor', 'messages')
+SPEC_KEYS = ('scene', 'duration', 'noise_std', 'overrides', 'grid', 'schedules', 'seeds',
+             'sample')
+
+
+class DatasetError(SceneError):
+    """A data set spec is invalid; one line per problem, each naming its key."""
+
+    def __init__(self, errors, source=None):
+        super().__init__(errors, source)
+        if source is not None and len(self.errors) > 1:
+            self.args = ('\n'.join([f'invalid data set spec {source} ({len(self.errors)} '
+                                    'errors):', *self.errors]),)
+
+
+def _value_text(value):
+    """A spec value as the text of a ``key=value`` override."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
+
+def _file_sha256(path, block=1 << 20):
+    digest = hashlib.sha256()
+    with open(path, 'rb') as f:
+        for chunk in iter(lambda: f.read(block), b''):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def load_spec(path):
+    """Read and check a data set spec; return the plan of its runs.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The spec (YAML).
+
+    Returns
+    -------
+    list of dict
+        One per run, in spec order: ``id``, ``scene``, ``overrides`` (the fixed ones, then
+        the run's), ``keys`` (the run's own scene keys and values, as written), ``schedule``
+        (absolute path or None), ``seed``, ``noise_std`` (m/s^2), ``duration`` (s) and
+        ``inputs`` (what the id digests).
+
+    Raises
+    ------
+    DatasetError
+        Every problem of the spec, each naming its key; a missing schedule file.
+    """
+    import pathlib
+
+    import numpy as np
+
+    import impact_damper_sim
+    from ..scene.loading import load_yaml
+    from ..scene.units import UnitError, parse_quantity
+    path = os.fspath(path)
+    raw = load_yaml(pathlib.Path(path), source=path)
+    base = os.path.dirname(os.path.abspath(path))
+    errors = []
+    for key in raw:
+        if key not in SPEC_KEYS:
+            errors.append(f"key '{key}': unknown; expected one of {', '.join(SPEC_KEYS)}")
+
+    def quantity(key, dimension, default=None, low=0.0, positive=False):
+        value = raw.get(key, default)
+        if value is None:
+            errors.append(f"key '{key}': missing; expected a {dimension}")
+            return None
+        try:
+            si = parse_quantity(value, dimension, key=key)
+        except UnitError as exc:
+            errors.append(f"key '{key}': {exc}")
+            return None
+        if si < low or (positive and si <= 0):
+            errors.append(f"key '{key}': {value} must be {'>' if positive else '>='} {low:g}")
+            return None
+        return si
+
+    def text_list(key, value):
+        if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+            errors.append(f"key '{key}': expected a list of strings, got {value!r}")
+            return []
+        return list(value)
+
+    def schedule_files(key, value):
+        files = []
+        for i, name in enumerate(text_list(key, value)):
+            full = os.path.join(base, name)
+            if not os.path.isfile(full):
+                errors.append(f"key '{key}[{i}]': schedule file {full} does not exist")
+            files.append(full)
+        return files
+
+    scene = raw.get('scene')
+    if not isinstance(scene, str) or not scene:
+        errors.append("key 'scene': expected a scene name or file")
+    elif scene.endswith(('.yaml', '.yml')) and not os.path.isabs(scene):
+        scene = os.path.join(base, scene)   # a scene file next to the spec
+    duration = quantity('duration', 'time', positive=True)
+    noise_std = quantity('noise_std', 'acceleration', default=0.0)
+    fixed = text_list('overrides', raw.get('overrides', []))
+    runs = []   # (keys dict, schedule, seed)
+    if 'sample' in raw:
+        if any(k in raw for k in ('grid', 'schedules', 'seeds')):
+            errors.append("key 'sample': give either sample or grid/schedules/seeds")
+        sample = raw['sample'] if isinstance(raw['sample'], dict) else {}
+        if not isinstance(raw['sample'], dict):
+            errors.append("key 'sample': expected a mapping with n, seed, keys")
+        n, seed = sample.get('n'), sample.get('seed', 0)
+        if not (isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= 1_000_000):
+            errors.append(f"key 'sample.n': expected an integer in [1, 1000000], got {n!r}")
+            n = 0
+        if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
+            errors.append(f"key 'sample.seed': expected an integer >= 0, got {seed!r}")
+            seed = 0
+        keys = sample.get('keys', {})
+        if not isinstance(keys, dict) or not keys:
+            errors.append("key 'sample.keys': expected a mapping of scene keys to ranges or "
+                          'lists')
+            keys = {}
+        draws = {}
+        for key, spec in keys.items():
+            where = f"key 'sample.keys.{key}'"
+            if isinstance(spec, list) and spec:
+                draws[key] = ('choice', spec)
+            elif isinstance(spec, dict) and set(spec) <= {'low', 'high', 'unit'} and all(
+                    isinstance(spec.get(b), (int, float)) and not isinstance(spec.get(b), bool)
+                    and math.isfinite(spec.get(b)) for b in ('low', 'high')) \
+                    and spec['low'] <= spec['high']:
+                draws[key] = ('uniform', spec)
+            else:
+                errors.append(f'{where}: expected a non-empty list, or {{low, high, unit}} '
+                              f'with finite low <= high, got {spec!r}')
+        schedules = schedule_files('sample.schedules', sample.get('schedules', []))
+        rng = np.random.default_rng(seed)
+        for _ in range(n):
+            values = {}
+            for key, (kind, spec) in draws.items():
+                if kind == 'choice':
+                    values[key] = spec[int(rng.integers(len(spec)))]
+                else:
+                    x = float(spec['low'] + (spec['high'] - spec['low']) * rng.random())
+                    values[key] = f"{x!r} {spec['unit']}" if spec.get('unit') else x
+            chosen = schedules[int(rng.integers(len(schedules)))] if schedules else None
+            runs.append((values, chosen, int(rng.integers(2**31 - 1))))
+    else:
+        grid = raw.get('grid', {})
+        if not isinstance(grid, dict) or not all(
+                isinstance(v, list) and v and all(isinstance(x, (str, int, float, bool))
+                                                  for x in v) for v in grid.values()):
+            errors.append("key 'grid': expected a mapping of scene keys to non-empty lists of "
+                          f'values, got {grid!r}')
+            grid = {}
+        schedules = schedule_files('schedules', raw.get('schedules', [])) or [None]
+        seeds = raw.get('seeds', [0])
+        if not (isinstance(seeds, list) and seeds and all(
+                isinstance(s, int) and not isinstance(s, bool) and 0 <= s <= 2**31 - 1
+                for s in seeds)):
+            errors.append(f"key 'seeds': expected a list of integers in [0, 2147483647], "
+                          f'got {seeds!r}')
+            seeds = [0]
+        for combo in itertools.product(*grid.values()):
+            for schedule in schedules:
+                for seed in seeds:
+                    runs.append((dict(zip(grid, combo)), schedule, seed))
+    if errors:
+        raise DatasetError(errors, source=path)
+    version = impact_damper_sim.__version__
+    plan = []
+    for keys, schedule, seed in runs:
+        overrides = fixed + [f'{k}={_value_text(v)}' for k, v in keys.items()]
+        schedule_sha = _file_sha256(schedule) if schedule else None
+        inputs = {'scene': scene, 'scene_sha256': (_file_sha256(scene) if os.path.isfile(scene)
+                                                   else None),
+                  'overrides': overrides, 'schedule_sha256': schedule_sha, 'seed': seed,
+                  'noise_std': noise_std, 'duration': duration, 'software_version': version}
+        digest = hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()
+        plan.append({'id': 'r' + digest[:12], 'scene': scene, 'overrides': overrides,
+                     'keys': keys, 'schedule': schedule, 'seed': seed, 'noise_std': noise_std,
+                     'duration': duration, 'inputs_sha256': digest})
+    ids = [run['id'] for run in plan]
+    if len(set(ids)) != len(ids):
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        raise DatasetError(f'runs {", ".join(dup)} have the same inputs twice (a repeated '
+                           'grid value?)', source=path)
+    return plan
+
+
+def record_run(run, out_dir):
+    """Record one run of a plan (a top-level function: it runs on a worker).
+
+    Parameters
+    ----------
+    run : dict
+        One entry of :func:`load_spec`'s plan.
+    out_dir : str
+        The data set directory (``runs/`` is inside it).
+
+    Returns
+    -------
+    dict
+        The run's manifest row: ``status`` ``'ok'`` with the labels, file, size and sha256,
+        or ``'failed'`` with ``error``, the one-line reason.
+    """
+    from .record import record_log
+    row = {'id': run['id'], 'status': 'failed', 'error': None}
+    final = os.path.join(out_dir, 'runs', run['id'] + '.mcap')
+    part = final + '.part'
+    try:
+        result = record_log(run['scene'], part, run['duration'], schedule=run['schedule'],
+                            overrides=run['overrides'], seed=run['seed'],
+                            noise_std=run['noise_std'], overwrite=True, progress=False)
+        os.replace(part, final)
+    except Exception as exc:   # any failure is this run's, never the data set's
+        lines = str(exc).strip().splitlines()
+        row['error'] = f'{type(exc).__name__}: ' + ('; '.join(lines)[:500] if lines else '')
+        with contextlib.suppress(OSError):
+            os.remove(part)
+        return row
+    row.update({k: result[k] for k in LABELS})
+    row.update(status='ok', file=os.path.relpath(final, out_dir), bytes=os.path.getsize(final),
+               sha256=_file_sha256(final))
+    return row
+
+
+def _columns(plan):
+    keys = []
+    for run in plan:
+        keys += [k for k in run['keys'] if k not in keys]
+    return (['id', 'status', 'error', 'scene', 'duration_s', 'noise_std', 'seed', 'schedule']
+            + keys + list(LABELS) + ['file', 'bytes', 'sha256', 'inputs_sha256'])
+
+
+def _manifest_rows(plan, rows):
+    out = []
+    for run in plan:
+        row = rows.get(run['id'])
+        if row is None:
+            continue
+        full = {'id': run['id'], 'scene': run['scene'], 'duration_s': run['duration'],
+                'noise_std': run['noise_std'], 'seed': run['seed'],
+                'schedule': run['schedule'], 'overrides': run['overrides'],
+                'inputs_sha256': run['inputs_sha256'], **run['keys'], **row}
+        out.append(full)
+    return out
+
+
+def _write_atomic(path, text):
+    tmp = path + '.tmp'
+    with open(tmp, 'w', encoding='utf-8', newline='') as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def write_manifest(out_dir, plan, rows, spec_path):
+    """Write ``manifest.json`` and ``manifest.csv`` of the runs finished so far (atomic)."""
+    import impact_damper_sim
+    from .output import strict_json
+    entries = _manifest_rows(plan, rows)
+    doc = {'spec': os.path.abspath(spec_path), 'software_version': impact_damper_sim.__version__,
+           'runs_planned': len(plan), 'runs': entries}
+    _write_atomic(os.path.join(out_dir, 'manifest.json'),
+                  json.dumps(strict_json(doc), indent=1) + '\n')
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=_columns(plan), extrasaction='ignore')
+    writer.writeheader()
+    for entry in entries:
+        writer.writerow({k: ('' if v is None else v) for k, v in entry.items()})
+    _write_atomic(os.path.join(out_dir, 'manifest.csv'), buf.getvalue())
+
+
+def _finished(out_dir, plan, retry_failed):
+    """Rows of the manifest in ``out_dir`` that stand: their inputs and file unchanged."""
+    path = os.path.join(out_dir, 'manifest.json')
+    if not os.path.exists(path):
+        return {}
+    try:
+        with open(path, encoding='utf-8') as f:
+            old = {r['id']: r for r in json.load(f).get('runs', [])}
+    except (OSError, ValueError, AttributeError, KeyError, TypeError):
+        return {}   # unreadable: every run again
+    keep = {}
+    for run in plan:
+        row = old.get(run['id'])
+        if row is None or row.get('inputs_sha256') != run['inputs_sha256']:
+            continue
+        if row.get('status') == 'ok':
+            file = os.path.join(out_dir, row.get('file') or '')
+            if os.path.isfile(file) and _file_sha256(file) == row.get('sha256'):
+                keep[run['id']] = {k: v for k, v in row.items()
+                                   if k in ('id', 'status', 'error', 'file', 'bytes', 'sha256',
+                                            *LABELS)}
+        elif row.get('status') == 'failed' and not retry_failed:
+            keep[run['id']] = {'id': run['id'], 'status': 'failed', 'error': row.get('error')}
+    return keep
+
+
+class DatasetProgress:
+    """``dataset 12/40 runs (1 failed, 5 skipped)  0.42 runs/s  ~67 s left`` on one line."""
+
+    def __init__(self, total, skipped, stream=None, enabled=None):
+        self.total, self.skipped = total, skipped
+        self.stream = sys.stderr if stream is None else stream
+        if enabled is None:
+            enabled = bool(getattr(self.stream, 'isatty', lambda: False)())
+        self.enabled = enabled
+        self.done = self.failed = 0
+        self.start = time.perf_counter()
+
+    def update(self, ok):
+        self.done += 1
+        self.failed += 0 if ok else 1
+        if not self.enabled:
+            return
+        wall = time.perf_counter() - self.start
+        rate = self.done / wall if wall > 0 else 0.0
+        todo = self.total - self.skipped - self.done
+        left = f'~{todo / rate:.0f} s left' if rate > 0 else ''
+        failed = f', {self.failed} failed' if self.failed else ''
+        skipped = f', {self.skipped} skipped' if self.skipped else ''
+        self.stream.write(f'\rdataset {self.skipped + self.done}/{self.total} runs{failed}'
+                          f'{skipped}  {rate:.2f} runs/s  {left} ')
+        if todo == 0:
+            self.stream.write('\n')
+        self.stream.flush()
+
+
+def run_dataset(spec_path, out_dir, *, executor='process', workers=None, dask_address=None,
+                retry_failed=False, progress=None):
+    """Record every run of a spec that is not finished yet, and write the manifest.
+
+    Parameters
+    ----------
+    spec_path : str
+        The spec (YAML).
+    out_dir : str
+        The data set directory (made if missing; shared by every worker).
+    executor : {'process', 'serial', 'dask'}
+        Where runs go (see :mod:`.runner`).
+    workers : int, optional
+        Worker processes (or local Dask workers).
+    dask_address : str, optional
+        A running Dask scheduler (``tcp://host:8786``).
+    retry_failed : bool
+        Run again the runs the manifest records as failed.
+    progress : bool, optional
+        Progress line on stderr; default when stderr is a terminal.
+
+    Returns
+    -------
+    dict
+        ``planned``, ``skipped``, ``recorded``, ``failed`` (run counts), ``manifest`` (path)
+        and ``rows`` (every manifest row, in plan order).
+    """
+    import concurrent.futures as cf
+
+    from .runner import make_executor
+    plan = load_spec(spec_path)
+    os.makedirs(os.path.join(out_dir, 'runs'), exist_ok=True)
+    rows = _finished(out_dir, plan, retry_failed)
+    todo = [run for run in plan if run['id'] not in rows]
+    bar = DatasetProgress(len(plan), len(rows), enabled=progress)
+    write_manifest(out_dir, plan, rows, spec_path)
+    if todo:
+        with make_executor(executor, workers, dask_address, n_tasks=len(todo)) as pool:
+            futures = {pool.submit(record_run, run, os.path.abspath(out_dir)): run
+                       for run in todo}
+            for future in cf.as_completed(futures):
+                run = futures[future]
+                try:
+                    row = future.result()
+                except Exception as exc:   # a worker that died: this run failed
+                    row = {'id': run['id'], 'status': 'failed',
+                           'error': f'{type(exc).__name__}: {exc}'.splitlines()[0]}
+                rows[run['id']] = row
+                write_manifest(out_dir, plan, rows, spec_path)
+                bar.update(row['status'] == 'ok')
+    entries = _manifest_rows(plan, rows)
+    return {'planned': len(plan), 'skipped': len(plan) - len(todo), 'recorded': len(todo),
+            'failed': sum(r['status'] != 'ok' for r in entries),
+            'manifest': os.path.join(out_dir, 'manifest.json'), 'rows': entries}
+
+
+__all__ = ['DatasetError', 'DatasetProgress', 'LABELS', 'load_spec', 'record_run',
+           'run_dataset', 'write_manifest']

@@ -1,0 +1,286 @@
+"""``study record``: the node's log of a scripted run, written offline as fast as the engine goes.
+
+::
+
+    study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
+                 [--noise-std A] [--set KEY=VALUE ...] [--overwrite] [--progress] [--json]
+
+:func:`record_log` steps :class:`~impact_damper_sim.live.realtime.LiveSimulation` with no
+wall clock and writes what ``vibration_node`` would publish and record with the same
+parameters: the same topics, message types, CDR bytes (packed by the same
+:class:`~impact_damper_sim.recording.node_messages.NodeMessages`), QoS metadata and rosbag2
+layout (:class:`~impact_damper_sim.recording.Rosbag2McapWriter`), log time = sim time. A
+schedule (:mod:`impact_damper_sim.live.schedule`) is applied at the same sample boundaries
+as the node applies it, and each applied key is logged as the live command
+(``std_msgs/Float64`` on ``rotor/speed_command`` or ``rotor/unbalance_command``) or
+parameter change (``rcl_interfaces/ParameterEvent`` on ``/parameter_events``) it stands for.
+
+What the node writes and this does not: ``/diagnostics`` (a report of the wall-clock run:
+real-time factor, CPU, lag; there is none here). ``impactor_state`` is written on every
+change and every ``state_period`` of sim time (the node's timer runs on the wall clock,
+which at real time is the same).
+
+Deterministic: the same scene, overrides, schedule, seed and software version give the same
+messages, byte for byte, in the same order; only the bag's creation time in the ``rosbag2``
+metadata record differs. Nothing here imports ROS.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+
+from ..scene.units import G0
+
+#: the node's defaults that shape the log (ros/parameters.py)
+TICK_PERIOD = 0.01     # s of sim time per stepped chunk (the node's tick_period)
+STATE_PERIOD = 1.0     # s between impactor_state messages (the node's state_period)
+NODE_NAME = '/vibration_node'
+
+
+class RecordResult(dict):
+    """What :func:`record_log` wrote and saw (a dict; keys documented there)."""
+
+
+def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noise_std=0.0,
+               overwrite=False, progress=None, sample_rate=None, imu_rate=None,
+               tick_period=TICK_PERIOD, state_period=STATE_PERIOD, overwrite_option='--overwrite',
+               stream=None):
+    """Step a scene for ``duration`` of sim time and write the node's log of it to ``out``.
+
+    Parameters
+    ----------
+    scene : str or os.PathLike
+        Scene name or file.
+    out : str or os.PathLike
+        MCAP file to write (rosbag2 layout).
+    duration : float
+        Sim time to record (s), > 0.
+    schedule : str or os.PathLike or Schedule, optional
+        Command schedule (YAML file or a loaded one).
+    overrides : sequence of str
+        ``key=value`` scene overrides (units allowed).
+    seed : int
+        Noise seed (the node's ``noise_seed``, dimensionless).
+    noise_std : float
+        Accelerometer noise at start (m/s^2; the node's ``noise_std``).
+    overwrite : bool
+        Replace an existing ``out``.
+    progress : bool, optional
+        A progress line on ``stream`` (percent, sim time, x real time); default when it is
+        a terminal.
+    sample_rate, imu_rate : float, optional
+        The node's ``sample_rate`` and ``imu_rate`` (Hz); default from the scene.
+    tick_period, state_period : float
+        The node's ``tick_period`` and ``state_period`` (s of sim time).
+    overwrite_option : str
+        How the caller asks for ``overwrite`` (named when the file exists).
+    stream : file, optional
+        Where progress goes; default ``sys.stderr``.
+
+    Returns
+    -------
+    RecordResult
+        ``path``, ``sim_time_s`` (reached), ``wall_s``, ``real_time_factor`` (sim s per wall
+        s), ``messages``, ``bytes``, ``samples`` (full-rate, per accelerometer),
+        ``impacts``, ``impacts_per_s``, ``stuck_fraction`` (time-weighted mean over the
+        impactors, dimensionless; None without impactors), ``peak_g`` and ``rms_g`` (of the
+        acceleration components over every accelerometer, g), ``commands`` (schedule keys
+        applied), ``diverged`` (bool) and ``failure`` (why the simulation stopped, or None).
+
+    Raises
+    ------
+    SceneError
+        A bad scene, override or schedule (each problem named), or a schedule the scene
+        cannot take.
+    FileExistsError
+        ``out`` exists and ``overwrite`` is false.
+    """
+    from ..live.realtime import CommandError, LiveSimulation
+    from ..live.schedule import Schedule
+    from ..live.streams import live_scene
+    from ..recording import Rosbag2McapWriter
+    from ..recording.node_messages import NodeMessages, float64_cdr, run_metadata
+    from ..recording.node_topics import FLOAT64, RECORD_CHUNK_SIZE
+    from ..scene.schema import SceneError
+    duration = float(duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise SceneError(f'--duration: must be a finite time > 0 s, got {duration:g}')
+    scene_model, target = live_scene(scene, overrides)
+    live = LiveSimulation(scene_model, sample_rate=sample_rate, imu_rate=imu_rate,
+                          initial_target=target, noise_std=noise_std, seed=seed)
+    if schedule is not None and not isinstance(schedule, Schedule):
+        schedule = Schedule.load(schedule)
+    if schedule is not None:
+        schedule.check(live)
+    start_rate = live.profile.max_rate if hasattr(live.profile, 'command') else None
+    messages = NodeMessages(live, scene_model, node_name=NODE_NAME)
+    streams = messages.streams
+    parameters = {'scene': str(scene), 'overrides': list(overrides) or None,
+                  'sample_rate': live.sample_rate, 'imu_rate': live.imu_rate,
+                  'noise_std': float(noise_std), 'noise_seed': int(seed),
+                  'tick_period': float(tick_period), 'state_period': float(state_period),
+                  'schedule': schedule.source if schedule is not None else '',
+                  'real_time_factor': 0.0, 'recorded_by': 'study record',
+                  'duration': duration}
+    writer = Rosbag2McapWriter(out, overwrite=overwrite, chunk_size=RECORD_CHUNK_SIZE,
+                               flush_period=math.inf, fsync_period=None,
+                               overwrite_option=overwrite_option)
+    wall0 = time.perf_counter()
+    bar = _Progress(duration, stream, progress)
+    summary = _Summary(live, scene_model)
+    applied = 0
+    try:
+        metadata = run_metadata(scene_model, overrides, parameters, NODE_NAME)
+        if schedule is not None:
+            metadata['schedule'] = schedule.text
+        writer.add_metadata('impact_damper_sim', metadata)
+        # the channels the node opens its log with: every publisher, then the commands
+        for i, s in enumerate(streams):
+            if i != messages.parameter_events:
+                writer.add_topic(s.topic, s.type_name, s.qos)
+
+        def write(stream_index, data, ns=None):
+            s = streams[stream_index]
+            ns = int(round(live.t * 1e9)) if ns is None else ns
+            writer.write(s.topic, s.type_name, s.qos, data, ns, ns)
+
+        def parameter(name, value):
+            if name == 'speed_rate_limit':
+                live.set_speed_rate(value or start_rate)
+            elif name == 'dampers_enabled':
+                live.set_dampers_enabled(value)
+                write(messages.state, messages.state_message())
+            else:   # noise_std, noise_seed
+                live.set_noise(value if name == 'noise_std' else live.noise_std,
+                               value if name == 'noise_seed' else None)
+                messages.set_noise_variance(live.noise_std ** 2)
+            write(messages.parameter_events, messages.parameter_event([(name, value)]))
+
+        write(messages.state, messages.state_message())   # the latched state opens the log
+        chunk = max(1, int(round(tick_period * live.sample_rate)))
+        total = int(round(duration * live.sample_rate))
+        done = 0
+        next_state = state_period
+        while done < total:
+            n = min(chunk, total - done)
+            if schedule is not None and not schedule.done:
+                for entry in schedule.due(live.t, live.sample_rate):
+                    for key, kind, name, value in entry.commands:
+                        try:
+                            if kind == 'topic':   # recorded as received, then applied
+                                s = streams[messages.speed_command if key == 'speed'
+                                            else messages.unbalance_command]
+                                writer.write(s.topic, FLOAT64, s.qos, float64_cdr(value),
+                                             *[int(round(live.t * 1e9))] * 2)
+                                (live.command_speed if key == 'speed'
+                                 else live.command_unbalance)(value)
+                            else:
+                                parameter(name, value)
+                            applied += 1
+                        except CommandError as exc:   # as the node: logged, the run goes on
+                            print(f'study record: schedule entry at {entry.at:g} s: {exc}',
+                                  file=sys.stderr)
+                ahead = schedule.samples_to_next(live.t, live.sample_rate)
+                if ahead:
+                    n = min(n, ahead)
+            batch = live.step(n)
+            if batch is None:
+                break
+            done += n
+            for ns, stream_index, data in messages.batch_items(batch):
+                write(stream_index, data, ns)
+            for ns, stream_index, data in messages.time_items():
+                write(stream_index, data, ns)
+            summary.add(batch)
+            if batch.states_changed or live.t >= next_state - 0.5 / live.sample_rate:
+                write(messages.state, messages.state_message())
+                while next_state <= live.t + 0.5 / live.sample_rate:
+                    next_state += state_period
+            bar.show(live.t)
+    finally:
+        writer.close()
+        bar.end()
+    wall = time.perf_counter() - wall0
+    stats = writer.stats()
+    out_summary = summary.result(live.t)
+    return RecordResult(
+        path=str(out), sim_time_s=live.t, wall_s=wall,
+        real_time_factor=live.t / wall if wall > 0 else math.inf,
+        messages=stats['messages_written'], bytes=stats['file_bytes'],
+        commands=applied, diverged=live.failure is not None, failure=live.failure,
+        **out_summary)
+
+
+class _Summary:
+    """Labels of a run, gathered while it steps: impacts, stuck time, peak and RMS."""
+
+    def __init__(self, live, scene_model):
+        self.live = live
+        self.n_impactors = len(scene_model.impactors)
+        self.impacts = 0
+        self.stuck_time = 0.0
+        self.samples = 0
+        self.peak = 0.0
+        self.square_sum = 0.0
+        self.values = 0
+
+    def add(self, batch):
+        k = batch.t.size
+        ev = batch.events
+        self.impacts += int(np.count_nonzero(ev['kind'] == 0))
+        self.stuck_time += sum(self.live._stuck) * k / self.live.sample_rate
+        lin = batch.linear_acceleration
+        if lin.size:
+            self.peak = max(self.peak, float(np.max(np.abs(lin))))
+            self.square_sum += float(np.sum(lin * lin))
+            self.values += lin.size
+        self.samples += k
+
+    def result(self, t):
+        t = max(t, 1e-300)
+        return {'samples': self.samples, 'impacts': self.impacts,
+                'impacts_per_s': self.impacts / t,
+                'stuck_fraction': (self.stuck_time / (t * self.n_impactors)
+                                   if self.n_impactors else None),
+                'peak_g': self.peak / G0,
+                'rms_g': math.sqrt(self.square_sum / self.values) / G0 if self.values else 0.0}
+
+
+class _Progress:
+    """``record  42%  sim 4.20 s of 10 s  23.5 x real time`` on one line, redrawn."""
+
+    def __init__(self, duration, stream, enabled):
+        self.duration = duration
+        self.stream = sys.stderr if stream is None else stream
+        if enabled is None:
+            enabled = bool(getattr(self.stream, 'isatty', lambda: False)())
+        self.enabled = enabled
+        self.start = time.perf_counter()
+        self.last = -math.inf
+        self.drawn = False
+        self.t = 0.0
+
+    def show(self, t, force=False):
+        self.t = t
+        now = time.perf_counter()
+        if not self.enabled or (now - self.last < 0.2 and not force):
+            return
+        self.last = now
+        wall = now - self.start
+        factor = f'{t / wall:6.1f} x real time' if wall > 0 else ''
+        self.stream.write(f'\rrecord {100 * t / self.duration:5.1f} %  sim {t:.2f} s of '
+                          f'{self.duration:g} s  {factor} ')
+        self.stream.flush()
+        self.drawn = True
+
+    def end(self):
+        if self.enabled and self.drawn:
+            self.show(self.t, force=True)
+            self.stream.write('\n')
+            self.stream.flush()
+
+
+__all__ = ['RecordResult', 'STATE_PERIOD', 'TICK_PERIOD', 'record_log']

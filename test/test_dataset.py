@@ -1,0 +1,153 @@
+"""``study dataset``: a grid or a seeded sample of node logs, a manifest with labels and
+sha256, one failing run recorded without stopping the rest, and resuming where it stopped."""
+import csv
+import hashlib
+import json
+import os
+
+import pytest
+
+from impact_damper_sim.studies.dataset import DatasetError, load_spec, run_dataset
+
+SPEC = """\
+scene: sdof
+duration: 300 ms
+noise_std: 0.01 g
+grid:
+  impactors.0.cor: [0.5, 0.7, 5]
+seeds: [0, 1]
+"""
+
+
+def _write(tmp_path, text, name='spec.yaml'):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _manifest(out):
+    with open(out / 'manifest.json') as f:
+        doc = json.load(f)
+    with open(out / 'manifest.csv', newline='') as f:
+        rows = list(csv.DictReader(f))
+    return doc, rows
+
+
+def test_a_bad_spec_names_every_problem(tmp_path):
+    spec = _write(tmp_path, 'scene: sdof\nduration: -1 s\ngrid: {a: []}\nseeds: [x]\n'
+                            'schedules: [missing.yaml]\ncolour: red\n')
+    with pytest.raises(DatasetError) as info:
+        load_spec(spec)
+    text = str(info.value)
+    assert text.startswith(f'invalid data set spec {spec} (5 errors):')
+    for part in ("key 'colour': unknown", "key 'duration': -1 s must be > 0",
+                 "key 'grid': expected a mapping", "key 'seeds': expected a list of integers",
+                 "key 'schedules[0]': schedule file"):
+        assert part in text, part
+
+
+def test_a_grid_gives_one_labelled_log_per_run_and_a_failing_run_its_reason(tmp_path):
+    spec = _write(tmp_path, SPEC)
+    out = tmp_path / 'data'
+    result = run_dataset(str(spec), str(out), executor='serial')
+    assert (result['planned'], result['recorded'], result['failed']) == (6, 6, 2)
+    doc, rows = _manifest(out)
+    assert [r['id'] for r in doc['runs']] == [r['id'] for r in rows]
+    assert [(r['impactors.0.cor'], r['seed']) for r in rows] == [
+        ('0.5', '0'), ('0.5', '1'), ('0.7', '0'), ('0.7', '1'), ('5', '0'), ('5', '1')]
+    ok = [r for r in doc['runs'] if r['status'] == 'ok']
+    failed = [r for r in doc['runs'] if r['status'] == 'failed']
+    assert len(ok) == 4 and len(failed) == 2
+    assert all("impactors[0].cor': 5 is out of range [0, 1]" in r['error'] for r in failed)
+    assert all('\n' not in r['error'] for r in failed)
+    for r in ok:
+        data = (out / r['file']).read_bytes()
+        assert hashlib.sha256(data).hexdigest() == r['sha256'] and len(data) == r['bytes']
+        assert r['diverged'] is False and r['sim_time_s'] == pytest.approx(0.3)
+        assert r['peak_g'] > r['rms_g'] > 0 and 0 <= r['stuck_fraction'] <= 1
+    assert sorted(p.name for p in (out / 'runs').iterdir()) == sorted(
+        os.path.basename(r['file']) for r in ok)   # no .part left behind
+    # the noise seed changes the samples, the same seed and inputs give the same bytes
+    by = {(r['impactors.0.cor'], r['seed']): r for r in doc['runs']}
+    assert by[(0.5, 0)]['sha256'] != by[(0.5, 1)]['sha256']
+    run_dataset(str(spec), str(tmp_path / 'again'), executor='serial')
+    # file creation time aside, a log is its inputs: compare the message data
+    from test_record import _messages
+    first = _messages(out / by[(0.7, 1)]['file'])
+    second = _messages(tmp_path / 'again' / by[(0.7, 1)]['file'])
+    assert first == second
+
+
+def test_an_interrupted_data_set_continues_where_it_stopped(tmp_path):
+    spec = _write(tmp_path, SPEC.replace('[0.5, 0.7, 5]', '[0.5, 0.7]'))
+    out = tmp_path / 'data'
+    run_dataset(str(spec), str(out), executor='serial')
+    doc, _ = _manifest(out)
+    runs = doc['runs']
+    # an interruption: the last run never reached the manifest and left a partial file;
+    # another run's log was damaged since
+    lost, damaged = runs[-1], runs[0]
+    doc['runs'] = runs[:-1]
+    (out / 'manifest.json').write_text(json.dumps(doc))
+    (out / lost['file']).rename(out / (lost['file'] + '.part'))
+    (out / damaged['file']).write_bytes(b'not a log')
+    kept = {r['id']: (out / r['file']).stat().st_mtime_ns for r in runs[1:-1]}
+    result = run_dataset(str(spec), str(out), executor='serial')
+    assert (result['planned'], result['skipped'], result['recorded']) == (4, 2, 2)
+    assert {r['id']: (out / r['file']).stat().st_mtime_ns for r in runs[1:-1]} == kept
+    doc2, _ = _manifest(out)
+    assert [(r['id'], r['sha256']) for r in doc2['runs']] == [
+        (r['id'], r['sha256']) for r in runs]   # the same logs again, byte for byte
+    # a changed input is a new run; the unchanged ones are still skipped
+    spec.write_text(SPEC.replace('[0.5, 0.7, 5]', '[0.5, 0.6]'))
+    result = run_dataset(str(spec), str(out), executor='serial')
+    assert (result['skipped'], result['recorded']) == (2, 2)
+
+
+def test_a_seeded_sample_draws_the_same_runs_every_time(tmp_path):
+    text = ('scene: sdof\nduration: 0.1\nsample:\n  n: 5\n  seed: 3\n  keys:\n'
+            '    impactors.0.clearance: {low: 1.5, high: 4, unit: mm}\n'
+            '    impactors.0.cor: [0.5, 0.6]\n')
+    spec = _write(tmp_path, text)
+    plan = load_spec(spec)
+    assert [r['id'] for r in plan] == [r['id'] for r in load_spec(spec)]
+    assert len({r['id'] for r in plan}) == 5
+    for run in plan:
+        value, unit = run['keys']['impactors.0.clearance'].split()
+        assert unit == 'mm' and 1.5 <= float(value) <= 4
+        assert run['keys']['impactors.0.cor'] in (0.5, 0.6)
+        assert run['overrides'][0].startswith('impactors.0.clearance=')
+    other = load_spec(_write(tmp_path, text.replace('seed: 3', 'seed: 4'), 'other.yaml'))
+    assert {r['id'] for r in other}.isdisjoint(r['id'] for r in plan)
+
+
+def test_the_command_line_and_a_process_pool(tmp_path, capsys):
+    from impact_damper_sim.cli.study import main
+    spec = _write(tmp_path, SPEC)
+    out = tmp_path / 'data'
+    assert main(['dataset', str(spec), '--out', str(out), '--workers', '2',
+                 '--progress']) == 1   # two runs fail
+    captured = capsys.readouterr()
+    assert '6 runs planned: 0 already done, 6 recorded now, 2 failed' in captured.out
+    assert captured.err.count('study: error: run r') == 2
+    assert 'dataset 6/6 runs, 2 failed' in captured.err and 'runs/s' in captured.err
+    assert main(['dataset', str(spec), '--out', str(out), '--json']) == 1
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary['skipped'], summary['recorded']) == (6, 0)
+    assert main(['dataset', str(tmp_path / 'nope.yaml'), '--out', str(out)]) == 2
+
+
+def test_a_dask_cluster_records_the_same_logs(tmp_path):
+    distributed = pytest.importorskip('distributed')
+    from test_record import _messages
+    spec = _write(tmp_path, SPEC.replace('[0.5, 0.7, 5]', '[0.6]'))
+    serial = run_dataset(str(spec), str(tmp_path / 'serial'), executor='serial')
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        dask = run_dataset(str(spec), str(tmp_path / 'dask'), executor='dask',
+                           dask_address=cluster.scheduler_address)
+    assert dask['failed'] == 0 and [r['id'] for r in dask['rows']] == [
+        r['id'] for r in serial['rows']]
+    for a, b in zip(serial['rows'], dask['rows']):
+        assert _messages(tmp_path / 'serial' / a['file']) == _messages(
+            tmp_path / 'dask' / b['file'])

@@ -1,0 +1,93 @@
+"""The ROS-free packer of the node's messages writes what rclpy's message classes mean:
+every encoder's bytes equal the canonical CDR of the same rclpy message (ros/cdr.py, read
+by rosbags and rclpy) and read back in rclpy as that message; the topic table's QoS equals
+the node's rclpy profiles."""
+import math
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from geometry_msgs.msg import Vector3Stamped  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterValue  # noqa: E402
+from rclpy.serialization import deserialize_message  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import Imu, JointState  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+
+from impact_damper_sim.recording import node_messages as nm  # noqa: E402
+from impact_damper_sim.recording import node_topics as nt  # noqa: E402
+from impact_damper_sim.recording.bag_metadata import qos_dict  # noqa: E402
+from impact_damper_sim.ros import interface as itf  # noqa: E402
+from impact_damper_sim.ros.cdr import serialize  # noqa: E402
+
+
+def _same(data, msg):
+    """``data`` is the canonical CDR of ``msg`` and reads back in rclpy as ``msg``."""
+    assert data == serialize(msg)
+    assert deserialize_message(data, type(msg)) == msg
+
+
+@pytest.mark.parametrize('variance', [0.0, 0.25, 1e-300])
+def test_imu_chunks_are_rclpys_messages(variance):
+    rng = np.random.default_rng(1)
+    t_ns = np.array([0, 12_345_678_901, 2**31 * 1_000_000_000 - 1])
+    lin, ang = rng.normal(size=(3, 3)) * 1e3, rng.normal(size=(3, 3))
+    packed = nm.ImuEncoder('sensor_é', variance).pack(t_ns, lin, ang)
+    for ns, la, av, data in zip(t_ns.tolist(), lin, ang, packed):
+        msg = Imu()
+        msg.header.frame_id = 'sensor_é'
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
+        msg.orientation_covariance[0] = -1.0
+        msg.linear_acceleration_covariance = [variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0,
+                                              0.0, variance]
+        msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = la
+        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = av
+        _same(data, msg)
+
+
+@pytest.mark.parametrize('names, position, velocity, effort', [
+    ([], [], [], []), (['rotor'], [1.25], [2400.0], []),
+    (['a/uy', 'a/uz', 'long_name/x'], [1e-6, -2e-6, 0.0], [0.5, 0.25, -1.0], [1.0, 1.0, -1.0])])
+def test_joint_states_are_rclpys_messages(names, position, velocity, effort):
+    msg = JointState(name=names, position=position, velocity=velocity, effort=effort)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 5
+    _same(nm.joint_state_cdr(7_000_000_005, names, position, velocity, effort), msg)
+
+
+def test_clock_float64_and_vector3_stamped_are_rclpys_messages():
+    clock = Clock()
+    clock.clock.sec, clock.clock.nanosec = 3, 999_999_999
+    _same(nm.clock_cdr(3_999_999_999), clock)
+    _same(nm.float64_cdr(-math.pi), Float64(data=-math.pi))
+    v = Vector3Stamped()
+    v.header.stamp.nanosec = 10_000_000
+    v.header.frame_id = 'f'
+    v.vector.x, v.vector.y, v.vector.z = 2400.0, -37.5, 2.5
+    _same(nm.vector3_stamped_cdr(10_000_000, 'f', (2400.0, -37.5, 2.5)), v)
+
+
+def test_parameter_events_are_rclpys_messages():
+    changed = [('dampers_enabled', False), ('noise_std', 0.49), ('noise_seed', 2**31 - 1),
+               ('scene', 'hpotp')]
+    values = [ParameterValue(type=1, bool_value=False), ParameterValue(type=3, double_value=0.49),
+              ParameterValue(type=2, integer_value=2**31 - 1),
+              ParameterValue(type=4, string_value='hpotp')]
+    msg = ParameterEvent(node='/rig/vibration_node', changed_parameters=[
+        Parameter(name=n, value=v) for (n, _), v in zip(changed, values)])
+    msg.stamp.sec = 1
+    _same(nm.parameter_event_cdr(1_000_000_000, '/rig/vibration_node', changed), msg)
+    with pytest.raises(TypeError, match='only bool, int, float and str'):
+        nm.parameter_event_cdr(0, '/n', [('x', [1.0])])
+
+
+def test_the_topic_table_is_the_nodes_interface():
+    for name in ('SENSOR_QOS', 'BATCH_QOS', 'EVENT_QOS', 'LATCHED_QOS', 'COMMAND_QOS',
+                 'CLOCK_QOS', 'DIAGNOSTICS_QOS', 'PARAMETER_EVENTS_QOS'):
+        assert qos_dict(getattr(itf, name)) == qos_dict(getattr(nt, name)), name
+    from rclpy.qos import qos_profile_parameter_events
+    assert qos_dict(qos_profile_parameter_events) == qos_dict(nt.PARAMETER_EVENTS_QOS)
+    assert itf.TYPES is nt.TYPES and itf.accel_batch_topic('s') == 'accel/s/batch'
+    assert nt.qualified('impacts', '/rig') == '/rig/impacts'
+    assert nt.qualified('impacts') == '/impacts' and nt.qualified('/clock', '/rig') == '/clock'
