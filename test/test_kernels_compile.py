@@ -10,6 +10,7 @@ import re
 import subprocess
 import sys
 import textwrap
+import time
 
 import numpy as np
 import pytest
@@ -142,3 +143,61 @@ def test_a_wrong_declared_return_type_is_an_error(tmp_path):
     result = run(tmp_path, code, 0)
     assert 'TypeError kernel wrong returns int64, declared float64' in result.stdout, \
         result.stdout + result.stderr
+
+
+HOLD = '''
+import sys
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+import kernel_module as m
+from impact_damper_sim.integrate import kernels
+leaf = m.leaf.internal()
+args = (kernels.types.float64[::1], kernels.types.float64[::1])
+with kernels._compile_lock(leaf, args):
+    print(kernels._CACHE_DIR, flush=True)
+    sys.stdin.readline()                  # go: another process now waits for this lock
+    Dispatcher.compile(leaf, args)        # compiled and cached under the lock
+'''
+
+
+def _waiters_on(path):
+    """Processes blocked on a flock of ``path`` (Linux /proc/locks: a '->' line)."""
+    inode = os.stat(path).st_ino
+    with open('/proc/locks') as locks:
+        return [line for line in locks if '->' in line and f':{inode} ' in line]
+
+
+@pytest.mark.skipif(not os.path.exists('/proc/locks') or kernels.fcntl is None,
+                    reason='needs flock and /proc/locks (Linux)')
+def test_a_kernel_another_process_is_compiling_is_waited_for_and_loaded(tmp_path):
+    """Issue 24: the event search's helper and the main process call the same kernels; the
+    second to reach one waits on its lock and loads the first one's result."""
+    (tmp_path / 'kernel_module.py').write_text(MODULE)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'cache'),
+               PYTHONPATH=os.pathsep.join([str(tmp_path)] + sys.path),
+               **{kernels.HELPERS_ENV: '0'})
+    holder = subprocess.Popen([sys.executable, '-c', HOLD], env=env, cwd=tmp_path, text=True,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    cache_dir = holder.stdout.readline().strip()
+    lock = next(p for p in os.listdir(cache_dir) if p.endswith('.lock'))
+    waiter = subprocess.Popen([sys.executable, '-c', RUN], env=env, cwd=tmp_path, text=True,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        deadline = 120
+        while not _waiters_on(os.path.join(cache_dir, lock)) and deadline > 0:
+            assert waiter.poll() is None, waiter.communicate()
+            deadline -= 0.05
+            time.sleep(0.05)
+        assert deadline > 0, 'the second process never waited for the lock'
+        holder.stdin.write('go\n')
+        holder.stdin.close()
+        assert holder.wait(120) == 0
+        out, err = waiter.communicate(timeout=300)
+    finally:
+        for proc in (holder, waiter):
+            if proc.poll() is None:
+                proc.kill()
+    assert waiter.returncode == 0, err
+    value, result, started, misses = out.split()
+    assert float(value) == 3 * 14.0 and float(result) == 14.0
+    assert int(misses) == 2   # top and middle compiled there; leaf loaded, not compiled twice

@@ -113,8 +113,8 @@ class StreamingLowpass:
         x2 = x[:, None] if flat else x
         if x2.ndim != 2 or x2.shape[1] != self.n_channels:
             raise ValueError(f'expected shape (k, {self.n_channels}), got {x.shape}')
-        if x2.shape[0] == 0:
-            return x.copy()
+        # no early return for k = 0: that call compiles the kernel where the node warms up
+        # (LiveSimulation.step(0)), not in its first paced tick (1.4 s on a cold cache)
         y = np.empty_like(x2)
         sosfilt(self.sos, np.ascontiguousarray(x2), self.zi, y)
         return y[:, 0] if flat else y
