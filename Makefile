@@ -35,8 +35,16 @@ $(DEV): $(STAMP) requirements-dev.txt
 	$(PY) -m pip install --quiet -r requirements-dev.txt -c constraints.txt
 	touch $@
 
+# the last step of the set-up: the kernels the node calls, compiled into the per-user cache
+# once (20-40 s on 2 cores), again only when a kernel source changes, so that the node (make
+# run, ros2 run, ros2 launch) starts in about 2 s (tools/precompile_kernels.py)
+KERNELS := $(VENV)/.kernels
+$(KERNELS): $(STAMP) $(wildcard impact_damper_sim/integrate/kernels/*.py)
+	$(PY) tools/precompile_kernels.py
+	touch $@
+
 # the main job: the live node (Ctrl-C stops it)
-run: $(STAMP)
+run: $(STAMP) $(KERNELS)
 	$(VENV)/bin/vibration_node --ros-args --params-file config/vibration_node.yaml \
 	    -p scene:=$(SCENE) $(NODE_ARGS)
 
@@ -57,7 +65,7 @@ ros2cli: $(ROS2CLI)
 # make test runs the validation check first (docs/validation.md regenerated and compared, 1.5-3
 # min on 2 cores); `make test CHECK_VALIDATION=` skips it for a quick local run
 CHECK_VALIDATION ?= check-validation
-test: $(DEV) $(if $(wildcard $(ROS2CLI_WHEELS)/install.sh),$(ROS2CLI)) $(CHECK_VALIDATION)
+test: $(DEV) $(KERNELS) $(if $(wildcard $(ROS2CLI_WHEELS)/install.sh),$(ROS2CLI)) $(CHECK_VALIDATION)
 	$(PY) -m pytest $(PYTEST_ARGS)
 
 test-slow: $(DEV)
@@ -101,7 +109,8 @@ check-docs: check-validation
 # benchmarks print ratios measured in the same run (calibration scripts in bench/ are not run)
 BENCHES := bench/sdof_methods.py bench/ivp_baseline.py bench/modal_vs_direct.py \
            bench/realtime_offline.py bench/long_run.py bench/node_realtime.py \
-           bench/node_startup.py bench/impact_cost.py bench/node_scenes.py
+           bench/node_startup.py bench/impact_cost.py bench/node_scenes.py \
+           bench/record_throughput.py
 
 bench: $(DEV)
 	for b in $(BENCHES); do $(PY) $$b || exit 1; done

@@ -49,8 +49,10 @@ import sys
 import numpy as np
 from scipy.optimize import least_squares
 
-from impact_damper_sim.scene.build import build, resolve_scene
-from impact_damper_sim.scene.schema import load_yaml, validate
+from impact_damper_sim.scene.build import build
+from impact_damper_sim.scene.catalog import resolve_scene
+from impact_damper_sim.scene.loading import load_yaml
+from impact_damper_sim.scene.schema import validate
 from impact_damper_sim.scene.spec import SCHEMA
 
 #: Targets (Hz): the paper's first pair (section 4.3: "first mode at 77 Hz", "first mode

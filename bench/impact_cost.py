@@ -45,8 +45,10 @@ from pathlib import Path
 import numpy as np
 
 from impact_damper_sim.integrate.divergence import Divergence
-from impact_damper_sim.scene.build import build, load, resolve_scene
-from impact_damper_sim.scene.schema import apply_overrides, load_yaml, validate
+from impact_damper_sim.scene.build import build, load
+from impact_damper_sim.scene.catalog import resolve_scene
+from impact_damper_sim.scene.loading import apply_overrides, load_yaml
+from impact_damper_sim.scene.schema import validate
 from impact_damper_sim.scene.spec import SCHEMA
 
 SCENES = ('sdof', 'rbs_kcc', 'hpotp', 'hpotp_x10')

@@ -53,7 +53,8 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
-from impact_damper_sim.live.realtime import LiveSimulation, live_scene  # noqa: E402
+from impact_damper_sim.live.realtime import LiveSimulation  # noqa: E402
+from impact_damper_sim.live.streams import live_scene  # noqa: E402
 from impact_damper_sim.ros import interface as itf  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode  # noqa: E402
 

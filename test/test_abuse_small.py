@@ -130,7 +130,8 @@ def test_the_scene_loader_never_opens_a_fifo(tmp_path):
     """load_yaml (the node's loader too) checks the kind before opening the path."""
     import threading
 
-    from impact_damper_sim.scene.schema import SceneError, load_yaml
+    from impact_damper_sim.scene.loading import load_yaml
+    from impact_damper_sim.scene.schema import SceneError
     fifo = tmp_path / 'g.yaml'
     os.mkfifo(fifo)
     result = {}

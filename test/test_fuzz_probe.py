@@ -54,7 +54,7 @@ from std_srvs.srv import SetBool  # noqa: E402
 
 from impact_damper_sim.cli.study import main as study_main  # noqa: E402
 from impact_damper_sim.ros import interface as itf  # noqa: E402
-from impact_damper_sim.ros import vibration_node  # noqa: E402
+from impact_damper_sim.ros import node_recording, vibration_node  # noqa: E402
 from impact_damper_sim.ros.parameters import PARAMETERS, check  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode  # noqa: E402
 from impact_damper_sim.scene.schema import SceneError  # noqa: E402
@@ -778,8 +778,8 @@ def small_log(tmp_path_factory):
     path = tmp_path_factory.mktemp('fuzz_log') / 'good.mcap'
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=next_domain_id())
-    chunk_size = vibration_node.RECORD_CHUNK_SIZE
-    vibration_node.RECORD_CHUNK_SIZE = 4096   # many chunks in a small file
+    chunk_size = node_recording.RECORD_CHUNK_SIZE
+    node_recording.RECORD_CHUNK_SIZE = 4096   # many chunks in a small file
     try:
         node = VibrationNode(context=ctx, start_stepping=False, clock=FakeClock(),
                              parameter_overrides=[Parameter('scene', value='sdof'),
@@ -795,7 +795,7 @@ def small_log(tmp_path_factory):
         finally:
             node.destroy_node()
     finally:
-        vibration_node.RECORD_CHUNK_SIZE = chunk_size
+        node_recording.RECORD_CHUNK_SIZE = chunk_size
         rclpy.try_shutdown(context=ctx)
     chunks = fz.chunk_table(path)
     total = sum(c['messages'] for c in chunks)
@@ -845,8 +845,8 @@ def test_broken_log_files(small_log, tmp_path, capsys, scale):
     inside one chunk (the first, which holds every channel record, too), every message
     outside that chunk; the input is
     never changed and an existing output is never replaced without --overwrite."""
-    from impact_damper_sim.ros.replay import prepare
-    from impact_damper_sim.studies.report import LogError, RosLog
+    from impact_damper_sim.ros.replay_plan import prepare
+    from impact_damper_sim.studies.log_reader import LogError, RosLog
     _, blob, chunks, total = small_log
     rng = _rng('logs', scale)
     outcomes = Counter()

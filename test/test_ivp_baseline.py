@@ -9,17 +9,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-_PATH = Path(__file__).resolve().parents[1] / 'bench' / 'ivp_baseline.py'
+_BENCH = Path(__file__).resolve().parents[1] / 'bench'
 
 
-def _load_baseline():
-    spec = importlib.util.spec_from_file_location('ivp_baseline', _PATH)
+def _load_baseline(name='ivp_baseline'):
+    spec = importlib.util.spec_from_file_location(name, _BENCH / f'{name}.py')
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
 ivb = _load_baseline()
+grazes = _load_baseline('ivp_baseline_grazes')   # its step screen
 
 F_N = 10.0                       # natural frequency of every case here (Hz)
 K_REF = (2 * math.pi * F_N) ** 2  # stiffness for M = 1 kg (N/m); F0/K_REF is x_st for F0 = 1 N
@@ -164,7 +165,7 @@ def test_quintic_hermite_screen_is_exact_for_quintics():
     g2 = f.deriv(2)
     data = [f(t0), h * g(t0), h * h * g2(t0), h * h * g2(t0 + h), h * g(t0 + h), f(t0 + h)]
     tau = np.linspace(0.0, 1.0, 11)
-    assert ivb._quintic_hermite_basis(tau) @ data == pytest.approx(f(t0 + h * tau), rel=1e-12)
+    assert grazes._quintic_hermite_basis(tau) @ data == pytest.approx(f(t0 + h * tau), rel=1e-12)
 
 
 def test_excursion_inside_one_step_is_found():
@@ -187,13 +188,13 @@ def test_excursion_inside_one_step_is_found():
     dense = make_dense(-0.45)
     ys = dense(ts)
     assert abs(ys[2, 1] - ys[0, 1]) < lim
-    assert list(ivb._graze_candidates(ts, ys, lim, p)) == [0]
-    wall, t_c, y_c = ivb._locate_graze(0.0, 4.0, dense, lim, p)
+    assert list(grazes._graze_candidates(ts, ys, lim, p)) == [0]
+    wall, t_c, y_c = grazes._locate_graze(0.0, 4.0, dense, lim, p)
     t_true = brentq(lambda t: -0.45 * t + A * (1 - np.cos(t)), 0.5, 1.5, xtol=1e-15)
     assert wall == 1 and t_c == pytest.approx(t_true, abs=1e-12)
     assert y_c[3] - y_c[1] > 0   # closing
     # Faster away from the wall, the impactor stays inside: no contact.
-    assert ivb._locate_graze(0.0, 4.0, make_dense(-0.8), lim, p) is None
+    assert grazes._locate_graze(0.0, 4.0, make_dense(-0.8), lim, p) is None
 
 
 def test_record_grid_and_final_state():

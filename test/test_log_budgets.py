@@ -6,7 +6,7 @@ import time
 
 
 from impact_damper_sim.recording import Rosbag2McapWriter
-from impact_damper_sim.studies.report import MAX_LOG_SPAN_NS, LogError, RosLog
+from impact_damper_sim.studies.log_reader import MAX_LOG_SPAN_NS, LogError, RosLog
 
 
 def _refused_quickly(path, why):

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.cli.study import main as study_main
-from impact_damper_sim.scene.build import excitation_frequencies, load
+from impact_damper_sim.scene.build import load
+from impact_damper_sim.scene.modes import excitation_frequencies
 from impact_damper_sim.scene.schema import SceneError
 from impact_damper_sim.scene.spec import CUTOFF_FACTOR
 

@@ -20,7 +20,8 @@ from impact_damper_sim.cli.study import main as study
 from impact_damper_sim.integrate.divergence import (MAX_IMPACTORS, ModelTooLarge, check_model,
                                           memory_limit, model_estimate)
 from impact_damper_sim.scene import build as build_mod
-from impact_damper_sim.scene.build import available_scenes, load, validated
+from impact_damper_sim.scene.build import load
+from impact_damper_sim.scene.catalog import available_scenes, validated
 from impact_damper_sim.scene.schema import SceneError
 
 SDOF = Path(__file__).resolve().parents[1] / 'config' / 'scenes' / 'sdof.yaml'

@@ -260,7 +260,7 @@ def test_kill_9_loses_at_most_a_second(tmp_path):
 
 def test_replay_and_report_read_the_nodes_log(ros_context, tmp_path):
     """The node's own log plans for replay with every QoS restored, and reports sensibly."""
-    from impact_damper_sim.ros.replay import prepare
+    from impact_damper_sim.ros.replay_plan import prepare
     from impact_damper_sim.studies.report import analyze
     path = tmp_path / 'log.mcap'
     node = VibrationNode(context=ros_context, parameter_overrides=[

@@ -303,7 +303,8 @@ def one_impactor_log(tmp_path_factory):
 def test_report(one_impactor_log, saved, tmp_path):
     """The stuck lane's label sits on its trace (never stuck: at its baseline), its
     wording matches its marks (percent of time stuck), texts 8 pt and more."""
-    from impact_damper_sim.studies.report import analyze, plot
+    from impact_damper_sim.studies.report import analyze
+    from impact_damper_sim.studies.report_output import plot
     report, series = analyze(one_impactor_log)
     plot(report, series, tmp_path / 'r.png')
     fig, dpi = only(saved)
@@ -374,7 +375,8 @@ def test_sweep_one_colour_per_group(saved, tmp_path):
 # --- validation --------------------------------------------------------------------------------
 
 def test_validation_frf(saved, tmp_path):
-    from impact_damper_sim.studies.validation import F0_OVER_K, plot_frf
+    from impact_damper_sim.studies.validation_doc import plot_frf
+    from impact_damper_sim.studies.validation_setup import F0_OVER_K
     ratios = np.linspace(0.8, 1.2, 21)
 
     def rows(sensor):
@@ -387,7 +389,8 @@ def test_validation_frf(saved, tmp_path):
 
 
 def test_validation_hpotp(saved, tmp_path):
-    from impact_damper_sim.studies.validation import G0, plot_hpotp
+    from impact_damper_sim.scene.units import G0
+    from impact_damper_sim.studies.validation_doc import plot_hpotp
     rows = [{'rotor.multiplier': str(x),
              'criticals_without_acceleration_m_s2': 5.6 * x * G0,
              'criticals_worst_acceleration_m_s2': 5.2 * x * G0,
@@ -399,7 +402,8 @@ def test_validation_hpotp(saved, tmp_path):
 
 def test_validation_rbs_stability(saved, tmp_path):
     """Table 4.4.1's 18 cells: verdicts and tick labels at 8 pt, none overlapping."""
-    from impact_damper_sim.studies.validation import PAPER_4_4_1, plot_rbs
+    from impact_damper_sim.studies.validation_doc import plot_rbs
+    from impact_damper_sim.studies.validation_setup import PAPER_4_4_1
     rows = [{'kcc': k, 'weight': None, 'gap': None, 'stable': False, 'rms_mil': None}
             for k in (8500, 11250, 13500)]
     rows += [{'kcc': k, 'weight': w, 'gap': g, 'stable': (i % 3) != 1,

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from impact_damper_sim.scene.schema import markdown_table
+from impact_damper_sim.scene.keytable import markdown_table
 from impact_damper_sim.scene.spec import SCHEMA
 
 README = Path(__file__).resolve().parents[1] / 'README.md'

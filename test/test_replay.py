@@ -32,7 +32,8 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Imu, JointState  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
-from impact_damper_sim.ros import replay  # noqa: E402
+from impact_damper_sim.live import playback  # noqa: E402
+from impact_damper_sim.ros import replay, replay_plan  # noqa: E402
 from impact_damper_sim.ros.interface import (EVENT_QOS, LATCHED_QOS,  # noqa: E402
                                              SENSOR_QOS)
 
@@ -192,7 +193,7 @@ def run_replay(ctx, plan, subscribe, expected, timeout=20.0, **node_kwargs):
 @pytest.mark.ros
 def test_rate_1_count_order_payload_and_timing(ros_context, mixed_log):
     path, entries, payloads = mixed_log
-    plan = replay.prepare(path)
+    plan = replay_plan.prepare(path)
     arrivals, stats, node = run_replay(
         ros_context, plan, [(Imu, '/accel/s1', SENSOR_QOS), (WrenchStamped, '/impacts',
                                                              EVENT_QOS)], len(entries),
@@ -231,7 +232,7 @@ def test_rate_10_runs_ten_times_faster(ros_context, tmp_path):
     entries = [(T0 + k * 20 * MS, '/accel/s1', imu(k)) for k in range(101)]   # 2 s of log
     path = tmp_path / 'steady.mcap'
     write_log(path, entries, {'/accel/s1': SENSOR_QOS})
-    plan = replay.prepare(path, rate=10.0)
+    plan = replay_plan.prepare(path, rate=10.0)
     arrivals, stats, node = run_replay(ros_context, plan, [(Imu, '/accel/s1', SENSOR_QOS)],
                                        len(entries))
     node.destroy_node()
@@ -249,8 +250,8 @@ def test_rate_10_runs_ten_times_faster(ros_context, tmp_path):
 @pytest.mark.ros
 def test_topic_filter_remap_and_clock(ros_context, mixed_log):
     path, entries, payloads = mixed_log
-    plan = replay.prepare(path, topics=['impacts'], remaps=['/impacts:=/replayed/impacts'],
-                          rate=4.0)
+    plan = replay_plan.prepare(path, topics=['impacts'], remaps=['/impacts:=/replayed/impacts'],
+                               rate=4.0)
     impacts = [e for e in entries if e[1] == '/impacts']
     impact_data = [d for e, d in zip(entries, payloads) if e[1] == '/impacts']
     arrivals, stats, node = run_replay(
@@ -297,7 +298,7 @@ def test_qos_restored_latched_state_reaches_late_joiner(ros_context, tmp_path):
     path = tmp_path / 'latched.mcap'
     write_log(path, entries, {'/impactor_state': LATCHED_QOS, '/accel/s1': SENSOR_QOS,
                               '/impacts': offered_yaml(EVENT_QOS, history_known=False)})
-    plan = replay.prepare(path, rate=5.0)
+    plan = replay_plan.prepare(path, rate=5.0)
     qos = {t.topic: t.qos for t in plan.tracks}
     assert (qos['/impactor_state'].reliability, qos['/impactor_state'].durability,
             qos['/impactor_state'].depth) == (ReliabilityPolicy.RELIABLE,
@@ -310,7 +311,7 @@ def test_qos_restored_latched_state_reaches_late_joiner(ros_context, tmp_path):
         ReliabilityPolicy.RELIABLE, HistoryPolicy.KEEP_LAST, 10)
     # no QoS metadata at all: the fallback, with a warning
     fallback = next(t for t in plan.tracks if t.topic == '/rotor/speed_command')
-    assert fallback.qos == replay.FALLBACK_QOS
+    assert fallback.qos == replay_plan.FALLBACK_QOS
     assert 'no offered_qos_profiles' in fallback.warnings[0]
     node = replay.ReplayNode(plan, context=ros_context, clock=False)
     try:
@@ -339,15 +340,15 @@ def test_qos_restored_latched_state_reaches_late_joiner(ros_context, tmp_path):
 
 def test_deadlines_scale_with_rate_and_offset():
     times = [0, 100 * MS, 250 * MS, 1_000 * MS]
-    assert replay.deadlines(times) == [(0, 0, 0.0), (0, 1, 0.1), (0, 2, 0.25), (0, 3, 1.0)]
-    got = replay.deadlines(times, rate=2.0, start_offset=0.1)
+    assert playback.deadlines(times) == [(0, 0, 0.0), (0, 1, 0.1), (0, 2, 0.25), (0, 3, 1.0)]
+    got = playback.deadlines(times, rate=2.0, start_offset=0.1)
     assert [(k, i) for k, i, _ in got] == [(0, 1), (0, 2), (0, 3)]
     assert [d for *_, d in got] == pytest.approx([0.0, 0.075, 0.45], abs=1e-12)
 
 
 def test_deadlines_loop_repeats_with_one_mean_interval_between_passes():
     times = [0, 100 * MS, 300 * MS]   # mean interval 150 ms
-    got = replay.deadlines(times, rate=0.5, passes=3)
+    got = playback.deadlines(times, rate=0.5, passes=3)
     assert [(k, i) for k, i, _ in got] == [(k, i) for k in range(3) for i in range(3)]
     d = [x for *_, x in got]
     period = (0.3 + 0.15) / 0.5
@@ -362,7 +363,7 @@ def test_deadlines_loop_repeats_with_one_mean_interval_between_passes():
     ({'start_offset': 1.5}, 'past the end')])
 def test_schedule_rejects_bad_options(kwargs, match):
     with pytest.raises(ValueError, match=match):
-        replay.Schedule(0, 1_000 * MS, 3, **kwargs)
+        playback.Schedule(0, 1_000 * MS, 3, **kwargs)
 
 
 class FakeTime:
@@ -384,12 +385,12 @@ class FakeTime:
 
 def test_player_publishes_at_deadlines_with_clock_ticks():
     times = [0, 30 * MS, 45 * MS, 100 * MS]
-    schedule = replay.Schedule(times[0], times[-1], len(times), rate=2.0)
+    schedule = playback.Schedule(times[0], times[-1], len(times), rate=2.0)
     ft, published, clock = FakeTime(), [], []
-    player = replay.Player(schedule, lambda: [(i, t, b'%d' % i) for i, t in enumerate(times)],
-                           lambda key, data: published.append((ft.t - 100.0, key, data)),
-                           clock=lambda t: clock.append((ft.t - 100.0, t)),
-                           clock_period=0.01, stop=ft, now=ft.now)
+    player = playback.Player(schedule, lambda: [(i, t, b'%d' % i) for i, t in enumerate(times)],
+                             lambda key, data: published.append((ft.t - 100.0, key, data)),
+                             clock=lambda t: clock.append((ft.t - 100.0, t)),
+                             clock_period=0.01, stop=ft, now=ft.now)
     stats = player.run()
     assert [(k, d) for _, k, d in published] == [(i, b'%d' % i) for i in range(4)]
     assert [t for t, *_ in published] == pytest.approx([0.0, 0.015, 0.0225, 0.05], abs=1e-12)
@@ -401,15 +402,15 @@ def test_player_publishes_at_deadlines_with_clock_ticks():
 
 def test_player_loop_stops_on_event():
     times = [0, 10 * MS]
-    schedule = replay.Schedule(0, 10 * MS, 2, rate=1.0, loop=True)
+    schedule = playback.Schedule(0, 10 * MS, 2, rate=1.0, loop=True)
     stop, published = threading.Event(), []
 
     def publish(key, data):
         published.append(key)
         if len(published) == 7:
             stop.set()
-    stats = replay.Player(schedule, lambda: [(i, t, b'') for i, t in enumerate(times)],
-                          publish, stop=stop).run()
+    stats = playback.Player(schedule, lambda: [(i, t, b'') for i, t in enumerate(times)],
+                            publish, stop=stop).run()
     assert stats.stopped and stats.messages == 7 and stats.passes == 3
     assert published == [0, 1] * 3 + [0]
 
@@ -418,7 +419,7 @@ def test_player_loop_stops_on_event():
 
 def test_qos_from_offered_strings_ints_and_fallbacks():
     v9 = offered_yaml(LATCHED_QOS)
-    q, problem = replay.qos_from_offered(v9)
+    q, problem = replay_plan.qos_from_offered(v9)
     assert problem is None
     assert (q.reliability, q.durability, q.history, q.depth) == (
         ReliabilityPolicy.RELIABLE, DurabilityPolicy.TRANSIENT_LOCAL, HistoryPolicy.KEEP_LAST,
@@ -427,31 +428,31 @@ def test_qos_from_offered_strings_ints_and_fallbacks():
     v8 = ('- {history: 1, depth: 5, reliability: 2, durability: 2, deadline: {sec: 0, nsec: 0},'
           ' lifespan: {sec: 2147483647, nsec: 4294967295}, liveliness: 1,'
           ' liveliness_lease_duration: {sec: 0, nsec: 0}, avoid_ros_namespace_conventions: false}')
-    q, problem = replay.qos_from_offered(v8)
+    q, problem = replay_plan.qos_from_offered(v8)
     assert problem is None
     assert (q.reliability, q.durability, q.depth) == (ReliabilityPolicy.BEST_EFFORT,
                                                       DurabilityPolicy.VOLATILE, 5)
     assert q.lifespan.nanoseconds == 0   # infinite -> unspecified
     # a finite deadline is kept
-    q, _ = replay.qos_from_offered(v9.replace('sec: 9223372036\n    nsec: 854775807',
-                                              'sec: 2\n    nsec: 5', 1))
+    q, _ = replay_plan.qos_from_offered(v9.replace('sec: 9223372036\n    nsec: 854775807',
+                                                   'sec: 2\n    nsec: 5', 1))
     assert q.deadline.nanoseconds == 2_000_000_005
     # the parsed list of the rosbag2 metadata record works too
-    assert replay.qos_from_offered(yaml.safe_load(v9))[1] is None
+    assert replay_plan.qos_from_offered(yaml.safe_load(v9))[1] is None
     mixed = yaml.safe_dump(yaml.safe_load(offered_yaml(SENSOR_QOS))
                            + yaml.safe_load(offered_yaml(EVENT_QOS)))
     for text, why in [(None, 'no offered'), ('', 'no offered'), ('[]', 'empty'),
                       (': : :', 'not valid YAML'), (mixed, 'different QoS'),
                       ('- {reliability: sometimes, durability: volatile}', 'not understood')]:
-        q, problem = replay.qos_from_offered(text)
-        assert q == replay.FALLBACK_QOS and why in problem
+        q, problem = replay_plan.qos_from_offered(text)
+        assert q == replay_plan.FALLBACK_QOS and why in problem
 
 
 def test_parse_remaps():
-    assert replay.parse_remaps(['impacts:=/x', '/a/b:=c']) == {'/impacts': '/x', '/a/b': 'c'}
+    assert replay_plan.parse_remaps(['impacts:=/x', '/a/b:=c']) == {'/impacts': '/x', '/a/b': 'c'}
     for bad in (['impacts'], ['impacts:='], [':=x'], ['a:=b', '/a:=c']):
         with pytest.raises(ValueError, match='--remap'):
-            replay.parse_remaps(bad)
+            replay_plan.parse_remaps(bad)
 
 
 # --- bad input --------------------------------------------------------------------------------

@@ -21,8 +21,9 @@ from impact_damper_sim.recording.batches import (ACCEL_DTYPE, ACCEL_FIELDS,
                                                  ACCEL_POINT_STEP, BatchEncoder, IMPACT_DTYPE,
                                                  IMPACT_FIELDS, IMPACT_POINT_STEP,
                                                  POINTCLOUD2)
-from impact_damper_sim.studies.report import (G0, analyze, csv_rows, impact_rate,
-                                              stuck_fractions, welch)
+from impact_damper_sim.studies.report import G0, analyze
+from impact_damper_sim.studies.report_output import csv_rows
+from impact_damper_sim.studies.report_signals import impact_rate, stuck_fractions, welch
 
 mcap_ros2_writer = pytest.importorskip('mcap_ros2.writer')
 

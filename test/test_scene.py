@@ -9,8 +9,10 @@ import pytest
 from impact_damper_sim.studies.analysis import refined_peak
 from impact_damper_sim.dampers.analytic import (linear_steady_amplitude,
                                                 symmetric_two_impact_orbit)
-from impact_damper_sim.scene.build import available_scenes, load, resolve_scene, scene_dirs
-from impact_damper_sim.scene.schema import SceneError, describe
+from impact_damper_sim.scene.build import load
+from impact_damper_sim.scene.catalog import available_scenes, resolve_scene, scene_dirs
+from impact_damper_sim.scene.keytable import describe
+from impact_damper_sim.scene.schema import SceneError
 from impact_damper_sim.scene.spec import DOF_NAMES, SCHEMA
 
 LBF = 0.45359237 * 9.80665     # N, from the exact definitions

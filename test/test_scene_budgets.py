@@ -8,8 +8,8 @@ import pytest
 from node_refusal import node_refusal
 
 from impact_damper_sim.scene.build import load
-from impact_damper_sim.scene.schema import (MAX_SCENE_BYTES, MAX_SCENE_DEPTH, SceneError,
-                                            load_yaml)
+from impact_damper_sim.scene.loading import MAX_SCENE_BYTES, MAX_SCENE_DEPTH, load_yaml
+from impact_damper_sim.scene.schema import SceneError
 
 BOMB = """a: &a [x, x, x, x, x, x, x, x, x, x]
 b: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a, *a]

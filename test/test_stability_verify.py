@@ -2,7 +2,7 @@
 
 Each verdict is re-run with ``simulation.dt`` halved and with the other method (exact <->
 Newmark) from the same perturbation; a verdict that changes would be numerical. The RBS cases
-are those of the paper's Table 4.4.1 (``studies/validation.py``); the HPOTP cases put a
+are those of the paper's Table 4.4.1 (``studies/validation_setup.py``); the HPOTP cases put a
 cross-coupling at the pump-end bearing (node 4, as ``docs/validation.md`` Table 4.4.2) at half
 and twice its linear onset (computed; 14,314 lb/in there), rotor stopped so that only the
 perturbation drives the casing.
@@ -13,8 +13,8 @@ import pytest
 
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.studies.stability import stability, verification_settings
-from impact_damper_sim.studies.validation import (KCC_KEY, RBS_CRITERION, rbs_cell_overrides,
-                                                  settings)
+from impact_damper_sim.studies.validation_setup import (KCC_KEY, RBS_CRITERION,
+                                                        rbs_cell_overrides, settings)
 
 RBS_KWARGS = {k: v for k, v in RBS_CRITERION.items()}
 HPOTP_BASE = ['structure.cross_couplings=[{node: 4, kcc: 0 lb/in}]', 'rotor=null',

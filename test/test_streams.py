@@ -9,8 +9,8 @@ import pytest
 
 from impact_damper_sim.live.filters import (DECIMATION_PASSBAND_FRACTION, DECIMATION_STOPBAND_DB,
                                        StreamingDecimator)
-from impact_damper_sim.live.realtime import LiveSimulation, accelerometers, default_imu_rate, \
-    live_scene
+from impact_damper_sim.live.realtime import LiveSimulation
+from impact_damper_sim.live.streams import accelerometers, default_imu_rate, live_scene
 from impact_damper_sim.recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP,
                                                  IMPACT_FIELDS, IMPACT_POINT_STEP,
                                                  BatchEncoder, rows_of, sample_times_ns)

@@ -2,7 +2,7 @@
 import time
 
 from impact_damper_sim.cli.study import main
-from impact_damper_sim.studies.validation import SECTIONS
+from impact_damper_sim.studies.validation_doc import SECTIONS
 
 
 def test_validate_quick_writes_every_section(tmp_path, capsys):

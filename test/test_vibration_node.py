@@ -551,7 +551,7 @@ SHIPPED_SCENES = sorted(p.stem for p in (
 @pytest.mark.parametrize('scene', SHIPPED_SCENES)
 def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
     """Default parameters only: the sample rate follows the scene's sensors' low-pass."""
-    from impact_damper_sim.live.realtime import LIVE_IMU_MAX_RATE, SAMPLE_RATE_OVER_CUTOFF
+    from impact_damper_sim.live.streams import LIVE_IMU_MAX_RATE, SAMPLE_RATE_OVER_CUTOFF
     from impact_damper_sim.scene.build import load
     reason = load(scene).scene['offline_only']
     if reason:   # an offline stress test: refused in one line that says why
@@ -584,7 +584,7 @@ def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
 
 
 def test_default_sample_rates_of_the_shipped_scenes(ros_context):
-    from impact_damper_sim.live.realtime import default_sample_rate
+    from impact_damper_sim.live.streams import default_sample_rate
     from impact_damper_sim.scene.build import load
     assert default_sample_rate(load('hpotp')) == 2000.0   # 800 Hz low-pass, 0.1 ms
     assert default_sample_rate(load('rbs')) == 20000.0    # 5 kHz low-pass, 50 us
@@ -1009,7 +1009,10 @@ def test_rotor_joint_states_carry_angle_and_speed(ros_context):
     node = make_node(ros_context, 'hpotp', LINEAR_HPOTP + [
         'rotor.speed={kind: constant, speed: 2400 rad/s}'])
     got = []
-    node._joint_pub.publish = lambda msg, ns=None, wire=True: got.append(msg)
+    from rclpy.serialization import deserialize_message
+    # the node publishes bytes packed without rclpy (recording.node_messages)
+    node._joint_pub.publish_raw = lambda data, ns=None, wire=True: got.append(
+        deserialize_message(data, JointState))
     try:
         run_for(node, 0.1)
         assert len(got) >= 9

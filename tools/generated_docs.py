@@ -313,7 +313,7 @@ def cmd_tables(check):
 def cmd_keys(check):
     """The scene key table at the end of docs/scenes.md's ``scene-keys`` region."""
     sys.path.insert(0, str(ROOT))
-    from impact_damper_sim.scene.schema import markdown_table
+    from impact_damper_sim.scene.keytable import markdown_table
     from impact_damper_sim.scene.spec import SCHEMA
     page = ROOT / 'docs' / 'scenes.md'
     text = page.read_text()

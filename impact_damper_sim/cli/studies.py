@@ -247,7 +247,7 @@ def _sweep(args):
 
 def _check_grid_keys(scene, grid, overrides):
     """Refuse, before any run, a grid key the scene cannot take (exit 2, one line)."""
-    from ..scene.build import validated
+    from ..scene.catalog import validated
     from ..scene.schema import SceneError
     validated(scene, overrides)   # the scene and the other options: their own error
     for key, vals in grid:

@@ -2,7 +2,10 @@
 
 ::
 
-    study modes SCENE [--set KEY=VALUE ...] [--json]
+    study modes SCENE [--set KEY=VALUE ...] [--json] [--plot PATH.png] [--plot-modes N1,N2]
+                      [--overwrite]
+    study campbell SCENE --speeds START:STOP:N [--harmonics H1,H2] [--set KEY=VALUE ...]
+                         [--json] [--csv PATH] [--plot PATH.png] [--overwrite]
     study simulate SCENE [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S]
                          [--window S] [--json]
     study keys [--markdown]
@@ -16,6 +19,10 @@
                             [--ref-modes N] [study options]
     study report FILE.mcap [--json] [--plot PATH.png] [--csv PATH] [--overwrite]
     study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]
+    study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
+                 [--noise-std A] [--set KEY=VALUE ...] [--overwrite] [--progress] [--json]
+    study dataset SPEC.yaml --out DIR [--executor process|serial|dask] [--workers N]
+                  [--dask-address ADDR] [--retry-failed] [--progress] [--json]
 
 study options: [--set KEY=VALUE ...] [--duration S] [--method M] [--dt S] [--window S]
 [--json] [--csv PATH] [--plot PATH.png] [--overwrite] [--workers N]
@@ -65,11 +72,21 @@ def _parser():
                             "'impactors[0].clearance=2 mil' (repeatable)")
         p.add_argument('--json', action='store_true', help='print JSON instead of text')
 
-    modes = sub.add_parser('modes', help='DOF counts, retained modes, damping and mode shapes',
-                           description='DOF counts, retained modes and why, natural '
-                                       'frequencies, damping ratios and the mode shapes at '
-                                       'sensor, impactor and force DOFs.')
+    modes = sub.add_parser('modes', help='DOF counts, modal basis, damped whirl modes at speed',
+                           description='DOF counts, retained modes and why, the undamped '
+                                       'modal basis (natural frequencies, damping ratios, the '
+                                       'mode shapes at sensor, impactor and force DOFs) and '
+                                       'the damped whirl modes of the rotating model at the '
+                                       "scene's speed (frequency, forward/backward whirl, log "
+                                       'decrement, damping ratio).')
     scene_args(modes)
+    modes.add_argument('--plot', metavar='PATH.png',
+                       help='also draw the whirl modes\' orbit shapes along the shaft')
+    modes.add_argument('--plot-modes', metavar='N1,N2',
+                       help='whirl modes to draw (numbers of the whirl table; default the '
+                            'first six)')
+    modes.add_argument('--overwrite', action='store_true',
+                       help='replace an existing --plot file (default: refuse)')
     simulate = sub.add_parser('simulate', help='run a scene and summarize it',
                               description='Run a scene from rest and print per-sensor peak, '
                                           'RMS and steady-state amplitudes, accelerations '
@@ -102,8 +119,13 @@ def _parser():
     report.add_argument('--overwrite', action='store_true',
                         help='replace existing --plot/--csv files (default: refuse)')
     _study_parsers(sub, scene_args)
+    from .rotor import add_campbell_parser
+    add_campbell_parser(sub, scene_args)
     from ..recording.cli import add_recover_parser
     add_recover_parser(sub)
+    from .datasets import add_dataset_parser, add_record_parser
+    add_record_parser(sub, scene_args)
+    add_dataset_parser(sub)
     return parser
 
 
@@ -274,6 +296,9 @@ def main(argv=None):
             return _keys(args)
         if args.command == 'modes':
             return _modes(args)
+        if args.command == 'campbell':
+            from .rotor import run_campbell
+            return run_campbell(args)
         if args.command in ('frf', 'sweep', 'stability', 'convergence'):
             from .studies import run_study
             return run_study(args)
@@ -287,6 +312,12 @@ def main(argv=None):
         if args.command == 'recover':
             from ..recording.cli import run_recover
             return run_recover(args)
+        if args.command == 'record':
+            from .datasets import run_record
+            return run_record(args)
+        if args.command == 'dataset':
+            from .datasets import run_dataset
+            return run_dataset(args)
         return _simulate(args)
     except (SceneError, TooLarge, OutputExists) as exc:
         _error(str(exc))
@@ -323,7 +354,7 @@ def _check_scene_file(scene):
 
     A path (with a directory separator or a YAML suffix) must name a ``.yaml``/``.yml``
     file; its size, kind and encoding are the loader's budgets
-    (:func:`impact_damper_sim.scene.schema.load_yaml`), which the node shares.
+    (:func:`impact_damper_sim.scene.loading.load_yaml`), which the node shares.
     """
     import os
 
@@ -339,7 +370,7 @@ def _check_scene_file(scene):
 # --- keys -------------------------------------------------------------------------------------
 
 def _keys(args):
-    from ..scene.schema import describe, markdown_table
+    from ..scene.keytable import describe, markdown_table
     from ..scene.spec import SCHEMA
     if args.markdown:
         sys.stdout.write(markdown_table(SCHEMA))
@@ -353,7 +384,16 @@ def _keys(args):
 
 def _modes(args):
     from ..scene.build import load
-    data = load(args.scene, args.overrides).describe_modes()
+    from ..studies.campbell import describe_whirl
+    from .rotor import plot_modes, print_whirl
+    refuse_existing([args.plot], args.overwrite)
+    scene = load(args.scene, args.overrides)
+    data = scene.describe_modes()
+    data.update(describe_whirl(scene))   # 'coupled' too: gyroscopic coupling included
+    if args.plot:
+        status = plot_modes(scene, args)
+        if status is not None:
+            return status
     if args.json:
         _print_json(data)
         return 0
@@ -364,8 +404,10 @@ def _modes(args):
           'condensed)')
     print(f"retained: {data['selection_reason']}")
     if data['coupled']:
-        print('modal matrices are coupled (cross-coupled stiffness or physical dampers)')
-    print()
+        print('modal matrices are coupled (cross-coupled stiffness, physical dampers or '
+              'gyroscopic coupling)')
+    print('\nundamped modal basis (modes of the non-rotating structure, symmetric stiffness: '
+          "the simulation's coordinates):")
     print(_table(['mode', 'frequency (Hz)', 'tare zeta', 'damping ratio'],
                  [(m['mode'], _g(m['frequency_hz'], 9), _g(m['tare_damping_ratio']),
                    _g(m['damping_ratio'])) for m in data['modes']]))
@@ -379,6 +421,7 @@ def _modes(args):
         print(f"\nimpactor {imp['name']} ({imp['kind']}): mass {_g(imp['mass_kg'])} kg, "
               f"housing mass {_g(imp['housing_mass_kg'])} kg, effective mass of the retained "
               f'modes {eff} kg')
+    print_whirl(data)
     return 0
 
 

@@ -119,7 +119,7 @@ def _chunk_records(chunk):
 
 
 def _check_source(path):
-    from ..scene.schema import file_kind
+    from ..scene.loading import file_kind
     try:
         kind = file_kind(path)   # before opening: a FIFO would block, /dev/zero never end
         if kind:

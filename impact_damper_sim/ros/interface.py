@@ -72,79 +72,55 @@ measures the options).
 """
 from __future__ import annotations
 
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..recording import node_topics as _topics
+from ..recording.bag_metadata import qos_dict as _qos_dict
+from ..recording.node_topics import (ACCEL_PREFIX, BATCH_SUFFIX, CLOCK, DIAGNOSTICS,  # noqa: F401
+                                     IMPACTOR_STATE, IMPACTS, PARAMETER_EVENTS,
+                                     ROTOR_JOINT_STATES, ROTOR_SPEED, SPEED_COMMAND, TYPES,
+                                     UNBALANCE_COMMAND, accel_batch_topic, accel_topic)
 from ..scene.units import G0  # standard gravity (m/s^2), for reports in g
 
-ACCEL_PREFIX = 'accel/'
-BATCH_SUFFIX = '/batch'
-IMPACTS = 'impacts'
-IMPACTOR_STATE = 'impactor_state'
-ROTOR_SPEED = 'rotor/speed'
-ROTOR_JOINT_STATES = 'rotor/joint_states'
-SPEED_COMMAND = 'rotor/speed_command'
-UNBALANCE_COMMAND = 'rotor/unbalance_command'
-CLOCK = '/clock'
-DIAGNOSTICS = '/diagnostics'
 
-#: ROS type names of each topic (``pkg/msg/Type``); ``accel/<sensor>`` under ACCEL_PREFIX.
-TYPES = {
-    ACCEL_PREFIX: 'sensor_msgs/msg/Imu',
-    BATCH_SUFFIX: 'sensor_msgs/msg/PointCloud2',
-    IMPACTS: 'sensor_msgs/msg/PointCloud2',
-    IMPACTOR_STATE: 'sensor_msgs/msg/JointState',
-    ROTOR_SPEED: 'geometry_msgs/msg/Vector3Stamped',
-    ROTOR_JOINT_STATES: 'sensor_msgs/msg/JointState',
-    SPEED_COMMAND: 'std_msgs/msg/Float64',
-    UNBALANCE_COMMAND: 'std_msgs/msg/Float64',
-    CLOCK: 'rosgraph_msgs/msg/Clock',
-    DIAGNOSTICS: 'diagnostic_msgs/msg/DiagnosticArray',
-}
+def _profile(policies):
+    """An rclpy ``QoSProfile`` from a ROS-free profile of :mod:`..recording.node_topics`."""
+    full = _qos_dict(policies)
+    return QoSProfile(history=HistoryPolicy.get_from_short_key(full['history']),
+                      depth=full['depth'],
+                      reliability=ReliabilityPolicy.get_from_short_key(full['reliability']),
+                      durability=DurabilityPolicy.get_from_short_key(full['durability']))
 
+
+#: The profiles are made from the ROS-free table that ``study record`` writes too, so a log
+#: of the node and an offline log carry the same QoS metadata.
 #: Accelerometer samples: best effort and volatile like ``qos_profile_sensor_data``; samples
 #: are published one by one at their own time, and the depth leaves a slow reader's
 #: executor 50 ms (at 2 kHz) before the writer overwrites.
-SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                        reliability=ReliabilityPolicy.BEST_EFFORT,
-                        durability=DurabilityPolicy.VOLATILE)
+SENSOR_QOS = _profile(_topics.SENSOR_QOS)
 #: Batches (full-rate samples, impacts): reliable, volatile, keep last 100 (1 s of 10 ms
 #: batches). A reliable writer also feeds best-effort readers; with keep-last it never
 #: blocks on a slow one.
-BATCH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE)
+BATCH_QOS = _profile(_topics.BATCH_QOS)
 #: Impact batches: every impact counts.
 EVENT_QOS = BATCH_QOS
 #: Impactor state: reliable and transient_local (latched), so late joiners get it.
-LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED_QOS = _profile(_topics.LATCHED_QOS)
 #: Rotor speed and commands: reliable, volatile, small depth.
-COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                         reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.VOLATILE)
+COMMAND_QOS = _profile(_topics.COMMAND_QOS)
 #: /clock as Gazebo publishes it: reliable, keep last 1 (use_sim_time subscribers take
 #: best effort, which a reliable publisher feeds).
-CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
-                       reliability=ReliabilityPolicy.RELIABLE,
-                       durability=DurabilityPolicy.VOLATILE)
+CLOCK_QOS = _profile(_topics.CLOCK_QOS)
 #: /diagnostics: reliable, volatile, keep last 10 (diagnostic_updater publishes with the
 #: default QoS, keep last 10, reliable).
 DIAGNOSTICS_QOS = COMMAND_QOS
-
-
-def accel_topic(sensor):
-    """Return the relative topic name of an accelerometer's per-sample stream (str)."""
-    return ACCEL_PREFIX + sensor
-
-
-def accel_batch_topic(sensor):
-    """Return the relative topic name of an accelerometer's full-rate batches (str)."""
-    return ACCEL_PREFIX + sensor + BATCH_SUFFIX
+#: /parameter_events as rclpy publishes it (the log records accepted parameter changes).
+PARAMETER_EVENTS_QOS = _profile(_topics.PARAMETER_EVENTS_QOS)
 
 
 __all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS',
            'DIAGNOSTICS',
            'DIAGNOSTICS_QOS', 'EVENT_QOS', 'G0', 'IMPACTS', 'IMPACTOR_STATE', 'LATCHED_QOS',
+           'PARAMETER_EVENTS', 'PARAMETER_EVENTS_QOS',
            'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES',
            'UNBALANCE_COMMAND', 'accel_batch_topic', 'accel_topic']

@@ -50,7 +50,9 @@ PARAMETERS = {
     'max_unbalance': (100.0, 'largest accepted unbalance multiplier X (dimensionless)',
                       (0.0, 1.0e4), True),
     'speed_rate_limit': (0.0, "rate limit of speed changes (rad/s^2); 0 = the scene's "
-                              '(ramp slope or max_rate)', (0.0, 1.0e6), True),
+                              '(ramp slope or max_rate; at run time: the rate at start); a '
+                              'change also applies to a ramp under way (no effect without a '
+                              'commanded rotor)', (0.0, 1.0e6), False),
     'publish_clock': (True, 'publish /clock (turn off on all but one node of a system)',
                       None, True),
     'tick_period': (0.01, 'sim time stepped per chunk (s); samples are computed one chunk '
@@ -66,6 +68,10 @@ PARAMETERS = {
                    '~/record service)', None, True),
     'record_overwrite': (False, 'overwrite an existing record file (otherwise refused)', None,
                          True),
+    'schedule': ('', 'command schedule to play in sim time (YAML file: speed, speed_rate, '
+                     'unbalance, dampers, noise_std, noise_seed at given times; docs/node.md); '
+                     'each applied entry is recorded as the command or parameter change it '
+                     "stands for; empty = none", None, True),
 }
 
 #: parameters every rclpy node declares itself

@@ -5,6 +5,11 @@ validates the parameters, feeds commands to the core, paces it with
 :class:`~impact_damper_sim.live.realtime.Pacer` and publishes what it produces. The topics and
 their encodings are in :mod:`impact_damper_sim.ros.interface` and docs/node.md.
 
+This module holds the node's life cycle: parameters, commands, the stepping thread and
+``main``. What a chunk puts on the wire and when is in :mod:`.node_publishing`, the
+``/diagnostics`` report in :mod:`.node_diagnostics` and the MCAP recorder in
+:mod:`.node_recording`; :class:`VibrationNode` takes them in as mixins.
+
 Run it with ``ros2 run impact_damper_sim vibration_node`` (or the ``vibration_node`` console
 script), e.g. ``--ros-args -p scene:=rbs -r __ns:=/rbs``.
 """
@@ -16,9 +21,8 @@ import sys
 import threading
 import time
 
-import numpy as np
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -28,20 +32,21 @@ from sensor_msgs.msg import Imu, JointState, PointCloud2
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool
 
-from ..live.realtime import CommandError, LiveSimulation, Pacer, live_scene
-from ..recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS,
-                                 IMPACT_POINT_STEP, BatchEncoder)
+from rclpy.parameter import Parameter
+
+from ..live.realtime import CommandError, LiveSimulation, Pacer
+from ..live.schedule import Schedule
+from ..live.streams import live_scene
+from ..recording.node_messages import NodeMessages, float64_cdr
 from ..scene.schema import SceneError
 from . import interface as itf
-from .cdr import serialize
+from .node_diagnostics import DiagnosticsMixin, _Stats
+from .node_publishing import PublishingMixin
+from .node_recording import RecordingMixin
 from .parameters import PARAMETERS, RCLPY_PARAMETERS, ParameterError, check, declare_all, \
     parameters_markdown
-from .wire import ImuPacker, Outlet, freeze_start_up_heap, guard_services, \
-    ignore_further_interrupts, settle_interrupt, shutdown_quietly, spin_guarded, stamp
-
-_IMPACT = 0   # EVENT_KINDS index of an impact
-RECORD_CHUNK_SIZE = 768 * 1024   # bytes, as rosbag2's MCAP storage
-_stamp = stamp
+from .wire import Outlet, freeze_start_up_heap, guard_services, ignore_further_interrupts, \
+    settle_interrupt, shutdown_quietly, spin_guarded
 
 
 class _HandoffLock:
@@ -105,7 +110,7 @@ class _Busy:
         return time.monotonic() - self._t0
 
 
-class VibrationNode(Node):
+class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
     """The live simulator node.
 
     Parameters
@@ -192,6 +197,16 @@ class VibrationNode(Node):
         self.recorder = None
         self.record_error = None
         self.scene = scene
+        # the rate limit in force at start: speed_rate_limit 0 at run time restores it
+        self._start_speed_rate = (self.live.profile.max_rate
+                                  if hasattr(self.live.profile, 'command') else None)
+        self.schedule = None
+        if p['schedule']:
+            try:
+                self.schedule = Schedule.load(p['schedule'])
+                self.schedule.check(self.live)
+            except SceneError as exc:
+                raise ParameterError(f"parameter 'schedule': {exc}") from None
         self._period = 1.0 / self.live.sample_rate
         self._make_interfaces(p)
         self.pacer = Pacer(p['real_time_factor'], self.live.t, max_lag=p['max_lag'],
@@ -220,28 +235,30 @@ class VibrationNode(Node):
 
     # -- set-up ---------------------------------------------------------------------------
     def _make_interfaces(self, p):
-        self._imu = []
-        self._accel_pubs = []    # per-sample Imu, decimated to imu_rate
-        self._batch_pubs = []    # full-rate batches
-        self._batch_encoders = []
-        for acc in self.live.accelerometers:
-            self._accel_pubs.append(Outlet(self, Imu, itf.accel_topic(acc.name),
-                                           itf.SENSOR_QOS))
-            self._batch_pubs.append(Outlet(self, PointCloud2, itf.accel_batch_topic(acc.name),
-                                           itf.BATCH_QOS))
-            self._batch_encoders.append(BatchEncoder(acc.frame_id, ACCEL_FIELDS,
-                                                     ACCEL_POINT_STEP))
-            msg = Imu()
-            msg.header.frame_id = acc.frame_id
-            msg.orientation_covariance[0] = -1.0   # orientation not measured (REP-145)
-            self._imu.append(msg)
-        self._set_noise_covariance()
+        # the bytes of every topic come from the ROS-free packer that study record uses
+        messages = self._messages = NodeMessages(
+            self.live, self.scene, namespace=self.get_namespace(),
+            node_name=self.get_fully_qualified_name(), publish_clock=p['publish_clock'])
+        self._accel_pubs = [Outlet(self, Imu, itf.accel_topic(acc.name), itf.SENSOR_QOS)
+                            for acc in self.live.accelerometers]   # per-sample, imu_rate
+        self._batch_pubs = [Outlet(self, PointCloud2, itf.accel_batch_topic(acc.name),
+                                   itf.BATCH_QOS)
+                            for acc in self.live.accelerometers]   # full-rate batches
         self._impact_pub = Outlet(self, PointCloud2, itf.IMPACTS, itf.EVENT_QOS)
         self._state_pub = Outlet(self, JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
         self._speed_pub = Outlet(self, Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
         self._joint_pub = Outlet(self, JointState, itf.ROTOR_JOINT_STATES, itf.COMMAND_QOS)
         self._clock_pub = (Outlet(self, Clock, itf.CLOCK, itf.CLOCK_QOS)
                            if p['publish_clock'] else None)
+        self._outlet_of = {**dict(zip(messages.imu, self._accel_pubs)),
+                           **dict(zip(messages.batch, self._batch_pubs)),
+                           messages.impacts: self._impact_pub, messages.state: self._state_pub,
+                           messages.speed: self._speed_pub, messages.joint: self._joint_pub,
+                           messages.clock: self._clock_pub}
+        for stream, outlet in self._outlet_of.items():
+            if outlet is not None and (messages.streams[stream].topic, messages.streams[
+                    stream].type_name) != (outlet.topic, outlet.type_name):
+                raise RuntimeError(f'stream {messages.streams[stream]} is not {outlet.topic}')
         self._diag_pub = Outlet(self, DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
         self._command_subs = [
             self.create_subscription(Float64, itf.SPEED_COMMAND, self.on_speed_command,
@@ -249,20 +266,6 @@ class VibrationNode(Node):
             self.create_subscription(Float64, itf.UNBALANCE_COMMAND, self.on_unbalance_command,
                                      itf.COMMAND_QOS)]
         self.create_service(SetBool, '~/record', self.on_record_request)
-        # per modal-model impactor (a zero-mass scene entry has none), matched by name
-        spec_of = {spec['name']: spec for spec in self.scene.scene['impactors']}
-        specs = [spec_of[imp.name] for imp in self.scene.impactors]
-        dofs_of = [[spec['dof']] if spec['kind'] == 'sdof' else list(spec['plane'])
-                   for spec in specs]
-        axis_of = {'ux': 0, 'uy': 1, 'uz': 2}
-        self._impactor_axes = [[axis_of[d] for d in dofs] for dofs in dofs_of]
-        self._joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
-                             for d in dofs]
-        # the housings' frame; with housings at several nodes, the scene's (axes are global)
-        housings = sorted({spec['node'] for spec in specs})
-        impact_frame = (self._frame_of_node(housings[0]) if len(housings) == 1
-                        else self.scene.name)
-        self._impact_encoder = BatchEncoder(impact_frame, IMPACT_FIELDS, IMPACT_POINT_STEP)
         self._tick_period = p['tick_period']
         self._diag_timer = self.create_timer(p['diagnostics_period'], self.publish_diagnostics)
         self._state_timer = self.create_timer(p['state_period'], self.publish_state)
@@ -270,28 +273,6 @@ class VibrationNode(Node):
         self._chunk = max(1, int(round(p['tick_period'] * self.live.sample_rate)))
         self._lookahead = p['tick_period']
         self._t_published = self.live.t
-        # the start of the interval the next impact batch covers (ns)
-        self._impacts_from = int(round(self.live.t * 1e9))
-
-    def _frame_of_node(self, node):
-        for acc in self.live.accelerometers:
-            if acc.node == node:
-                return acc.frame_id
-        return f'{self.scene.name}_node{node}'
-
-    def _set_noise_covariance(self):
-        var = self.live.noise_std ** 2
-        for msg in self._imu:
-            msg.linear_acceleration_covariance = [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var]
-        self._packers = [self._make_packer(msg) for msg in self._imu]
-
-    def _make_packer(self, msg):
-        try:
-            return ImuPacker(msg)
-        except RuntimeError as exc:   # another CDR layout: serialize message by message
-            self.get_logger().warning(f'{exc}; serializing message by message instead',
-                                      once=True)
-            return None
 
     def _log(self, level, text, throttle=None, key=None):
         """Log ``text`` at ``level`` (info, warning, error), at most once per ``throttle`` s
@@ -323,13 +304,15 @@ class VibrationNode(Node):
         return self._command(self.live.command_unbalance, msg, 1)
 
     def _command(self, apply, msg, which):
+        """Apply a command (a received ``Float64``, or a schedule entry's value: recorded
+        alike), or reject it with a throttled warning; True when applied."""
         value = getattr(msg, 'data', msg)
         try:
             with self._lock:
-                if self.recorder is not None and isinstance(msg, Float64):
+                if self.recorder is not None and isinstance(msg, (Float64, float)):
                     # every command received is recorded, the rejected ones too
                     self._record(self._command_subs[which].topic_name, 'std_msgs/msg/Float64',
-                                 itf.COMMAND_QOS, serialize(msg))
+                                 itf.COMMAND_QOS, float64_cdr(value))
                 apply(value)
         except CommandError as exc:
             self.rejected += 1
@@ -366,6 +349,10 @@ class VibrationNode(Node):
         try:
             with self._lock:
                 self._apply(changes)
+                if changes:   # in the log, as ros2 bag records a parameter change
+                    self._record(itf.PARAMETER_EVENTS, 'rcl_interfaces/msg/ParameterEvent',
+                                 itf.PARAMETER_EVENTS_QOS,
+                                 self._messages.parameter_event(list(changes.items())))
         except (CommandError, ValueError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
@@ -379,10 +366,13 @@ class VibrationNode(Node):
             self.stats = _Stats(wall, time.process_time(), self.live.t, self._delivered_t(wall),
                                 steps0=self.live.steps, growing=st.growing,
                                 last_peak=st.last_peak)
+        if 'speed_rate_limit' in changes and self._start_speed_rate is not None:
+            # without a commanded rotor it is kept and does nothing, as at start
+            self.live.set_speed_rate(changes['speed_rate_limit'] or self._start_speed_rate)
         if 'noise_std' in changes or 'noise_seed' in changes:
             self.live.set_noise(changes.get('noise_std', self.live.noise_std),
                                 changes.get('noise_seed'))
-            self._set_noise_covariance()
+            self._messages.set_noise_variance(self.live.noise_std ** 2)
         if 'dampers_enabled' in changes:
             self.live.set_dampers_enabled(changes['dampers_enabled'])
             self._publish_state()
@@ -393,104 +383,6 @@ class VibrationNode(Node):
         return [*self._accel_pubs, *self._batch_pubs, self._impact_pub, self._state_pub,
                 self._speed_pub, self._joint_pub, self._diag_pub] + (
                     [self._clock_pub] if self._clock_pub else [])
-
-    # -- recording ------------------------------------------------------------------------
-    def start_recording(self, path, overwrite=False):
-        """Start recording every published topic and received command to ``path``.
-
-        Parameters
-        ----------
-        path : str
-            MCAP file (rosbag2 layout).
-        overwrite : bool
-            Replace an existing file (otherwise refused).
-
-        Returns
-        -------
-        str or None
-            Why recording could not start, or None.
-        """
-        from ..recording import AsyncRecorder
-        with self._lock:
-            if self.recorder is not None:
-                return f'already recording to {self.recorder.path}'
-            try:
-                # rosbag2's chunk size: the summary keeps one index per chunk in memory until
-                # the file closes (64 KiB chunks grew RSS ~0.8 MB/min); a chunk is still
-                # closed at least every flush period, which bounds what a crash loses
-                rec = AsyncRecorder(path, overwrite=overwrite, on_error=self._on_disk_error,
-                                    chunk_size=RECORD_CHUNK_SIZE,
-                                    overwrite_option='record_overwrite:=true')
-            except (OSError, ValueError) as exc:
-                return str(exc)
-            rec.add_metadata('impact_damper_sim', self._run_metadata())
-            for out in self.outlets:
-                rec.add_topic(out.topic, out.type_name, out.qos)
-            for sub in self._command_subs:
-                rec.add_topic(sub.topic_name, 'std_msgs/msg/Float64', itf.COMMAND_QOS)
-            self.recorder = rec
-            self.record_error = None
-            self._publish_state()   # the latched state opens the log
-        self.get_logger().info(f'recording to {path}')
-        return None
-
-    def stop_recording(self):
-        """Finish the record file (summary and rosbag2 metadata); no-op when not recording."""
-        with self._lock:
-            rec, self.recorder = self.recorder, None
-        if rec is not None:
-            rec.close()
-            self._log('info', f'recorded {rec.stats()["messages_written"]} messages to '
-                              f'{rec.path}')
-        return rec
-
-    def on_record_request(self, request, response):
-        """``~/record`` (std_srvs/SetBool): true starts recording to the ``record`` parameter's
-        path (or a new timestamped file), false stops."""
-        if request.data:
-            if self._params['record']:
-                path, overwrite = self._params['record'], self._params['record_overwrite']
-            else:   # a new file each start: an automatic name never overwrites
-                path, overwrite = _new_record_path(self.scene.name), False
-            error = self.start_recording(path, overwrite)
-            response.success = error is None
-            response.message = error or str(path)
-        else:
-            rec = self.stop_recording()
-            error = rec.error if rec is not None else None
-            response.success = rec is not None and error is None
-            response.message = ('not recording' if rec is None else
-                                f'{rec.path}: recording stopped by a disk error: {error}'
-                                if error is not None else str(rec.path))
-        return response
-
-    def _record(self, topic, type_name, qos, data, ns=None):
-        rec = self.recorder
-        if rec is not None:
-            # the log runs on sim time, as a recorder with use_sim_time on our /clock would:
-            # an item's own sim time (samples: their stamp), else now
-            if ns is None:
-                ns = int(round(self.live.t * 1e9))
-            rec.write(topic, type_name, qos, data, ns, ns)
-
-    def _on_disk_error(self, exc):
-        self.record_error = str(exc)   # reported in /diagnostics; the simulation goes on
-
-    def _run_metadata(self):
-        import yaml
-
-        import impact_damper_sim
-        params = {k: v for k, v in self._params.items()}
-        return {
-            'software_version': impact_damper_sim.__version__,
-            'scene': self.scene.name, 'scene_source': str(self.scene.source),
-            'overrides': yaml.safe_dump(list(self._params['overrides'] or ()),
-                                        default_flow_style=True).strip(),
-            'resolved_scene_si': yaml.safe_dump(_plain(self.scene.scene), sort_keys=False),
-            'node_parameters': yaml.safe_dump(params, sort_keys=True),
-            'node_name': self.get_fully_qualified_name(),
-            'time_base': 'sim time (log_time = publish_time = sim time of the publish call)',
-        }
 
     # -- stepping -------------------------------------------------------------------------
     def start(self):
@@ -633,8 +525,14 @@ class VibrationNode(Node):
         self._flush(math.inf)
 
     def _step(self, n):
-        """Step ``n`` samples and queue what they produce; False once the simulation failed."""
+        """Step ``n`` samples (fewer when a schedule entry falls inside them: it applies at
+        its sample boundary) and queue what they produce; False once the simulation failed."""
         with self._lock:
+            if self.schedule is not None and not self.schedule.done:
+                self._play_schedule()
+                ahead = self.schedule.samples_to_next(self.live.t, self.live.sample_rate)
+                if ahead:
+                    n = min(n, ahead)
             batch = self.live.step(n)
             if batch is None:
                 self._report_failure()
@@ -643,333 +541,21 @@ class VibrationNode(Node):
             self._queue_time()
         return True
 
-    def _flush(self, now, burst=None):
-        """Publish every queued item due by wall time ``now`` (through the pacer).
 
-        An item nobody receives (no subscriber when it was queued: it is only counted and
-        recorded, with its own stamp as log time) does not wait for its time, so a topic
-        nobody reads costs no wake-ups; items still leave in time order.
-
-        Parameters
-        ----------
-        now : float
-            Wall time (s); ``math.inf`` publishes everything queued.
-        burst : int, optional
-            Most samples sent per accelerometer (None: no limit).
-
-        Returns
-        -------
-        bool
-            True when due samples were held back by ``burst`` (a backlog to send next).
-        """
-        pending = self._pending
-        if not pending:
-            # nothing queued (a scene without outputs): all that was stepped is out, up to
-            # the schedule, or pacing would wait forever for an item
-            self._t_published = max(self._t_published,
-                                    min(self.live.t, self.pacer.sim_at(now)))
-            return False
-        with self._lock:
-            horizon = self.pacer.sim_at(now) * 1e9   # ns (a float; inf for now = inf)
-            left = dict.fromkeys(self._accel_pubs, burst) if burst else None
-            while pending:
-                ns, outlet, item, wire = pending[0]
-                if wire:
-                    if ns > horizon:
-                        break
-                    if left is not None and outlet in left:
-                        if not left[outlet]:
-                            return True
-                        left[outlet] -= 1
-                pending.popleft()
-                if isinstance(item, bytes):
-                    outlet.publish_raw(item, ns, wire)
-                else:
-                    outlet.publish(item, ns, wire)
-                self._t_published = min(ns, horizon) * 1e-9
-        return False
-
-    def _queue_batch(self, batch):
-        """Queue a stepped chunk: per accelerometer one full-rate batch (sent at its last
-        sample's time) and the decimated samples one by one (each sent when the filter has
-        it, a filter delay after its stamp); the chunk's impacts as one batch."""
-        # the per-sample work is one NumPy pass per accelerometer (ImuPacker), no Python
-        # message objects; items are queued in the order of their send times
-        delay_ns = int(round(self.live.imu_delay * 1e9))
-        imu_ns = np.rint(batch.imu_t * 1e9).astype(np.int64)
-        items = []
-        for a, (pub, msg, packer) in enumerate(zip(self._accel_pubs, self._imu, self._packers)):
-            lin = batch.imu_linear_acceleration[:, a, :]
-            ang = batch.imu_angular_velocity[:, a, :]
-            wire = pub.has_subscribers()
-            if packer is not None:
-                data = packer.pack(imu_ns, lin, ang)
-            else:
-                data = []
-                for ns, la, av in zip(imu_ns.tolist(), lin.tolist(), ang.tolist()):
-                    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 1_000_000_000)
-                    (msg.linear_acceleration.x, msg.linear_acceleration.y,
-                     msg.linear_acceleration.z) = la
-                    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = av
-                    data.append(serialize(msg))
-            items += [(ns + delay_ns, a, pub, d, wire) for ns, d in zip(imu_ns.tolist(), data)]
-        t_ns = np.rint(batch.t * 1e9).astype(np.int64)
-        k = t_ns.size
-        if k:
-            for a, (pub, encoder) in enumerate(zip(self._batch_pubs, self._batch_encoders)):
-                rows = np.empty(k, encoder.dtype)
-                rows['t'] = (t_ns - t_ns[0]) * 1e-9
-                for name, column in zip(('ax', 'ay', 'az'), batch.linear_acceleration[:, a].T):
-                    rows[name] = column
-                for name, column in zip(('wx', 'wy', 'wz'), batch.angular_velocity[:, a].T):
-                    rows[name] = column
-                items.append((int(t_ns[-1]), a, pub, encoder.encode(t_ns[0], rows),
-                              pub.has_subscribers()))
-        ev = batch.events
-        impacts = ev[ev['kind'] == _IMPACT]
-        end_ns = int(round(self.live.t * 1e9))
-        if self.scene.impactors:
-            items.append((end_ns, len(self._accel_pubs), self._impact_pub,
-                          self._impact_batch(impacts), self._impact_pub.has_subscribers()))
-        self._impacts_from = end_ns
-        items.sort(key=lambda item: item[:2])   # by send time, then accelerometer
-        self._pending.extend((ns, pub, data, wire) for ns, _, pub, data, wire in items)
-        self.stats.samples += k
-        self.stats_total['samples'] += k
-        lin = batch.linear_acceleration
-        peak = float(np.max(np.abs(lin))) if lin.size else 0.0   # a scene may have no sensor
-        self.stats.peak = max(self.stats.peak, peak)
-        self.stats.impacts += impacts.size
-        self.stats_total['impacts'] += impacts.size
-        stuck = sum(self.live._stuck)
-        self.stats.stuck_time += stuck * k * self._period
-        if batch.states_changed:
-            self._queue_state()
-
-    def _impact_batch(self, impacts):
-        """The CDR bytes of the impact batch covering the chunk just stepped."""
-        encoder = self._impact_encoder
-        rows = np.zeros(impacts.size, encoder.dtype)
-        if impacts.size:
-            t_ns = np.rint(impacts['t'] * 1e9).astype(np.int64)
-            rows['t'] = (t_ns - self._impacts_from) * 1e-9
-            which = impacts['impactor'].astype(np.int64)
-            rows['impactor'] = which
-            impulse = np.zeros((impacts.size, 3))
-            for j in np.unique(which).tolist():   # plane DOFs -> x, y, z of the frame
-                hit = which == j
-                for k, axis in enumerate(self._impactor_axes[j]):
-                    impulse[hit, axis] = impacts['impulse'][hit] * impacts['normal'][hit, k]
-            rows['jx'], rows['jy'], rows['jz'] = impulse.T
-            rows['v_approach'] = np.abs(impacts['v_n'])
-            rows['v_separation'] = np.abs(impacts['v_n_after'])
-            rows['energy'] = impacts['loss']
-            order = np.argsort(t_ns, kind='stable')
-            rows = rows[order]
-        return encoder.encode(self._impacts_from, rows)
-
-    def _queue_time(self):
-        # like the samples, a topic nobody subscribes to (volatile: no late joiner gets it)
-        # is not put on the wire and costs the stepping thread no wake-up
-        t = self.live.t
-        ns = int(round(t * 1e9))
-        if self._clock_pub is not None:
-            self._pending.append((ns, self._clock_pub, Clock(clock=_stamp(t)),
-                                  self._clock_pub.has_subscribers()))
-        if self.live.has_rotor:
-            speed, rate, x = self.live.rotor_state()
-            msg = Vector3Stamped()
-            msg.header.stamp = _stamp(t)
-            msg.vector.x, msg.vector.y, msg.vector.z = speed, rate, x
-            self._pending.append((ns, self._speed_pub, msg, self._speed_pub.has_subscribers()))
-            joint = JointState(name=['rotor'])
-            joint.header.stamp = msg.header.stamp
-            joint.position = [float(self.live.profile.angle(np.asarray(t))) % (2.0 * math.pi)]
-            joint.velocity = [speed]
-            self._pending.append((ns, self._joint_pub, joint, self._joint_pub.has_subscribers()))
-
-    def publish_state(self):
-        """Queue ``impactor_state`` (the periodic timer's callback): it leaves with the
-        samples of its sim time, not a chunk ahead of them."""
-        with self._lock:
-            self._queue_state()
-
-    def _publish_state(self):
-        self._state_pub.publish(self._state_message(), int(round(self.live.t * 1e9)))
-
-    def _queue_state(self):
-        self._pending.append((int(round(self.live.t * 1e9)), self._state_pub,
-                              self._state_message(), True))
-
-    def _state_message(self):
-        msg = JointState()
-        msg.header.stamp = _stamp(self.live.t)
-        msg.name = list(self._joint_names)
-        pos, vel, eff = [], [], []
-        enabled = self.live.dampers_enabled
-        for s in self.live.impactor_states():
-            d = len(s['position'])
-            pos += [float(x) for x in s['position']]
-            vel += [float(x) for x in s['velocity']]
-            eff += [(1.0 if s['stuck'] else 0.0) if enabled else -1.0] * d
-        msg.position, msg.velocity, msg.effort = pos, vel, eff
-        return msg
-
-    # -- health ---------------------------------------------------------------------------
-    def _report_failure(self):
-        if not self._failure_logged:
-            self._failure_logged = True
-            self.get_logger().error(f'simulation stopped: {self.live.failure}; the node stays '
-                                    'up (diagnostics report ERROR)')
-            self.publish_diagnostics()
-
-    def publish_diagnostics(self):
-        """Publish ``/diagnostics``: pacing, CPU, impacts, stuck fraction, peak, health."""
-        if not self._lock.acquire(self.STALL):   # the stepping thread is stuck in a chunk
-            status = DiagnosticStatus(
-                name=f'{self.get_name()}: simulation', hardware_id=self.scene.name,
-                level=DiagnosticStatus.ERROR,
-                message=f'stepping thread stalled: it has held the simulation for over '
-                        f'{self.STALL:g} s')
-            msg = DiagnosticArray(status=[status])
-            msg.header.stamp = self.get_clock().now().to_msg()
-            self._diag_pub.publish(msg)
-            self.last_diagnostics = {'level': 2, 'message': status.message}
-            self.get_logger().error(status.message, throttle_duration_sec=5.0)
-            return
-        try:
-            self._publish_diagnostics()
-        finally:
-            self._lock.release()
-
-    def _stalled(self, wall):
-        """Why the stepping thread is not stepping (str), or '' while it is alive and cycling."""
-        thread = self._thread
-        if thread is None:
-            return ''   # not started (tests drive tick() themselves) or stopped on purpose
-        if not thread.is_alive():
-            return 'stepping thread stopped: no samples are produced'
-        if self._heartbeat is not None and wall - self._heartbeat > self.STALL:
-            return f'stepping thread stalled for {wall - self._heartbeat:.1f} s'
-        return ''
-
-    def _publish_diagnostics(self):
-        live, st = self.live, self.stats
-        wall, cpu = self._wall(), time.process_time()
-        d_wall = max(wall - st.wall, 1e-9)
-        d_sim = live.t - st.sim
-        # delivered, not stepped, sim time: stepping runs up to a chunk and a lookahead
-        # ahead, which would put +-2 % of noise on a 1 s period
-        delivered = self._delivered_t(wall)
-        achieved = (delivered - st.delivered) / d_wall
-        n_imp = len(self.scene.impactors)
-        stuck_fraction = (st.stuck_time / (d_sim * n_imp)) if d_sim > 0 and n_imp else 0.0
-        status = DiagnosticStatus(name=f'{self.get_name()}: simulation',
-                                  hardware_id=self.scene.name)
-        level, messages = DiagnosticStatus.OK, []
-        rtf = self.pacer.real_time_factor
-        stalled = self._stalled(wall)
-        if live.failure is not None:
-            level = DiagnosticStatus.ERROR
-            messages.append(f'stopped: {live.failure}')
-        elif stalled:
-            level = DiagnosticStatus.ERROR
-            messages.append(stalled)
-        else:
-            if rtf > 0 and achieved < rtf * (1.0 - self.RTF_TOLERANCE):
-                level = DiagnosticStatus.WARN
-                messages.append(f'behind real time: achieved {achieved:.3f} of {rtf:g} '
-                                f'(tolerance {100 * self.RTF_TOLERANCE:g} %)')
-                # our throttle: rclpy's inspects the caller's frame on every call (2-6 ms)
-                self._log('warning', messages[-1], 5.0, 'behind')
-            if self._growth_rate > 0:
-                level = max(level, DiagnosticStatus.WARN)
-                messages.append(f'linear model unstable: growth rate {self._growth_rate:.3g} '
-                                '1/s without impactors')
-            if self.recorder is not None and self.recorder.error is not None:
-                self.record_error = self.record_error or str(self.recorder.error)
-            if self.record_error:
-                level = max(level, DiagnosticStatus.WARN)
-                messages.append(f'recording stopped by a disk error: {self.record_error}')
-            if st.growing >= 5:
-                level = max(level, DiagnosticStatus.WARN)
-                messages.append('response growing for 5 periods')
-        status.level = level
-        status.message = '; '.join(messages) or 'ok'
-        speed, _, x = live.rotor_state()
-        values = {
-            'sim_time_s': live.t, 'real_time_factor_requested': rtf,
-            'real_time_factor_achieved': achieved,
-            'cpu_percent': 100.0 * (cpu - st.cpu) / d_wall,
-            'step_rate_hz': (live.steps - st.steps0) / d_wall,
-            'samples_per_s': st.samples / d_sim if d_sim > 0 else 0.0,
-            'impacts_per_s': st.impacts / d_sim if d_sim > 0 else 0.0,
-            'stuck_fraction': stuck_fraction, 'peak_acceleration_g': st.peak / itf.G0,
-            'max_lag_s': st.lag, 'late_ticks': st.overruns,
-            'schedule_deficits_dropped': self.pacer.deficits,
-            'rejected_commands': self.rejected, 'dampers_enabled': live.dampers_enabled,
-            'rotor_speed_rad_s': speed, 'unbalance_multiplier': x,
-            'linear_growth_rate_1_s': self._growth_rate,
-        }
-        rec = self.recorder
-        if rec is not None:
-            if rec.error is not None and not self.record_error:
-                self.record_error = str(rec.error)
-            rs = rec.stats()
-            values.update({'record_path': str(rec.path),
-                           'record_messages_written': rs['messages_written'],
-                           'record_messages_dropped': rs['messages_dropped'],
-                           'record_queue_high_water': rs['queue_high_water']})
-        values['record_error'] = self.record_error or ''
-
-        status.values = [KeyValue(key=k, value=f'{v:.6g}' if isinstance(v, float) else str(v))
-                         for k, v in values.items()]
-        msg = DiagnosticArray(status=[status])
-        msg.header.stamp = _stamp(live.t)
-        self._diag_pub.publish(msg)
-        self.last_diagnostics = values | {'level': int.from_bytes(level, 'little')
-                                          if isinstance(level, bytes) else int(level),
-                                          'message': status.message}
-        # growth only counts at steady speed (a ramp through a critical also grows)
-        growing = st.peak > 1.2 * st.last_peak > 0 and live.rotor_state()[1] == 0.0
-        self.stats = _Stats(wall, cpu, live.t, delivered, steps0=live.steps,
-                            growing=st.growing + 1 if growing else 0, last_peak=st.peak)
-
-
-def _new_record_path(scene, directory='.'):
-    """A record file name not used before: ``<scene>_<date>-<time>.mcap``, or with ``-2``,
-    ``-3``, ... when that exists (the clock's second repeats across quick starts)."""
-    import pathlib
-    base = pathlib.Path(directory) / time.strftime(f'{scene}_%Y%m%d-%H%M%S')
-    path, n = base.with_name(base.name + '.mcap'), 1
-    while path.exists():
-        n += 1
-        path = base.with_name(f'{base.name}-{n}.mcap')
-    return path
-
-
-def _plain(value):
-    """A scene value as plain YAML-safe data (tuples to lists, NumPy to Python)."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-class _Stats:
-    """Counters of one diagnostics period."""
-
-    def __init__(self, wall, cpu, sim, delivered, steps0=0, growing=0, last_peak=0.0):
-        self.wall, self.cpu, self.sim, self.steps0 = wall, cpu, sim, steps0
-        self.delivered = delivered
-        self.samples = self.impacts = self.commands = self.overruns = 0
-        self.stuck_time = self.peak = self.lag = 0.0
-        self.growing, self.last_peak = growing, last_peak
+    def _play_schedule(self):
+        """Apply the schedule entries due now, each key as the live command or parameter
+        change it stands for (recorded as such; a refused one is logged, as live)."""
+        for entry in self.schedule.due(self.live.t, self.live.sample_rate):
+            for key, kind, name, value in entry.commands:
+                if kind == 'topic':
+                    apply = (self.live.command_speed if key == 'speed'
+                             else self.live.command_unbalance)
+                    self._command(apply, float(value), 0 if key == 'speed' else 1)
+                    continue
+                result = self.set_parameters([Parameter(name, value=value)])[0]
+                if not result.successful:
+                    self._log('warning', f'schedule entry at {entry.at:g} s: {name} refused: '
+                                         f'{result.reason}')
 
 
 def main(args=None):

@@ -7,136 +7,29 @@
 
 Every problem a scene can have is reported as a :class:`~.schema.SceneError` naming the key:
 schema problems by :func:`~.schema.validate`, model problems (an undefined node, a clamped
-sensor DOF, too many modes) here, with the same ``scene key 'path': message`` format.
-Everything is SI.
+sensor DOF, too many modes) here, in :mod:`.structure` and in :mod:`.modes`, with the same
+``scene key 'path': message`` format. Everything is SI.
+
+This module holds :class:`SceneModel` and the two calls that make one, :func:`load` and
+:func:`build`; finding and validating scene files is :mod:`.catalog`, the finite elements
+:mod:`.structure`, the retained modes :mod:`.modes`.
 """
 from __future__ import annotations
 
 import dataclasses
 import functools
-import os
-import re
-from pathlib import Path
 
 import numpy as np
 
-import impact_damper_sim
+from .catalog import validated
+from .modes import MIN_SAMPLES_PER_REVOLUTION, _build_basis, excitation_frequencies
+from .schema import SceneError
+from .spec import STUCK_MODELS
+from .structure import _Errors, _build_fe, _has_node
 
-from .units import UNITS
-from .schema import SceneError, apply_overrides, file_kind, load_yaml, validate
-from .spec import DOF_NAMES, ROTATIONS, SCHEMA, SDOF_NODE, STUCK_MODELS
+__all__ = ['SceneModel', 'build', 'load']
 
-__all__ = ['SceneModel', 'available_scenes', 'build', 'load', 'resolve_scene', 'scene_dirs']
-
-_NAME_RE = re.compile(r'[A-Za-z0-9][A-Za-z0-9_.-]*')
 _ROW_ZERO_RTOL = 1e-12   # a mode-shape row this small (relative) does not move the DOF
-
-
-# --- finding scene files ------------------------------------------------------------------
-
-def scene_dirs():
-    """Return the directories searched for scene names, in search order.
-
-    The source tree's ``config/scenes`` first (editable installs, checkouts), then the
-    installed ``share/impact_damper_sim/config/scenes`` found through the ament index when
-    ROS is available.
-
-    Returns
-    -------
-    list of pathlib.Path
-        Existing directories, without duplicates.
-    """
-    dirs = [Path(impact_damper_sim.__file__).resolve().parents[1] / 'config' / 'scenes']
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        dirs.append(Path(get_package_share_directory('impact_damper_sim')) / 'config' / 'scenes')
-    except Exception:   # no ROS, AMENT_PREFIX_PATH unset, or package not installed
-        pass
-    out = []
-    for d in dirs:
-        if d.is_dir() and d.resolve() not in [o.resolve() for o in out]:
-            out.append(d)
-    return out
-
-
-def available_scenes():
-    """Return the names of the ready-made scenes (sorted list of str)."""
-    return sorted({p.stem for d in scene_dirs() for p in d.glob('*.yaml')})
-
-
-def _is_path(text):
-    return (isinstance(text, os.PathLike) or '/' in text or os.sep in text
-            or text.endswith(('.yaml', '.yml')))
-
-
-def resolve_scene(scene_name_or_path):
-    """Return the file of a scene given by name (``'sdof'``) or path.
-
-    Parameters
-    ----------
-    scene_name_or_path : str or os.PathLike
-        A bare name is looked up as ``<name>.yaml`` in :func:`scene_dirs`; anything with a
-        directory separator or a ``.yaml``/``.yml`` suffix is a path.
-
-    Returns
-    -------
-    pathlib.Path
-        The scene file.
-
-    Raises
-    ------
-    SceneError
-        If the file does not exist or the name is unknown (the message lists the known ones).
-    """
-    if _is_path(scene_name_or_path):
-        path = Path(scene_name_or_path)
-        if not path.exists():
-            raise SceneError(f'scene file {str(path)!r} does not exist')
-        if not path.is_file():   # a directory, a FIFO, a device: never opened
-            try:
-                kind = file_kind(path)
-            except OSError as exc:
-                kind = exc.strerror
-            raise SceneError(f'{str(path)!r} is not a scene file ({kind}, not a regular '
-                             'file)')
-        return path
-    name = str(scene_name_or_path)
-    if _NAME_RE.fullmatch(name):
-        for d in scene_dirs():
-            path = d / f'{name}.yaml'
-            if path.is_file():
-                return path
-    known = ', '.join(available_scenes()) or 'none'
-    searched = ', '.join(str(d) for d in scene_dirs()) or 'no scene directory found'
-    raise SceneError(f'unknown scene {name!r}; ready-made scenes: {known} (searched {searched}); '
-                     'or give a path to a .yaml file')
-
-
-def validated(scene_name_or_path, overrides=()):
-    """Read, override and validate a scene file without building it.
-
-    Parameters
-    ----------
-    scene_name_or_path : str or os.PathLike
-        Scene name or path to a YAML file.
-    overrides : sequence of str, optional
-        ``'dotted.key=value'`` overrides, checked like the file's keys.
-
-    Returns
-    -------
-    scene : dict
-        The validated scene (SI units).
-    path : pathlib.Path
-        The file it came from.
-
-    Raises
-    ------
-    SceneError
-        For any problem, each line naming the scene key.
-    """
-    path = resolve_scene(scene_name_or_path)
-    raw = load_yaml(path)
-    return validate(SCHEMA, apply_overrides(raw, list(overrides)), source=str(path)), path
 
 
 def load(scene_name_or_path, overrides=()):
@@ -162,327 +55,6 @@ def load(scene_name_or_path, overrides=()):
     """
     scene, path = validated(scene_name_or_path, overrides)
     return build(scene, source=str(path), overrides=overrides)
-
-
-# --- errors -------------------------------------------------------------------------------
-
-class _Errors:
-    """Collects model problems as ``scene key 'path': message`` lines."""
-
-    def __init__(self):
-        self.lines = []
-
-    def add(self, path, message):
-        self.lines.append(f"scene key '{path}': {message}")
-
-    def call(self, path, fn, *args, **kwargs):
-        """Call ``fn``; a ValueError/KeyError becomes a problem of ``path``."""
-        try:
-            return fn(*args, **kwargs)
-        except (ValueError, KeyError, TypeError) as exc:
-            self.add(path, exc.args[0] if exc.args else str(exc))
-            return None
-
-    def raise_if_any(self, source):
-        if self.lines:
-            raise SceneError(self.lines, source=source)
-
-
-def _has_node(fe, node, path, errors):
-    nodes = fe.nodes
-    if node in nodes:
-        return True
-    ids = sorted(nodes)
-    shown = f'{ids}' if len(ids) <= 8 else f'{ids[:4]} ... {ids[-2:]}'
-    errors.add(path, f'node {node} is not defined (defined nodes: {shown or "none"})')
-    return False
-
-
-# --- structure ------------------------------------------------------------------------------
-
-def _build_sdof(st, fe):
-    """One node with a point mass, a grounded spring (and dashpot) in one DOF."""
-    mass = st['mass']
-    if st['stiffness'] is not None:
-        stiffness = st['stiffness']
-    else:
-        stiffness = mass * (2.0 * np.pi * st['natural_frequency']) ** 2
-    dof = st['dof'] or 'uy'
-    fe.add_node(SDOF_NODE, (0.0, 0.0, 0.0))
-    fe.add_point_mass(SDOF_NODE, mass)
-    fe.add_spring(SDOF_NODE, dof, stiffness)
-    zeta = st['damping_ratio'] or 0.0
-    if zeta > 0.0:
-        # a physical dashpot, so that 'direct' (physical coordinates) sees it too
-        fe.add_damper(SDOF_NODE, dof, 2.0 * zeta * np.sqrt(stiffness * mass))
-    fe.clamp(SDOF_NODE, [c for c in DOF_NAMES if c != dof])
-
-
-def _make_section(spec):
-    from ..fem import GeneralSection, HollowCircular, SolidCircular
-    shape = spec['shape']
-    if shape == 'solid_circular':
-        return SolidCircular(spec['diameter'])
-    if shape == 'hollow_circular':
-        return HollowCircular(spec['outer_diameter'], spec['inner_diameter'])
-    return GeneralSection(A=spec['A'], Iy=spec['Iy'], Iz=spec['Iz'], J=spec['J'], Ip=spec['Ip'],
-                          kappa_y=spec['kappa_y'], kappa_z=spec['kappa_z'])
-
-
-def _section_of(name, sections, path, errors):
-    if name in sections:
-        return sections[name]
-    errors.add(path, f"unknown section '{name}' (defined sections: "
-                     f"{', '.join(sections) or 'none'})")
-    return None
-
-
-def _beam_options(item):
-    return dict(shear=item['shear'], rotary_inertia=item['rotary_inertia'],
-                orientation=item['orientation'])
-
-
-def _xyz(point):
-    return '[' + ', '.join(f'{float(v):.6g}' for v in point) + ']'
-
-
-def _add_line(fe, line, path, material, sections, errors):
-    """Nodes and elements of one straight line (consecutive node ids)."""
-    section = _section_of(line['section'], sections, f'{path}.section', errors)
-    p0, p1 = np.asarray(line['from']), np.asarray(line['to'])
-    n = line['n_elements']
-    nodes = fe.nodes
-    first = line['first_node']
-    if first is None:
-        first = max(nodes) + 1 if nodes else 0
-    tol = 1e-9 * float(np.linalg.norm(p1 - p0))
-    for k in range(n + 1):
-        nid = first + k
-        xyz = p1 if k == n else p0 + (p1 - p0) * (k / n)
-        if nid in nodes:
-            if k == 0 and np.linalg.norm(np.asarray(nodes[nid]) - p0) <= tol:
-                continue   # joins an existing node
-            where = 'first_node' if k == 0 else 'n_elements'
-            errors.add(f'{path}.{where}', f'generated node {nid} already exists at '
-                       f'{_xyz(nodes[nid])} m (generated point {_xyz(xyz)} m); choose '
-                       'first_node so that only the node at from may already exist')
-            return
-        fe.add_node(nid, xyz)
-    if section is None or material is None:
-        return
-    for k in range(n):
-        errors.call(path, fe.add_beam, first + k, first + k + 1, material, section,
-                    **_beam_options(line))
-
-
-def _super_element_matrix(rows, dofs, force_unit, length_unit):
-    """Matrix in SI from entries in (force_unit, length_unit, rad)."""
-    f = UNITS['force'][force_unit]
-    length = UNITS['length'][length_unit]
-    rot = np.array([d['dof'] in ROTATIONS for d in dofs])
-    # row i is a force (or a moment: x length), column j per length (or per rad)
-    scale = f * np.where(rot, length, 1.0)[:, None] / np.where(rot, 1.0, length)[None, :]
-    return np.asarray(rows, dtype=float) * scale
-
-
-def _build_beam(st, fe, errors):
-    from ..fem import Material
-    material = None
-    if st['material'] is not None:
-        m = st['material']
-        material = errors.call('structure.material', Material.from_poisson, m['E'], m['nu'],
-                               m['rho'])
-    sections = {}
-    for name, spec in (st['sections'] or {}).items():
-        sections[name] = errors.call(f'structure.sections.{name}', _make_section, spec)
-    for i, node in enumerate(st['nodes'] or []):
-        errors.call(f'structure.nodes[{i}].id', fe.add_node, node['id'], node['xyz'])
-    for i, line in enumerate(st['lines'] or []):
-        _add_line(fe, line, f'structure.lines[{i}]', material, sections, errors)
-    for i, el in enumerate(st['elements'] or []):
-        path = f'structure.elements[{i}]'
-        section = _section_of(el['section'], sections, f'{path}.section', errors)
-        ok = all([_has_node(fe, n, f'{path}.nodes', errors) for n in el['nodes']])
-        if ok and section is not None and material is not None:
-            errors.call(path, fe.add_beam, *el['nodes'], material, section, **_beam_options(el))
-    _build_lumped(st, fe, errors)
-
-
-def _build_lumped(st, fe, errors):
-    """Point masses, springs, dampers, super elements, clamps and cross-couplings."""
-    def each(key):
-        for i, item in enumerate(st[key] or []):
-            path = f'structure.{key}[{i}]'
-            if 'node' not in item or _has_node(fe, item['node'], f'{path}.node', errors):
-                yield path, item
-
-    for path, pm in each('point_masses'):
-        errors.call(path, fe.add_point_mass, pm['node'], pm['mass'], pm['inertia'])
-    for path, sp in each('springs'):
-        value = sp['stiffness'] if sp['stiffness'] is not None else sp['rotational_stiffness']
-        errors.call(path, fe.add_spring, sp['node'], sp['dof'], value)
-    for path, dp in each('dampers'):
-        value = dp['damping'] if dp['damping'] is not None else dp['rotational_damping']
-        errors.call(path, fe.add_damper, dp['node'], dp['dof'], value)
-    for path, se in each('super_elements'):
-        if not all([_has_node(fe, d['node'], f'{path}.dofs[{k}].node', errors)
-                    for k, d in enumerate(se['dofs'])]):
-            continue
-        units = (se['force_unit'], se['length_unit'])
-        K = _super_element_matrix(se['stiffness'], se['dofs'], *units)
-        C = None if se['damping'] is None else _super_element_matrix(se['damping'],
-                                                                      se['dofs'], *units)
-        errors.call(path, fe.add_super_element, [(d['node'], d['dof']) for d in se['dofs']],
-                    K, C)
-    for path, cl in each('clamps'):
-        errors.call(path, fe.clamp, cl['node'], cl['dofs'])
-    for path, cc in each('cross_couplings'):
-        errors.call(path, fe.add_cross_coupling, cc['node'], cc['kcc'], tuple(cc['dofs']))
-
-
-def _build_fe(structure, source):
-    from ..fem import FEModel
-    fe = FEModel()
-    errors = _Errors()
-    if structure['kind'] == 'sdof':
-        errors.call('structure', _build_sdof, structure, fe)
-    else:
-        _build_beam(structure, fe, errors)
-    errors.raise_if_any(source)
-    system = errors.call('structure', fe.assemble)
-    errors.raise_if_any(source)
-    return fe, system
-
-
-#: Samples per rotor revolution at least when the unbalance force is sampled (first-order
-#: hold of a rotation at N samples per revolution: amplitude sinc^2(pi/N), 3.3 % low at 10)
-MIN_SAMPLES_PER_REVOLUTION = 10
-
-
-def excitation_frequencies(scene, first_hz=None):
-    """The frequencies of interest of a scene, for ``modal.cutoff: auto``.
-
-    Parameters
-    ----------
-    scene : dict
-        A validated scene (SI units).
-    first_hz : float, optional
-        First natural frequency of the structure (Hz), needed only for forcing given by
-        ``frequency_ratio``.
-
-    Returns
-    -------
-    list of (str, float)
-        ``(source, frequency in Hz)``: each sensor low-pass cutoff, each forcing frequency and
-        the highest rotor speed over 2 pi (rev/s); a ``commanded`` speed counts with its
-        initial speed, a ``paper_ramp`` without ``final_speed`` with the paper's 2400 rad/s.
-    """
-    out = [(f"sensor {s['name']} low-pass", s['lowpass']) for s in scene['sensors']
-           if s['lowpass'] is not None]
-    for i, f in enumerate(scene['forcing']):
-        hz = f['frequency'] if f['frequency'] is not None else f['frequency_ratio'] * first_hz
-        out.append((f'forcing[{i}]', hz))
-    rotor = scene['rotor']
-    if rotor is not None:
-        sp = rotor['speed']
-        kind = sp['kind']
-        if kind == 'constant':
-            omega = sp['speed']
-        elif kind == 'paper_ramp':
-            omega = sp['final_speed'] if sp['final_speed'] is not None else 2400.0
-        elif kind == 'piecewise':
-            omega = max(sp['speeds'])
-        else:
-            omega = sp['speed']
-        label = 'initial commanded rotor speed' if kind == 'commanded' else 'max rotor speed'
-        if omega > 0:
-            out.append((label, omega / (2.0 * np.pi)))
-    return out
-
-
-def auto_cutoff(system, scene, method='auto'):
-    """The ``f_max`` of ``modal.cutoff: auto`` and why.
-
-    ``f_max = cutoff_factor * max(f)`` over :func:`excitation_frequencies`: modes above the
-    measured band and the excitation respond quasi-statically and are dropped; the factor
-    keeps the modes just above the band, whose static tail the sensors still see.
-
-    Parameters
-    ----------
-    system : AssembledSystem
-        The structure (for the first natural frequency, if a forcing is given as a ratio).
-    scene : dict
-        A validated scene (SI units).
-    method : str
-        Eigen solver for the first mode (see :func:`~impact_damper_sim.modal.modal_reduction`).
-
-    Returns
-    -------
-    f_max : float
-        Cutoff (Hz).
-    reason : str
-        Human readable: the governing source, its frequency and the factor.
-
-    Raises
-    ------
-    ValueError
-        No sensor low-pass, forcing or rotor to derive a cutoff from.
-    """
-    from ..modal import modal_reduction
-    first = None
-    if any(f['frequency'] is None for f in scene['forcing']):
-        first = float(modal_reduction(system, n_modes=1, method=method).frequencies_hz[0])
-    sources = excitation_frequencies(scene, first)
-    if not sources:
-        raise ValueError('cutoff: auto needs a sensor low-pass, a forcing frequency or a rotor '
-                         'speed to derive f_max from; give modal.f_max or modal.n_modes')
-    label, top = max(sources, key=lambda item: item[1])
-    factor = scene['modal']['cutoff_factor']
-    return factor * top, (f'cutoff auto: f_max = {factor:g} x {top:.6g} Hz ({label}, the '
-                          f'highest of {len(sources)} frequencies of interest) = '
-                          f'{factor * top:.6g} Hz')
-
-
-def _build_basis(system, modal, source, scene=None):
-    from dataclasses import replace
-
-    from ..modal import modal_reduction
-    errors = _Errors()
-    f_max, auto_reason = modal['f_max'], None
-    if modal.get('cutoff') == 'auto':
-        try:
-            f_max, auto_reason = auto_cutoff(system, scene, modal['solver'])
-        except ValueError as exc:
-            errors.add('modal.cutoff', str(exc))
-        errors.raise_if_any(source)
-    kwargs = dict(n_modes=modal['n_modes'], f_max=f_max,
-                  zeta=modal['damping']['default'], method=modal['solver'])
-    try:
-        basis = modal_reduction(system, **kwargs)
-    except ValueError as exc:
-        message = str(exc)
-        # a selection problem names its key; anything else is the structure's (a mechanism)
-        key = next((f'modal.{k}' for k in ('n_modes', 'f_max') if message.startswith(k)),
-                   'structure')
-        if key == 'modal.f_max' and auto_reason:
-            key, message = 'modal.cutoff', f'{message} ({auto_reason})'
-        errors.add(key, message)
-    errors.raise_if_any(source)
-    if auto_reason:
-        basis = replace(basis, selection_reason=f'{basis.selection_reason}; {auto_reason}')
-    per_mode = modal['damping']['modes']
-    for mode in sorted(per_mode):
-        if mode > basis.n_modes:
-            errors.add(f'modal.damping.modes.{mode}', f'mode {mode} is not retained '
-                       f'({basis.selection_reason})')
-    errors.raise_if_any(source)
-    if per_mode:
-        # the scene numbers modes from 1, modal_reduction from 0
-        overrides = {mode - 1: ratio for mode, ratio in per_mode.items()}
-        basis = modal_reduction(system, zeta_overrides=overrides, **kwargs)
-        if auto_reason:
-            basis = replace(basis, selection_reason=f'{basis.selection_reason}; {auto_reason}')
-    return basis
 
 
 # --- the scene model ------------------------------------------------------------------------
@@ -697,19 +269,19 @@ class SceneModel:
         self.speed_profile, self.unbalance = self._make_rotor()
         self.forcing = self._make_forcing()
 
-    def _gyroscopic_coupling(self):
-        """Modal gyroscopic coupling ``Omega Phi^T G Phi`` (1/s); zero without ``rotor.gyroscopic``.
+    def _gyroscopic_disks(self):
+        """``(ry, rz, Ip)`` of each ``rotor.gyroscopic`` node: active DOF indices of its tilts
+        and its point-mass polar inertia (kg m^2); empty without ``rotor.gyroscopic``.
 
-        A disk of polar inertia ``Ip`` spinning at ``Omega`` about global X adds
-        ``Ip Omega theta_z'`` to the ``ry`` equation and ``-Ip Omega theta_y'`` to the ``rz``
-        one (the small-tilt change of its angular momentum): a skew-symmetric matrix that does
-        no work and splits each whirl pair into forward and backward modes.
+        Raises
+        ------
+        SceneError
+            A speed that is not constant, a node without polar inertia or a clamped tilt.
         """
-        n = self.basis.n_modes
         rotor = self.scene['rotor']
         gyro = rotor['gyroscopic'] if rotor else None
         if gyro is None:
-            return np.zeros((n, n))
+            return ()
         from .excitation import ConstantSpeed
         if not isinstance(self.speed_profile, ConstantSpeed):
             raise SceneError("scene key 'rotor.gyroscopic': needs rotor.speed.kind constant "
@@ -719,18 +291,51 @@ class SceneModel:
         for pm in self.scene['structure']['point_masses'] or ():
             if pm['inertia'] is not None:
                 polar[pm['node']] = polar.get(pm['node'], 0.0) + pm['inertia'][0]
-        coupling = np.zeros((n, n))
+        disks = []
         for i, node in enumerate(gyro['nodes']):
             ip = polar.get(node, 0.0)
             if ip <= 0.0:
                 raise SceneError(f"scene key 'rotor.gyroscopic.nodes[{i}]': node {node} has no "
                                  'point-mass polar inertia (inertia about X) > 0', self.source)
             try:
-                rows = self.basis.rows([self.system.index(node, 'ry'),
-                                        self.system.index(node, 'rz')])
+                disks.append((self.system.index(node, 'ry'), self.system.index(node, 'rz'),
+                              ip))
             except KeyError as exc:
                 raise SceneError(f"scene key 'rotor.gyroscopic.nodes[{i}]': {exc.args[0]}",
                                  self.source) from None
+        return tuple(disks)
+
+    def gyroscopic_terms(self):
+        """The physical gyroscopic matrix: ``(ry, rz, Ip Omega)`` per ``rotor.gyroscopic`` node.
+
+        Returns
+        -------
+        tuple of (int, int, float)
+            Active DOF indices of the disk's tilts (dimensionless) and its polar inertia
+            times the constant spin speed (kg m^2/s): ``G[ry, rz] = +Ip Omega``,
+            ``G[rz, ry] = -Ip Omega``. Empty without ``rotor.gyroscopic``.
+        """
+        disks = self._gyroscopic_disks()
+        if not disks:
+            return ()
+        omega = float(self.speed_profile.speed(0.0))
+        return tuple((ry, rz, ip * omega) for ry, rz, ip in disks)
+
+    def _gyroscopic_coupling(self):
+        """Modal gyroscopic coupling ``Omega Phi^T G Phi`` (1/s); zero without ``rotor.gyroscopic``.
+
+        A disk of polar inertia ``Ip`` spinning at ``Omega`` about global X adds
+        ``Ip Omega theta_z'`` to the ``ry`` equation and ``-Ip Omega theta_y'`` to the ``rz``
+        one (the small-tilt change of its angular momentum): a skew-symmetric matrix that does
+        no work and splits each whirl pair into forward and backward modes.
+        """
+        n = self.basis.n_modes
+        disks = self._gyroscopic_disks()
+        if not disks:
+            return np.zeros((n, n))
+        coupling = np.zeros((n, n))
+        for ry, rz, ip in disks:
+            rows = self.basis.rows([ry, rz])
             # G[ry, rz] = +Ip, G[rz, ry] = -Ip
             coupling += ip * (np.outer(rows[0], rows[1]) - np.outer(rows[1], rows[0]))
         return float(self.speed_profile.speed(0.0)) * coupling

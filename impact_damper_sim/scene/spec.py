@@ -38,9 +38,8 @@ from ..dampers.law import IMPACT_LAWS
 from ..integrate.events import STICK_RULES
 from ..integrate.simulation import METHODS
 from .units import UNITS
-from .schema import (
-    Boolean, Choice, Integer, ListOf, MapOf, Optional, Quantity, Section, String, Vector,
-)
+from .containers import ListOf, MapOf, Optional, Section, Vector
+from .schema import Boolean, Choice, Integer, Quantity, String
 
 __all__ = ['SCHEMA', 'DOF_NAMES', 'TRANSLATIONS', 'ROTATIONS', 'SDOF_KEYS', 'BEAM_KEYS',
            'SECTION_SHAPES', 'SDOF_NODE', 'SPEED_KINDS', 'STUCK_MODELS']
@@ -592,4 +591,4 @@ SCHEMA = Section({
                                   'forces)'),
     'simulation': _SIMULATION,
 }, checks=[_check_scene])
-"""The scene schema (:class:`~.schema.Section`); validate with :func:`~.schema.validate`."""
+"""The scene schema (:class:`~.containers.Section`); validate with :func:`~.schema.validate`."""

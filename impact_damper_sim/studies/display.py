@@ -19,7 +19,7 @@ def key_dimension(key):
     key : str
         Dotted scene key, list indices as ``.0`` or ``[0]``.
     """
-    from ..scene.schema import describe
+    from ..scene.keytable import describe
     from ..scene.spec import SCHEMA
     from ..scene.units import SI_UNIT
     pattern = _INDEX_RE.sub('[]', key)

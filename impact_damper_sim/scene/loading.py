@@ -1,0 +1,418 @@
+"""From a scene file or YAML text to a raw scene, and in one call to a validated one.
+
+Reading is strict and bounded: :func:`load_yaml` refuses what is not a regular UTF-8 file under
+:data:`MAX_SCENE_BYTES`, duplicate keys, tagged values it cannot convert and documents over the
+depth and alias budgets, each with its line. :func:`apply_overrides` edits the raw mapping with
+``key=value`` strings read by the same YAML loader, and :func:`load_scene` chains both with
+:func:`~.schema.validate`. This is the text-and-file side of the scene schema, separate from the
+fields in :mod:`.schema` and :mod:`.containers`, which see only Python values.
+"""
+from __future__ import annotations
+
+import copy
+import os
+import re
+import reprlib
+import stat
+import unicodedata
+
+import yaml
+
+from .schema import SceneError, _describe, _got, _join, validate
+
+__all__ = ['MAX_SCENE_BYTES', 'MAX_SCENE_DEPTH', 'MAX_SCENE_VALUES', 'load_yaml', 'file_kind',
+           'apply_overrides', 'load_scene']
+
+
+# --- YAML loading ----------------------------------------------------------------------------
+
+#: What a typed tag's value must look like, for the message when its constructor cannot
+#: convert it (``dof: !!int uy``)
+_TAG_EXPECTS = {'int': 'an integer', 'float': 'a number', 'bool': 'true or false',
+                'timestamp': 'a date or time, e.g. 2024-01-31 or 2024-01-31T12:00:00Z',
+                'null': 'null or ~', 'binary': 'base64 text'}
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that rejects duplicate keys, reads ``1e-3`` as a float (YAML 1.2) and
+    reports a tagged value it cannot convert as a YAML error, with its line and column."""
+
+    def construct_object(self, node, deep=False):
+        try:
+            return super().construct_object(node, deep=deep)
+        except yaml.YAMLError:
+            raise
+        except (ValueError, KeyError, AttributeError, TypeError, OverflowError):
+            # PyYAML's own int/float/bool/timestamp constructors raise these on a value
+            # they cannot read ('!!int uy'): no mark, a traceback for the user
+            tag = node.tag
+            short = tag.rsplit(':', 1)[-1] if tag.startswith('tag:yaml.org,2002:') else None
+            value = node.value if isinstance(node, yaml.ScalarNode) else f'a {node.id}'
+            expects = _TAG_EXPECTS.get(short, 'a value of that type')
+            raise yaml.constructor.ConstructorError(
+                None, None, f'cannot read {reprlib.repr(value)} as '
+                f'{"!!" + short if short else tag} ({expects})', node.start_mark) from None
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            seen = {}
+            for key_node, _ in node.value:
+                if key_node.tag == 'tag:yaml.org,2002:merge':
+                    continue   # '<<' merges may legitimately be overridden
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    first = seen.setdefault(key, key_node)
+                except TypeError:
+                    continue   # unhashable key: SafeLoader reports it below
+                if first is not key_node:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f'found duplicate key {key!r} (first defined on line '
+                        f'{first.start_mark.line + 1})', key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
+
+
+# YAML 1.1 (PyYAML) reads '1e-3' as a string and only '1.0e-3' as a float.
+_StrictLoader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$'),
+    list('-+0123456789'))
+
+
+#: Budgets of a scene document, checked before anything is built from it: the file's size
+#: (bytes), the nesting depth, and the number of values once every alias is expanded (an
+#: alias bomb of 457 bytes expands to billions). The shipped scenes are under 20 KB, depth 6,
+#: 2,000 values.
+MAX_SCENE_BYTES = 1 << 20
+MAX_SCENE_DEPTH = 32
+MAX_SCENE_VALUES = 1_000_000
+
+
+def _check_budget(root, source):
+    """Refuse a composed YAML node graph deeper than :data:`MAX_SCENE_DEPTH`, with more than
+    :data:`MAX_SCENE_VALUES` values when its aliases are expanded, or with a recursive alias.
+
+    Each node is visited once (sizes and depths memoised by node), so a bomb costs its
+    size in text, not its expansion.
+    """
+    sizes, depths, active = {}, {}, set()
+    stack = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        children = []
+        if isinstance(node, yaml.MappingNode):
+            children = [n for pair in node.value for n in pair]
+        elif isinstance(node, yaml.SequenceNode):
+            children = list(node.value)
+        if done:
+            active.discard(key)
+            sizes[key] = 1 + sum(sizes[id(c)] for c in children)
+            depths[key] = 1 + max((depths[id(c)] for c in children), default=0)
+            mark = node.start_mark
+            if depths[key] > MAX_SCENE_DEPTH:
+                raise SceneError(f'{source}:{mark.line + 1}: values nested deeper than '
+                                 f'{MAX_SCENE_DEPTH} levels; a scene is a few levels deep')
+            if sizes[key] > MAX_SCENE_VALUES:
+                raise SceneError(f'{source}:{mark.line + 1}: more than {MAX_SCENE_VALUES:,} '
+                                 'values once its aliases are expanded (an alias bomb?)')
+            continue
+        if key in sizes:
+            continue
+        if key in active:
+            raise SceneError(f'{source}:{node.start_mark.line + 1}: a recursive alias (a '
+                             'value that contains itself)')
+        active.add(key)
+        stack.append((node, True))
+        stack.extend((c, False) for c in children if id(c) not in sizes)
+
+
+def _is_path(path_or_text):
+    # A one-line string naming a .yaml file is a path; anything else is YAML text.
+    return isinstance(path_or_text, os.PathLike) or (
+        isinstance(path_or_text, str) and '\n' not in path_or_text
+        and path_or_text.strip().endswith(('.yaml', '.yml')))
+
+
+def file_kind(path):
+    """What a path (or open file descriptor) is when it is not a regular file, else None.
+
+    Parameters
+    ----------
+    path : str, os.PathLike or int
+        A path (symbolic links followed) or a file descriptor.
+
+    Returns
+    -------
+    str or None
+        ``'a directory'``, ``'a FIFO'``, ``'a character device'``, ``'a block
+        device'``, ``'a socket'`` or ``'not a regular file'``; None for a regular file.
+
+    Raises
+    ------
+    OSError
+        The path does not exist or cannot be examined.
+    """
+    mode = os.fstat(path).st_mode if isinstance(path, int) else os.stat(path).st_mode
+    if stat.S_ISREG(mode):
+        return None
+    for test, kind in ((stat.S_ISDIR, 'a directory'), (stat.S_ISFIFO, 'a FIFO'),
+                       (stat.S_ISCHR, 'a character device'), (stat.S_ISBLK, 'a block device'),
+                       (stat.S_ISSOCK, 'a socket')):
+        if test(mode):
+            return kind
+    return 'not a regular file'
+
+
+def _reader_problem(text, exc):
+    """One line for PyYAML's ReaderError on ``text``: the character (as U+XXXX: a raw
+    control character would garble the terminal) and where it is."""
+    char = exc.character
+    code = char if isinstance(char, int) else ord(char) if isinstance(char, str) else char[0]
+    pos = exc.position
+    if not (0 <= pos < len(text) and text[pos] == chr(code)):
+        pos = max(text.find(chr(code)), 0)
+    # YAML allows no other character before this one, so splitlines() breaks lines as YAML
+    lines = text[:pos].splitlines(keepends=True)
+    if not lines or lines[-1][-1] in '\r\n\x85\u2028\u2029':
+        line, column = len(lines) + 1, 1
+    else:
+        line, column = len(lines), len(lines[-1]) + 1
+    if unicodedata.category(chr(code)) == 'Cc':
+        what, why = 'control character', 'YAML allows none but tab and line breaks'
+    else:
+        what, why = 'character', 'YAML does not allow it'
+    return f'{what} U+{code:04X} at line {line}, column {column} ({why})'
+
+
+def load_yaml(path_or_text, *, source=None):
+    """Read a scene file or YAML text into a raw mapping (no validation).
+
+    Parameters
+    ----------
+    path_or_text : str or os.PathLike
+        A path (``pathlib.Path``, or a one-line string ending in ``.yaml``/``.yml``) or the
+        YAML text itself.
+    source : str, optional
+        Name used in messages (default: the path, or ``'<text>'``).
+
+    Returns
+    -------
+    dict
+        The top-level mapping.
+
+    Raises
+    ------
+    SceneError
+        For a missing file, one that is not a regular file, over :data:`MAX_SCENE_BYTES` or
+        not UTF-8 text, a YAML syntax error (with line and column), a duplicate key, values
+        nested or aliased over the budgets (:func:`_check_budget`), or a top level that is
+        not a mapping.
+    """
+    if _is_path(path_or_text):
+        path = os.fspath(path_or_text)
+        source = source or path
+        try:
+            kind = file_kind(path)   # before opening: opening a FIFO blocks
+            if kind:
+                raise SceneError(f'{source}: not a scene file ({kind}, not a regular file)')
+            with open(path, 'rb') as stream:
+                kind = file_kind(stream.fileno())   # replaced in between
+                if kind:
+                    raise SceneError(f'{source}: not a scene file ({kind}, not a regular file)')
+                raw = stream.read(MAX_SCENE_BYTES + 1)   # never more, whatever the file
+        except OSError as exc:
+            raise SceneError(f'{source}: cannot read scene file: {exc.strerror}') from None
+        if len(raw) > MAX_SCENE_BYTES:
+            raise SceneError(f'{source}: not a scene file (over {MAX_SCENE_BYTES} bytes; '
+                             'scenes are a few kilobytes)')
+        try:
+            text = raw.decode('utf-8')
+        except UnicodeDecodeError:
+            raise SceneError(f'{source}: not a scene file (not UTF-8 text)') from None
+    else:
+        text, source = path_or_text, source or '<text>'
+        if len(text) > MAX_SCENE_BYTES:
+            raise SceneError(f'{source}: over {MAX_SCENE_BYTES} characters of scene text')
+    try:
+        loader = _StrictLoader(text)   # checks every character: may raise ReaderError
+    except yaml.reader.ReaderError as exc:
+        raise SceneError(f'{source}: YAML error: {_reader_problem(text, exc)}') from None
+    try:
+        try:
+            node = loader.get_single_node()
+        except RecursionError:   # PyYAML composes recursively: a few frames per level
+            raise SceneError(f'{source}: values nested deeper than {MAX_SCENE_DEPTH} levels; '
+                             'a scene is a few levels deep') from None
+        if node is not None:
+            _check_budget(node, source)
+        data = loader.construct_document(node) if node is not None else None
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f':{mark.line + 1}:{mark.column + 1}' if mark else ''
+        what = ': '.join(p for p in (exc.context, exc.problem) if p)
+        if exc.context_mark and mark and exc.context_mark.line != mark.line:
+            what += f' (construct started on line {exc.context_mark.line + 1})'
+        raise SceneError(f'{source}{where}: YAML error: {what}') from None
+    except yaml.YAMLError as exc:
+        raise SceneError(f'{source}: YAML error: {exc}') from None
+    finally:
+        loader.dispose()
+    if not isinstance(data, dict):
+        got = 'an empty document' if data is None else f'{type(data).__name__} {_describe(data)}'
+        raise SceneError(f'{source}: a scene must be a mapping at top level; got {got}')
+    return data
+
+
+# --- overrides -------------------------------------------------------------------------------
+
+_NAME_RE = re.compile(r'\s*([^.\[\]\s][^.\[\]]*?)\s*')
+_INDEX_RE = re.compile(r'\[\s*(\d+)\s*\]')
+
+
+def _override_tokens(path):
+    """Split ``'a.b[2].c'`` / ``'a.b.2.c'`` into ``[('name', 'a'), ..., ('index', 2), ...]``."""
+    tokens, pos = [], 0
+    while pos < len(path):
+        if path.startswith('[', pos):
+            match = _INDEX_RE.match(path, pos)
+            kind = 'index'
+        else:
+            if tokens:
+                if not path.startswith('.', pos):
+                    return None
+                pos += 1
+            match = _NAME_RE.fullmatch(path, pos, _end_of_name(path, pos))
+            kind = 'name'
+        if match is None:
+            return None
+        text = match.group(1)
+        # 'impactors.0.mass': a bare number is a list index (or an integer map key).
+        tokens.append(('index', int(text)) if kind == 'index' else
+                      ('number', int(text)) if text.isdigit() else ('name', text))
+        pos = match.end()
+    return tokens or None
+
+
+def _end_of_name(path, pos):
+    stops = [i for i in (path.find('.', pos), path.find('[', pos)) if i >= 0]
+    return min(stops) if stops else len(path)
+
+
+def _parse_yaml_value(text):
+    return yaml.load(text, Loader=_StrictLoader) if text.strip() else None
+
+
+def apply_overrides(raw, overrides):
+    """Return a copy of a raw scene with ``key=value`` overrides applied.
+
+    Parameters
+    ----------
+    raw : dict
+        Raw scene (not modified).
+    overrides : sequence of str
+        Each ``'dotted.path=value'``; list indices as ``[0]`` or ``.0``
+        (``'impactors[0].mass=2 lb'``, ``'impactors.0.mass=2 lb'``). The value is read as a
+        YAML scalar or flow collection (``3``, ``2.5 mil``, ``[1, 2]``, ``{value: 2, unit: lb}``);
+        an empty value is null. Missing mapping keys along the path are created, so a key the
+        schema does not know is reported by :func:`~.schema.validate`, with its name.
+
+    Returns
+    -------
+    dict
+        The new raw scene (validate it next).
+
+    Raises
+    ------
+    SceneError
+        For malformed overrides, an index past a list's end, or a path through a scalar.
+        All bad overrides are reported together.
+    """
+    if isinstance(overrides, str):
+        raise TypeError('overrides must be a sequence of "key=value" strings, not one string')
+    if not isinstance(raw, dict):
+        raise SceneError(f'scene: expected a mapping at top level, {_got(raw)}')
+    data = copy.deepcopy(raw)
+    problems = []
+    for text in overrides:
+        try:
+            _apply_one(data, text)
+        except SceneError as exc:
+            problems.extend(exc.errors)
+    if problems:
+        raise SceneError(problems)
+    return data
+
+
+def _apply_one(data, text):
+    if not isinstance(text, str) or '=' not in text:
+        raise SceneError(f'override {text!r}: expected "key=value"')
+    path, value_text = text.split('=', 1)
+    tokens = _override_tokens(path.strip())
+    if tokens is None or tokens[0][0] == 'index':
+        raise SceneError(f'override {text!r}: cannot read key path {path.strip()!r}; write '
+                         "e.g. 'impactors[0].mass' or 'impactors.0.mass'")
+    try:
+        value = _parse_yaml_value(value_text)
+    except yaml.reader.ReaderError as exc:
+        raise SceneError(f'override {text!r}: value is not valid YAML: '
+                         f'{_reader_problem(value_text, exc)}') from None
+    except yaml.YAMLError as exc:
+        raise SceneError(f'override {text!r}: value is not valid YAML: '
+                         f'{getattr(exc, "problem", None) or exc}') from None
+    node, here = data, ''
+    for i, (kind, key) in enumerate(tokens):
+        last = i == len(tokens) - 1
+        if isinstance(node, list):
+            if kind == 'name':
+                raise SceneError(f"override {text!r}: '{here}' is a list; index it with a "
+                                 f"number, e.g. '{here}[0]'")
+            if key >= len(node):
+                raise SceneError(f"override {text!r}: index {key} is past the end of list "
+                                 f"'{here}' (length {len(node)})")
+            here = f'{here}[{key}]'
+        elif isinstance(node, dict):
+            if kind == 'index':
+                raise SceneError(f"override {text!r}: '{here}' is a mapping, not a list; "
+                                 f'cannot index it with [{key}]')
+            if kind == 'number' and str(key) in node:
+                key = str(key)   # an existing string key '3' wins over the integer 3
+            here = _join(here, key)
+            if not last and node.get(key) is None:
+                if tokens[i + 1][0] == 'index':
+                    raise SceneError(f"override {text!r}: index {tokens[i + 1][1]} is past the "
+                                     f"end of list '{here}' (the key is absent: length 0)")
+                node[key] = {}   # absent section: create it; validate() judges the key
+        else:
+            raise SceneError(f"override {text!r}: '{here}' is {type(node).__name__} "
+                             f'{_describe(node)}, not a mapping or list')
+        if last:
+            node[key] = value
+        else:
+            node = node[key]
+
+
+# --- load, override, validate ----------------------------------------------------------------
+
+def load_scene(schema, path_or_text, overrides=(), *, source=None):
+    """Load, override and validate a scene in one call.
+
+    Parameters
+    ----------
+    schema : Field
+        Top-level schema.
+    path_or_text : str or os.PathLike
+        See :func:`load_yaml`.
+    overrides : sequence of str, optional
+        See :func:`apply_overrides`.
+    source : str, optional
+        Name used in messages (default: the path, if one was given).
+
+    Returns
+    -------
+    dict
+        Validated scene in SI units.
+    """
+    raw = load_yaml(path_or_text, source=source)
+    if source is None and _is_path(path_or_text):
+        source = os.fspath(path_or_text)
+    return validate(schema, apply_overrides(raw, overrides), source=source)
