@@ -2,12 +2,13 @@
 
 Four groups of tests (the kernels are :mod:`impact_damper_sim.integrate.kernels`):
 
-1. *Twins*: every kernel of :mod:`.poly` and :mod:`.exact`, and the :mod:`.flow` kernels not
-   covered by ``test_kernels.py``, compiled and as plain Python (``name_py``) on the same seeded
-   random inputs. Both run the same IEEE operations in the same order, but Numba's complex
-   ``exp`` and ``sqrt`` are not NumPy's (they may differ by an ulp or two), so results agree
-   to a few ulps times the condition of the computation: :func:`agree` takes the scale (sum
-   of the magnitudes of the terms summed) and allows ``ULPS`` ulps of it.
+1. *Twins*: every kernel of :mod:`.poly`, :mod:`.search`, :mod:`.contact` and :mod:`.exact`,
+   and the :mod:`.flow` kernels not covered by ``test_kernels.py``, compiled and as plain
+   Python (``name_py``) on the same seeded random inputs. Both run the same IEEE operations
+   in the same order, but Numba's complex ``exp`` and ``sqrt`` are not NumPy's (they may
+   differ by an ulp or two), so results agree to a few ulps times the condition of the
+   computation: :func:`agree` takes the scale (sum of the magnitudes of the terms summed) and
+   allows ``ULPS`` ulps of it.
 2. *Properties* that can fail: enclosures (Bernstein ranges, derivative and excursion bounds,
    the Taylor remainder of an event function) checked against dense samples of the true
    function; certified roots against dense sampling; Newton against known roots.
@@ -16,6 +17,8 @@ Four groups of tests (the kernels are :mod:`impact_damper_sim.integrate.kernels`
    function touching zero; and the near misses next to each (no event allowed).
 4. *Table mode vs fallback*: the in-kernel configuration table against the Python switch.
 """
+import sys
+
 import numpy as np
 import pytest
 
@@ -24,9 +27,12 @@ from impact_damper_sim.integrate import exact as exact_mod
 from impact_damper_sim.integrate.events import EVENT_KINDS
 from impact_damper_sim.integrate.exact import ExactPropagator, MassUpdate
 from impact_damper_sim.integrate.forcing import Forcing, Harmonic
+from impact_damper_sim.integrate.kernels import codes
+from impact_damper_sim.integrate.kernels import contact as KC
 from impact_damper_sim.integrate.kernels import exact as KE
 from impact_damper_sim.integrate.kernels import flow as KF
 from impact_damper_sim.integrate.kernels import poly as KP
+from impact_damper_sim.integrate.kernels import search as KS
 from impact_damper_sim.integrate.kernels.scan import (FN_PLANAR, FN_RELEASE, FN_WALL_NEG,
                                                        FN_WALL_POS, fn_values)
 
@@ -197,7 +203,7 @@ def test_sort_candidates_orders_by_key_and_carries_each_row(rng):
         rows = [key, np.arange(16), rng.integers(0, 4, 16), rng.uniform(0, 0.1, 16),
                 rng.normal(size=16), rng.integers(0, 2, 16)]
         want = np.argsort(key[:n_cand], kind='stable')
-        for fn in (KE.sort_candidates, KE.sort_candidates_py):
+        for fn in (KS.sort_candidates, KS.sort_candidates_py):
             got = [r.copy() for r in rows]
             fn(n_cand, *got)
             for r, g in zip(rows, got):
@@ -564,7 +570,7 @@ def test_site_and_excursion_bounds_bound_the_sampled_motion(rng):
     P = 6
     for _ in range(6):
         sy = System(rng, nh=2)
-        S = KE.SEGMENT_REACH / sy.lam_max
+        S = KS.SEGMENT_REACH / sy.lam_max
         X0, Eb, reach, exc, _ = site_setup(sy, P, S, stuck=True)
         peak = np.zeros(P + 4)
         for s in np.linspace(0.0, S, 801):
@@ -597,7 +603,7 @@ def test_state_derivatives_match_the_decomposition(rng):
 def taylor_case(rng, fid, P=6):
     """A random system with an event function of kind ``fid`` positive at the start."""
     sy = System(rng, nh=2)
-    S = KE.SEGMENT_REACH / sy.lam_max
+    S = KS.SEGMENT_REACH / sy.lam_max
     X, Eb, _, _, _ = site_setup(sy, P, S, stuck=fid == FN_RELEASE)
     move = Eb[1] * S + 1e-12
     z = np.zeros(2)
@@ -657,7 +663,7 @@ def taylor_reference(sy, fid, z, v, limit, normal, P, shift, magnitude=False):
     return c
 
 
-@pytest.mark.parametrize('P', [KE.CUBIC_MODEL, 6])
+@pytest.mark.parametrize('P', [KS.CUBIC_MODEL, 6])
 @pytest.mark.parametrize('fid', [FN_WALL_POS, FN_WALL_NEG, FN_PLANAR, FN_RELEASE])
 def test_fn_taylor_coefficients_and_remainder(rng, fid, P):
     # fn_taylor against its twin (ULPS of the coefficients' magnitudes), against coefficients
@@ -669,10 +675,10 @@ def test_fn_taylor_coefficients_and_remainder(rng, fid, P):
     worst = 0.0
     for _ in range(6):
         sy, S, X, Eb, z, v, limit, normal = taylor_case(rng, fid, P)
-        shift = KE.grace_shift(fid, X, limit) * rng.integers(0, 2)
+        shift = KS.grace_shift(fid, X, limit) * rng.integers(0, 2)
         a, a_py = np.zeros(P + 1), np.zeros(P + 1)
-        G = KE.fn_taylor(fid, X, z, v, limit, normal, P, Eb, S, shift, np.zeros((2, P + 2)), a)
-        G_py = KE.fn_taylor_py(fid, X, z, v, limit, normal, P, Eb, S, shift,
+        G = KS.fn_taylor(fid, X, z, v, limit, normal, P, Eb, S, shift, np.zeros((2, P + 2)), a)
+        G_py = KS.fn_taylor_py(fid, X, z, v, limit, normal, P, Eb, S, shift,
                                np.zeros((2, P + 2)), a_py)
         mag = np.abs(taylor_reference(sy, fid, z, v, limit, normal, P, shift, True)) + \
             np.abs(taylor_reference(sy, fid, z, v, limit, normal, P, 0.0, True))
@@ -696,7 +702,7 @@ def test_fn_taylor_coefficients_and_remainder(rng, fid, P):
     assert worst > 1e-2, worst
 
 
-def near_step(sy, s, d, fn=KE.near_eval):
+def near_step(sy, s, d, fn=KS.near_eval):
     yh_s = sy.eval(s, 0)[0]
     _, y_t, uder, yd = sy.scratch(2)
     fn(yh_s, sy.lam, sy.W, sy.w0, sy.ws, s, d, sy.omegas, sy.pp, sy.pm, sy.amps, sy.u0,
@@ -714,13 +720,13 @@ def test_near_eval_matches_point_eval_to_its_truncation_error(rng):
         sy = System(rng, nh=2)
         s = 1e-3
         sc = sy.scale(2)
-        d = KE.TAYLOR_STEP_REACH / sy.lam_max
+        d = KS.TAYLOR_STEP_REACH / sy.lam_max
         yh_n, y_n, yd_n = near_step(sy, s, d)
         yh_p, y_p, _, yd_p = sy.eval(s + d, 2)
         agree(yh_n, yh_p, sc[0])
         agree(y_n, y_p, sc[0])
         agree(yd_n, yd_p, sc)
-        yh_t, y_t, yd_t = near_step(sy, s, d, KE.near_eval_py)
+        yh_t, y_t, yd_t = near_step(sy, s, d, KS.near_eval_py)
         agree(yh_n, yh_t, sc[0], 8)
         agree(y_n, y_t, sc[0], 8)
         agree(yd_n, yd_t, sc, 8)
@@ -764,21 +770,21 @@ def test_refine_root_finds_the_flow_root_and_twin(rng):
     done = 0
     for _ in range(20):
         sy = System(rng)
-        S = KE.SEGMENT_REACH / sy.lam_max
+        S = KS.SEGMENT_REACH / sy.lam_max
         case = wall_crossing(sy, rng, S)
         if case is None:
             continue
         z, v, limit, a, b = case
         res = []
-        for fn in (KE.refine_root, KE.refine_root_py):
+        for fn in (KS.refine_root, KS.refine_root_py):
             yh_t, y_t, uder, yd = sy.scratch(4)
             X = np.zeros((5, 2))
-            counters = np.zeros(KE.N_COUNTERS, dtype=np.int64)
+            counters = np.zeros(codes.N_COUNTERS, dtype=np.int64)
             t = fn(FN_WALL_POS, a, b, 0.5 * (a + b), 0.0, sy.t0, sy.yh, sy.lam, sy.lam_max,
                    sy.W, sy.w0, sy.ws, sy.pp, sy.pm, sy.omegas, sy.amps, sy.u0, sy.us,
                    sy.rows[:1], 1, z, v, limit, np.zeros(2), yh_t, y_t, uder, yd, X,
                    counters)
-            res.append((t, yh_t.copy(), counters[KE.CNT_EVALS]))
+            res.append((t, yh_t.copy(), counters[codes.CNT_EVALS]))
         (t, yh_t, evals), (t_py, _, _) = res
         tol_t = 8 * EPS * (sy.t0 + t)
         assert abs(t - t_py) <= tol_t
@@ -803,9 +809,9 @@ def test_small_exact_kernels_twins(rng):
         T = rng.uniform(1e-4, 1e-2)
         Eb = np.abs(rng.normal(size=8)) * 10.0 ** np.arange(8)
         for fid in (FN_WALL_POS, FN_WALL_NEG, FN_PLANAR, FN_RELEASE):
-            assert KE.grace_shift(fid, X, limit) == KE.grace_shift_py(fid, X, limit)
-            b = KE.third_bound(fid, X, z, v, limit, normal, Eb, T)
-            agree(b, KE.third_bound_py(fid, X, z, v, limit, normal, Eb, T), b, 8)
+            assert KS.grace_shift(fid, X, limit) == KS.grace_shift_py(fid, X, limit)
+            b = KS.third_bound(fid, X, z, v, limit, normal, Eb, T)
+            agree(b, KS.third_bound_py(fid, X, z, v, limit, normal, Eb, T), b, 8)
             # fn_third_bound computes the row bounds from ybound: one row of unit weight
             rows = np.array([[1.0 + 0j], [0.0 + 0j]])
             ref = __import__('impact_damper_sim.integrate.kernels.scan',
@@ -814,22 +820,22 @@ def test_small_exact_kernels_twins(rng):
             agree(b, ref, b, 8)
         reach = abs(rng.normal()) * 0.3
         for n_rows in (1, 2):
-            assert KE.out_of_reach(n_rows, reach, X, z, v, limit, T) == \
-                KE.out_of_reach_py(n_rows, reach, X, z, v, limit, T)
+            assert KS.out_of_reach(n_rows, reach, X, z, v, limit, T) == \
+                KS.out_of_reach_py(n_rows, reach, X, z, v, limit, T)
     stuck = np.array([1, 0, 1])
     imp_normal = rng.normal(size=(3, 2))
     relmap = rng.normal(size=(3, 2, 2))
     out, out_py = np.zeros((3, 2)), np.zeros((3, 2))
-    KE.release_normals(stuck, imp_normal, relmap, out)
-    KE.release_normals_py(stuck, imp_normal, relmap, out_py)
+    KC.release_normals(stuck, imp_normal, relmap, out)
+    KC.release_normals_py(stuck, imp_normal, relmap, out_py)
     agree(out, out_py, np.abs(relmap).sum(1) * np.abs(imp_normal).max(), 4)
     np.testing.assert_allclose(out, np.einsum('jrc,jr->jc', relmap, imp_normal), rtol=1e-14)
     bufs = [[np.zeros(4), np.zeros(4, np.int64), np.zeros(4, np.int64), np.zeros((4, 2)),
              np.zeros(4), np.zeros(4), np.zeros(4), np.zeros((4, 2)), np.zeros(1, np.int64)]
             for _ in range(2)]
-    vals = (0.5, 2, KE.EV_STICK, 0.6, 0.8, 1e-3, 2e-4, 3e-7, -1e-4, 2e-5)
-    KE.record(*bufs[0], *vals)
-    KE.record_py(*bufs[1], *vals)
+    vals = (0.5, 2, codes.EV_STICK, 0.6, 0.8, 1e-3, 2e-4, 3e-7, -1e-4, 2e-5)
+    KC.record(*bufs[0], *vals)
+    KC.record_py(*bufs[1], *vals)
     for x, y in zip(*bufs):
         np.testing.assert_array_equal(x, y)
     assert bufs[0][8][0] == 1 and bufs[0][0][0] == 0.5 and bufs[0][7][0, 1] == 2e-5
@@ -854,16 +860,16 @@ def test_switch_slot_twin_and_round_trip(rng):
     omegas = rng.uniform(10, 300, nh)
     yh = cplx(rng, n2)
     out = yh.copy()
-    KE.switch_slot(out, V, pp, pm, Vinv, pp, pm, omegas, 0.37, np.empty(n2, complex),
+    KC.switch_slot(out, V, pp, pm, Vinv, pp, pm, omegas, 0.37, np.empty(n2, complex),
                    np.empty(2 * n2))
     scale = np.abs(yh).max() + np.abs(pp).sum() + np.abs(pm).sum()
     agree(out, yh, cond * scale)
     V2 = cplx(rng, 2 * n2, n2)
     pp2, pm2 = cplx(rng, nh, n2), cplx(rng, nh, n2)
     a, b = yh.copy(), yh.copy()
-    KE.switch_slot(a, V, pp, pm, half_state_inverse(V2), pp2, pm2, omegas, 0.37,
+    KC.switch_slot(a, V, pp, pm, half_state_inverse(V2), pp2, pm2, omegas, 0.37,
                    np.empty(n2, complex), np.empty(2 * n2))
-    KE.switch_slot_py(b, V, pp, pm, half_state_inverse(V2), pp2, pm2, omegas, 0.37,
+    KC.switch_slot_py(b, V, pp, pm, half_state_inverse(V2), pp2, pm2, omegas, 0.37,
                       np.empty(n2, complex), np.empty(2 * n2))
     agree(a, b, np.linalg.cond(np.hstack([V2.real, -V2.imag])) * scale)
     # and the physical state is carried: Re(V2 (y_new + particular_new)) = Re(V (y + part))
@@ -907,7 +913,7 @@ def test_impact_twin(rng, n_rows):
         lawmob = mob * rng.uniform(0.5, 1.0)
         rule = int(rng.integers(0, 3))
         outs = []
-        for fn in (KE.impact, KE.impact_py):
+        for fn in (KC.impact, KC.impact_py):
             s = {k: v.copy() for k, v in st.items()}
             Xc = X.copy()
             yh = np.zeros(n2, complex) + 1.0
@@ -924,7 +930,7 @@ def test_impact_twin(rng, n_rows):
         (r, s, Xc, yh, ledger, ev, info), (r2, s2, Xc2, yh2, ledger2, ev2, info2) = outs
         assert r == r2
         seen_stick += r == 1
-        seen_bounce += ev[2][0] == KE.EV_IMPACT
+        seen_bounce += ev[2][0] == codes.EV_IMPACT
         vscale = np.abs(X[1]).max() + np.abs(st['imp_v']).max()
         for k in s:
             agree(s[k], s2[k], np.abs(s[k]) + vscale)
@@ -1012,7 +1018,7 @@ def search_args(sy, rng, P, S, dims=(1, 2, 1), stuck=(0, 0, 1), one_site=False):
         active=np.zeros(2 * ni + 1, np.bool_), shifts=np.zeros(2 * ni + 1),
         rwork=np.zeros((2, P + 6)), coef=np.zeros(P + 6), pwork=np.zeros(3 * (P + 6) + 6),
         root_out=np.zeros(3), scan_result=np.zeros(2),
-        counters=np.zeros(KE.N_COUNTERS, np.int64), result=np.zeros(4))
+        counters=np.zeros(codes.N_COUNTERS, np.int64), result=np.zeros(4))
     return args
 
 
@@ -1049,7 +1055,7 @@ def first_event_truth(sy, args, a, end):
             fid = FN_RELEASE if args['imp_stuck'][j] else (
                 FN_WALL_POS if args['imp_dim'][j] == 1 else FN_PLANAR)
             for f in ((fid, FN_WALL_NEG) if fid == FN_WALL_POS else (fid,)):
-                shifts[(j, f)] = KE.grace_shift(f, X, args['imp_limit'][j])
+                shifts[(j, f)] = KS.grace_shift(f, X, args['imp_limit'][j])
     samples = sample_functions(sy, args['house'], args['imp_dim'], args['imp_stuck'],
                                args['imp_z'], args['imp_v'], args['imp_limit'],
                                args['release_n'], end)
@@ -1085,10 +1091,10 @@ def test_search_twin_and_first_root(rng):
     stats = dict(found=0, none=0, fallback=0, certified=0)
     for trial in range(24):
         sy = System(rng, n2=4, nh=1)
-        S = KE.SEGMENT_REACH / sy.lam_max
+        S = KS.SEGMENT_REACH / sy.lam_max
         args = search_args(sy, rng, P, S)
-        ret, a = run_search(KE.search, args)
-        ret_py, a_py = run_search(KE.search_py, args)
+        ret, a = run_search(KS.search, args)
+        ret_py, a_py = run_search(KS.search_py, args)
         assert ret == ret_py
         np.testing.assert_array_equal(a['counters'], a_py['counters'])
         np.testing.assert_array_equal(a['result'][1:], a_py['result'][1:])
@@ -1096,7 +1102,7 @@ def test_search_twin_and_first_root(rng):
         res = a['result']
         if res[3] == 1.0:
             agree(a['yh_tau'], sy.eval(res[0], 0)[0], sy.scale(0)[0])
-        stats['fallback'] += a['counters'][KE.CNT_FALLBACK] > 0
+        stats['fallback'] += a['counters'][codes.CNT_FALLBACK] > 0
         best = first_event_truth(sy, args, a, min(S, args['horizon']))
         if best[1] is None or (best[0] == 0.0):
             if best[1] is None:
@@ -1107,7 +1113,7 @@ def test_search_twin_and_first_root(rng):
         assert (int(res[1]), int(res[2])) == (j, fid), (trial, res, best)
         assert abs(res[0] - t_ref) <= 1e-12 * S, (trial, res[0], t_ref)
         stats['found'] += 1
-        stats['certified'] += a['counters'][KE.CNT_FALLBACK] == 0
+        stats['certified'] += a['counters'][codes.CNT_FALLBACK] == 0
     assert stats['found'] >= 5 and stats['none'] >= 3 and stats['certified'] >= 3, stats
 
 
@@ -1122,10 +1128,10 @@ def test_search_first_of_twelve_impactors_in_one_bore(rng):
     cleared = 0
     for trial in range(16):
         sy = System(rng, n2=4, nh=1)
-        S = KE.SEGMENT_REACH / sy.lam_max
+        S = KS.SEGMENT_REACH / sy.lam_max
         args = search_args(sy, rng, P, S, dims=(2,) * 12, stuck=(0,) * 12, one_site=True)
-        ret, a = run_search(KE.search, args)
-        ret_py, a_py = run_search(KE.search_py, args)
+        ret, a = run_search(KS.search, args)
+        ret_py, a_py = run_search(KS.search_py, args)
         assert ret == ret_py == 0
         np.testing.assert_array_equal(a['counters'], a_py['counters'])
         np.testing.assert_array_equal(a['result'][1:], a_py['result'][1:])
@@ -1139,7 +1145,7 @@ def test_search_first_of_twelve_impactors_in_one_bore(rng):
         assert (int(res[1]), int(res[2])) == key, (trial, res, t_ref, key)
         assert abs(res[0] - t_ref) <= 1e-12 * S, (trial, res[0], t_ref)
         found += 1
-        cleared += a['counters'][KE.CNT_CANDIDATES] - a['counters'][KE.CNT_CERTIFIED]
+        cleared += a['counters'][codes.CNT_CANDIDATES] - a['counters'][codes.CNT_CERTIFIED]
     # not vacuous: events found, and candidates cleared against a bracket (not certified);
     # measured 14 events and 123 cleared. Clearing with a negated remainder over 3 times the
     # span, in the cubic model or the degree-P one, fails here (another impactor first); the
@@ -1520,9 +1526,44 @@ def test_planar_realignment_release_leaves_without_a_new_contact():
 
 
 # ============================================================== whole runs of the exact twins
+#: The modules of the exact engine's own kernels (the flow, poly, scan and ledger kernels they
+#: call stay compiled in the whole-run test).
+EXACT_MODULES = (KS, KC, KE)
 EXACT_KERNELS = ('grace_shift', 'fn_taylor', 'near_eval', 'refine_root', 'third_bound',
                  'out_of_reach', 'sort_candidates', 'search', 'switch_slot', 'release_normals',
                  'record', 'impact', 'quiet_window', 'advance')
+
+
+def _kernel_modules():
+    """Every loaded module of the kernel package (any of them may hold a kernel by name)."""
+    package = KE.__name__.rpartition('.')[0]
+    return [m for name, m in sorted(sys.modules.items())
+            if m is not None and (name == package or name.startswith(package + '.'))]
+
+
+def _swap_exact_kernels_for_twins(monkeypatch):
+    """Replace each kernel of ``EXACT_KERNELS`` by its Python twin in every kernel module that
+    holds it (its own, and every caller's that imported it: a twin calls the others through
+    its own module's globals). Returns the number of references replaced."""
+    compiled = {}
+    for module in EXACT_MODULES:
+        for name, twin in vars(module).items():
+            if name.endswith('_py') and callable(twin) and twin.__module__ == module.__name__:
+                compiled[name[:-3]] = (getattr(module, name[:-3]), twin)
+    # a kernel added to these modules without being listed here would stay compiled
+    assert sorted(compiled) == sorted(EXACT_KERNELS)
+    swapped = 0
+    for module in _kernel_modules():
+        for attr, value in list(vars(module).items()):
+            for kern, twin in compiled.values():
+                if value is kern:
+                    monkeypatch.setattr(module, attr, twin)
+                    swapped += 1
+    left = [f'{module.__name__}.{attr}' for module in _kernel_modules()
+            for attr, value in vars(module).items()
+            if any(value is kern and kern is not twin for kern, twin in compiled.values())]
+    assert not left, f'compiled exact kernels left in the twin run: {left}'
+    return swapped
 
 
 def _scenario(name):
@@ -1538,16 +1579,17 @@ def _scenario(name):
 
 @pytest.mark.parametrize('name', ['dip', 'release', 'table'])
 def test_exact_kernels_twins_on_whole_runs(monkeypatch, name):
-    # Every kernel of kernels/exact.py replaced by its Python twin (they call each other
-    # through the module, so advance_py runs search_py, impact_py, ...; the flow, poly, scan
-    # and ledger kernels stay compiled) on three short runs that reach every stage: Taylor
+    # Every kernel of kernels/search.py, contact.py and exact.py replaced by its Python twin
+    # in every module that holds it (they call each other through their modules' globals, so
+    # advance_py runs search_py, impact_py, ...; the flow, poly, scan and ledger kernels stay
+    # compiled) on three short runs that reach every stage: Taylor
     # certificates, the fallback scan, Newton refinement, sticking, releases, in-kernel
     # switches. Against the compiled run: the same events (kind, impactor) and work counters,
     # event times to 1e-15 s (a few ulps of t; the runs stop before the planar bounce-downs
     # that amplify round-off, see the table test) and the final state to 1e-12 relative.
     ev, state, work = _scenario(name)
-    for k in EXACT_KERNELS:
-        monkeypatch.setattr(KE, k, getattr(KE, k + '_py'))
+    # each kernel in its own module, the callees also in their callers' (advance: 6 of them)
+    assert _swap_exact_kernels_for_twins(monkeypatch) >= len(EXACT_KERNELS) + 6
     ev_py, state_py, work_py = _scenario(name)
     monkeypatch.undo()
     assert ev.size >= 1 and work == work_py
@@ -1567,7 +1609,7 @@ def test_search_refines_an_overlapping_bracket_with_the_earlier_root(rng):
     from scipy.optimize import brentq
     P = 6
     sy = System(rng, n2=4, nh=1)
-    S = KE.SEGMENT_REACH / sy.lam_max
+    S = KS.SEGMENT_REACH / sy.lam_max
     args = search_args(sy, rng, P, S)
     house = args['house']
     house[2] = house[0]
@@ -1587,7 +1629,7 @@ def test_search_refines_an_overlapping_bracket_with_the_earlier_root(rng):
         args['imp_z'][j] = [x[0], 0.0]
         args['imp_v'][j] = [u + speed, 0.0]   # closing at >= speed throughout: one root
         args['imp_limit'][j] = x[0] + (u + speed) * r - x_at(r)
-    _, a = run_search(KE.search, args)
+    _, a = run_search(KS.search, args)
     out = a['cand_out']
     cj = a['cand_j']
     rows = {int(cj[c]): out[c] for c in range(2) if out[c, 0] >= 0}
@@ -1607,7 +1649,7 @@ def test_derivative_bounds_from_a_later_start(rng):
     # |d^m y/dt^m| on [tau, Th] (801 samples, 1e-12 slack) for m <= 5, and the twin agree.
     for _ in range(6):
         sy = System(rng, nh=2)
-        tau, Th = 1e-3, 1e-3 + KE.SEGMENT_REACH / sy.lam_max
+        tau, Th = 1e-3, 1e-3 + KS.SEGMENT_REACH / sy.lam_max
         order = 5
         yh_tau = sy.eval(tau, 0)[0]
         u_abs = np.maximum(np.abs(sy.u0 + sy.us * tau), np.abs(sy.u0 + sy.us * Th))
@@ -1642,7 +1684,7 @@ def test_out_of_reach_never_clears_a_reachable_wall(rng):
         sy.pm[:] = 0
         sy.w0[:] = 0
         sy.ws[:] = 0
-        S = KE.SEGMENT_REACH / sy.lam_max
+        S = KS.SEGMENT_REACH / sy.lam_max
         _, Eb, reach, _, _ = site_setup(sy, 4, S)
         if n_rows == 1:  # site_setup uses both rows; recompute the one-row reach
             Eb1 = np.zeros(8)
@@ -1664,10 +1706,10 @@ def test_out_of_reach_never_clears_a_reachable_wall(rng):
         v[:n_rows] = rng.normal(size=n_rows) * 0.1 * reach / S
         r = z[:n_rows] + v[:n_rows] * s[:, None] - x
         far = np.max(np.abs(r)) if n_rows == 1 else np.max(np.linalg.norm(r, axis=1))
-        assert not KE.out_of_reach(n_rows, reach, X, z, v, far * (1 - 1e-9), S), trial
+        assert not KS.out_of_reach(n_rows, reach, X, z, v, far * (1 - 1e-9), S), trial
         ends = [np.linalg.norm(z[:n_rows] - x[0]), np.linalg.norm(z[:n_rows] + v[:n_rows] * S -
                                                                   x[0])]
-        cleared_far += KE.out_of_reach(n_rows, reach, X, z, v, 1.01 * (max(ends) + reach), S)
+        cleared_far += KS.out_of_reach(n_rows, reach, X, z, v, 1.01 * (max(ends) + reach), S)
     assert cleared_far == 200
 
 
@@ -1682,7 +1724,7 @@ def test_third_bound_gives_a_cubic_lower_bound(rng, fid):
     for _ in range(8):
         sy, S, X, Eb, z, v, limit, normal = taylor_case(rng, fid)
         g0, g1, g2 = fn_values(fid, X, z, v, 0.0, limit, normal)
-        G3 = KE.third_bound(fid, X, z, v, limit, normal, Eb, S)
+        G3 = KS.third_bound(fid, X, z, v, limit, normal, Eb, S)
         mag = abs(g0) + abs(g1) * S + abs(g2) * S * S + G3 * S ** 3
         for s in np.linspace(0.0, S, 401)[1:]:
             g = true_event(sy, fid, s, z, v, limit, normal)
@@ -1734,11 +1776,11 @@ def test_quiet_window_bounds_the_motion_across_step_kinks(seed):
             worst = max(worst, float(np.linalg.norm((sy.rows @ y_t).real - x0)))
         yh = yh_t.copy()
     lo, hi = 0.0, 1.0
-    while not KE.quiet_window(*_quiet_args(sy, u_grid, k0, k1, hi, h)):
+    while not KS.quiet_window(*_quiet_args(sy, u_grid, k0, k1, hi, h)):
         hi *= 2.0
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if KE.quiet_window(*_quiet_args(sy, u_grid, k0, k1, mid, h)):
+        if KS.quiet_window(*_quiet_args(sy, u_grid, k0, k1, mid, h)):
             hi = mid
         else:
             lo = mid
@@ -1747,7 +1789,7 @@ def test_quiet_window_bounds_the_motion_across_step_kinks(seed):
     assert hi <= 50.0 * worst
     for limit in (0.5 * worst, hi * 1.01):  # the compiled kernel and its twin agree
         args = _quiet_args(sy, u_grid, k0, k1, limit, h)
-        assert KE.quiet_window(*args) == KE.quiet_window_py(*args)
+        assert KS.quiet_window(*args) == KS.quiet_window_py(*args)
 
 
 def test_quiet_window_never_certifies_stuck_or_grace():
@@ -1755,11 +1797,11 @@ def test_quiet_window_never_certifies_stuck_or_grace():
     sy = System(rng)
     u_grid = np.zeros((3, sy.nf))
     args = list(_quiet_args(sy, u_grid, 0, 2, 1e9, 1e-3))
-    assert KE.quiet_window(*args)
+    assert KS.quiet_window(*args)
     args[16] = np.array([1])  # stuck
-    assert not KE.quiet_window(*args)
+    assert not KS.quiet_window(*args)
     args[16], args[17] = np.array([0]), np.array([1])  # on a boundary
-    assert not KE.quiet_window(*args)
+    assert not KS.quiet_window(*args)
 
 
 def test_quiet_steps_change_no_event():

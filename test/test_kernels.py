@@ -10,6 +10,7 @@ import pytest
 from impact_damper_sim.integrate.kernels import flow as K
 from impact_damper_sim.integrate.kernels import ledger as L
 from impact_damper_sim.integrate.kernels import poly as PL
+from impact_damper_sim.integrate.kernels import quadrature as Q
 
 
 @pytest.fixture
@@ -256,9 +257,9 @@ def test_ledger_series_equal_fine_gauss_quadrature(rng, kind, nh, lam_top, tau):
         panels = kernel(yh, lam, w0, ws, pp, pm, omegas, amps, u0, us, t, tau,
                         np.abs(lam).max(), Vq, Vv, *_pattern(Vq), *_pattern(Vv), C,
                         *_pattern(C), Kskew, bool(np.any(Kskew)), B,
-                        np.full((n2, L.N_TERMS), np.nan, complex),
-                        np.full((5, max(n, n2), L.N_TERMS), np.nan),
-                        np.full((nf, L.N_TERMS), np.nan),
+                        np.full((n2, Q.N_TERMS), np.nan, complex),
+                        np.full((5, max(n, n2), Q.N_TERMS), np.nan),
+                        np.full((nf, Q.N_TERMS), np.nan),
                         np.zeros(n2 + n, np.int64), np.empty(n2, complex), out)
         assert panels == max(1, int(np.ceil(max(np.abs(lam).max(), *omegas, 0.0) * tau)))
         np.testing.assert_allclose(out[2:], ref, rtol=0, atol=1e-12 * scale)
@@ -269,8 +270,8 @@ def test_ledger_series_equal_fine_gauss_quadrature(rng, kind, nh, lam_top, tau):
         modal = np.zeros(5)
         kernel(yh, lam, w0, ws, pp, pm, omegas, amps, u0, us, t, tau, np.abs(lam).max(), Vv,
                _pattern(Vv)[0], coupled, L.rows_transposed(Vv, Kskew @ Vq),
-               bool(np.any(Kskew)), C, B, np.full((4, L.N_TERMS + 9, max(n, n2)), np.nan),
-               np.full((nf, L.N_TERMS), np.nan), np.empty(n2, complex), modal)
+               bool(np.any(Kskew)), C, B, np.full((4, Q.N_TERMS + 9, max(n, n2)), np.nan),
+               np.full((nf, Q.N_TERMS), np.nan), np.empty(n2, complex), modal)
         np.testing.assert_allclose(modal[2:], ref, rtol=0, atol=1e-12 * scale)
         np.testing.assert_allclose(modal[2:], out[2:], rtol=0, atol=1e-13 * scale)
 
@@ -299,7 +300,7 @@ def test_ledger_closed_form_equals_fine_gauss_quadrature(rng, lam_top, tau, y_sc
         scale = np.abs(ref).max()
         e, p1, p2 = (np.empty(n2, complex) for _ in range(3))
         m = np.empty(n2)
-        L.piece_factors(lam, tau, e, p1, p2, m)
+        Q.piece_factors(lam, tau, e, p1, p2, m)
         e_ref, p1_ref, p2_ref = (np.empty(n2, complex) for _ in range(3))
         K.step_factors(lam, tau, e_ref, p1_ref, p2_ref)
         np.testing.assert_allclose(e, e_ref, rtol=1e-14)
@@ -308,7 +309,7 @@ def test_ledger_closed_form_equals_fine_gauss_quadrature(rng, lam_top, tau, y_sc
         x = 2.0 * lam.real * tau
         np.testing.assert_allclose(m, tau * np.expm1(x) / x, rtol=1e-14)
         harm = np.full((4 + 2 * nh, nh), np.nan, complex)
-        L.harmonic_factors(omegas, t, tau, harm)
+        Q.harmonic_factors(omegas, t, tau, harm)
         # which rows take the series: the particular solution against the flow, as the
         # kernel judges it (with harmonics such a row sends the piece to ledger_modal: -1)
         b_p = -ws / lam
@@ -323,7 +324,7 @@ def test_ledger_closed_form_equals_fine_gauss_quadrature(rng, lam_top, tau, y_sc
         for kernel in (L.ledger_closed, L.ledger_closed_py):
             out = np.zeros(5)
             assert kernel(yh, lam, w0, ws, u0, us, tau, e, p1, p2, m, pp, pm, omegas, amps,
-                          harm, Vv, _pattern(Vv)[0], C, B, np.full(L.N_TERMS, np.nan),
+                          harm, Vv, _pattern(Vv)[0], C, B, np.full(Q.N_TERMS, np.nan),
                           np.full((2, nh), np.nan, complex), out) == expected
             if expected == -1:
                 assert not out.any()
@@ -349,7 +350,7 @@ def test_ledger_closed_form_declines_a_long_piece_it_cannot_take():
     tau = 1e-3
     e, p1, p2 = (np.empty(1, complex) for _ in range(3))
     m = np.empty(1)
-    L.piece_factors(lam, tau, e, p1, p2, m)
+    Q.piece_factors(lam, tau, e, p1, p2, m)
     for kernel in (L.ledger_closed, L.ledger_closed_py):
         out = np.zeros(5)
         assert kernel(np.ones(1, complex), lam, np.zeros(1, complex), np.zeros(1, complex),
@@ -357,7 +358,7 @@ def test_ledger_closed_form_declines_a_long_piece_it_cannot_take():
                       np.zeros((0, 1), complex), np.zeros(0), np.zeros((0, 1), complex),
                       np.zeros((4, 0), complex), Vv,
                       np.zeros((1, 1), np.int64), np.eye(1), np.ones((1, 1)),
-                      np.empty(L.N_TERMS), np.empty((2, 0), complex), out) == -1
+                      np.empty(Q.N_TERMS), np.empty((2, 0), complex), out) == -1
         assert not out.any()
 
 
@@ -368,11 +369,11 @@ def test_ledger_series_degree_meets_its_tolerance():
     # and the remainder of an actual forced series near rest meets it.
     import math
     for r in (0.0, 1e-9, 5e-5, 0.05, 0.3, 0.81, 1.0):
-        d = L.taylor_degree(r * r)
-        assert d >= 2 and 2 * r ** (d - 1) / math.factorial(d + 1) <= L.TAYLOR_TOL * (1 + 1e-12)
-        assert d == 2 or 2 * r ** (d - 2) / math.factorial(d) > L.TAYLOR_TOL
-        assert L.taylor_degree_py(r * r) == d
-    assert L.taylor_degree(0.81 ** 2) == 14 and L.taylor_degree(1.0) == L.N_TERMS - 1
+        d = Q.taylor_degree(r * r)
+        assert d >= 2 and 2 * r ** (d - 1) / math.factorial(d + 1) <= Q.TAYLOR_TOL * (1 + 1e-12)
+        assert d == 2 or 2 * r ** (d - 2) / math.factorial(d) > Q.TAYLOR_TOL
+        assert Q.taylor_degree_py(r * r) == d
+    assert Q.taylor_degree(0.81 ** 2) == 14 and Q.taylor_degree(1.0) == Q.N_TERMS - 1
     # y' = lam y + w0 + ws s from y0 = 1e-6 over tau: coefficients c0, c1, c2, then
     # c_m = c_{m-1} z/m; the dropped tail against the largest of c0, c1, c2
     lam, tau, y0, w0, ws = -3.0 + 500j, 1e-7, 1e-6, 3.0, 3e3
@@ -381,9 +382,9 @@ def test_ledger_series_degree_meets_its_tolerance():
     c.append(0.5 * (z * c[1] + tau * tau * ws))
     for m in range(3, 40):
         c.append(c[-1] * z / m)
-    d = L.taylor_degree(abs(z) ** 2)
+    d = Q.taylor_degree(abs(z) ** 2)
     tail = sum(abs(x) for x in c[d + 1:])
-    assert tail <= L.TAYLOR_TOL * max(abs(x) for x in c[:3])
+    assert tail <= Q.TAYLOR_TOL * max(abs(x) for x in c[:3])
 
 
 def test_kernels_compile_without_reference_counting():

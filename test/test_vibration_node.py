@@ -1184,3 +1184,29 @@ def test_the_schedule_begins_when_stepping_starts(ros_context):
         assert node.stats.wall == clock.now
     finally:
         node.destroy_node()
+
+
+def test_every_command_a_person_sends_is_acknowledged_a_flood_is_thinned(ros_context,
+                                                                         monkeypatch):
+    # Two commands on one topic 0.3 s apart (a person, or the README's commands run together)
+    # are both logged as accepted (the log was throttled to one a second per topic and `ros2
+    # topic pub --once` looked lost); 50 within 0.05 s (a flood) give one line.
+    from impact_damper_sim.ros import vibration_node as vn
+    wall = [500.0]
+    monkeypatch.setattr(vn.time, 'monotonic', lambda: wall[0])
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP)
+    lines = []
+    monkeypatch.setattr(node, 'get_logger', lambda: type('L', (), {
+        'info': staticmethod(lines.append), 'warning': staticmethod(lines.append),
+        'error': staticmethod(lines.append)})())
+    try:
+        for value, dt in ((1200.0, 0.3), (1300.0, 0.3)):
+            node.on_speed_command(Float64(data=value))
+            wall[0] += dt
+        for k in range(50):
+            node.on_speed_command(Float64(data=1000.0 + k))
+            wall[0] += 0.001
+        accepted = [line for line in lines if 'accepted at sim time' in line]
+        assert [line.split()[1] for line in accepted] == ['1200', '1300', '1000']
+    finally:
+        node.destroy_node()

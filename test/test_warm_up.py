@@ -7,7 +7,9 @@ paced tick: on a cold cache the stream then falls behind real time (the streamin
 does, so a kernel one scene compiled cannot hide what another needs. Counted: the kernel
 overloads added (compiled or loaded from the cache; Numba adds both through
 ``add_overload``) after the warm-up, over 0.6 s of simulated time at the node's defaults, with
-a speed command and a noise change in the middle. Expected: none.
+a speed command and a noise change in the middle. Expected: none. And the kernels a cold
+start compiles in helper processes from its first second (``kernels/prefetch.py``) are called
+with exactly the argument types listed there.
 """
 from __future__ import annotations
 
@@ -52,7 +54,12 @@ for t_end, change in ((0.3, True), (0.6, False)):
         if live.has_rotor and target is not None:   # a gyroscopic scene keeps its one speed
             live.command_speed(0.5 * target)
         live.set_noise(1e-3, seed=1)
-print(json.dumps({'warm_up': added[:warm], 'after': added[warm:], 'failure': failure}))
+import importlib
+from impact_damper_sim.integrate.kernels.prefetch import ENTRIES, parse_types
+stale = [name for module, name, spec in ENTRIES if parse_types(spec) not in
+         getattr(importlib.import_module(module), name).internal().overloads]
+print(json.dumps({'warm_up': added[:warm], 'after': added[warm:], 'failure': failure,
+                  'stale_prefetch': stale}))
 '''
 
 
@@ -67,5 +74,7 @@ def test_no_kernel_is_first_needed_after_the_warm_up(scene):
         pytest.skip(f'{scene}: the node refuses it ({result["refused"][:80]}...)')
     assert result['failure'] is None, result['failure']
     assert result['warm_up'], 'the warm-up loaded no kernel: nothing was measured'
+    # what a cold start has helper processes compile first is what this scene calls
+    assert result['stale_prefetch'] == [], 'kernels/prefetch.py ENTRIES: wrong argument types'
     assert result['after'] == [], (
         f'{scene}: kernels typed after the warm-up (compiled in a paced tick on a cold cache)')

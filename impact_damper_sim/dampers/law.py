@@ -21,7 +21,7 @@ modal model ``G = sum_k phi_k^2``, the inverse of the driving-point effective ma
   differed by 13 % on rbs_kcc and the energy balance did not close).
 * Lock (stuck entry): a plastic impulse that cancels the whole relative velocity,
   ``P = (I/m + G)^{-1} v_rel``; loss ``0.5 v_rel^T (I/m + G)^{-1} v_rel`` with the
-  effective-mass law (the lumped-mass law's loss, as booked: ``integrate/kernels/exact.py``,
+  effective-mass law (the lumped-mass law's loss, as booked: ``integrate/kernels/contact.py``,
   ``impact``).
 """
 from __future__ import annotations

@@ -16,6 +16,8 @@ from .divergence import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_S
 from .kernels import exact as kernels
 from .kernels import flow as flow_kernels
 from .kernels import ledger as ledger_kernels
+from .kernels.prefetch import prefetch
+from .kernels.quadrature import phi1_real
 from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples, STICK_RULES
 from .flow import build_flow
@@ -63,7 +65,7 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
 #: each at 10 modes): the event loop then never returns to Python to build one, and a live
 #: node never stalls for a build in the middle of a run. Larger tables build on first use.
 PREBUILD_SLOTS = 64
-#: Degree of the Taylor models of the event search (see :mod:`.kernels.exact`).
+#: Degree of the Taylor models of the event search (see :mod:`.kernels.search`).
 TAYLOR_ORDER = 6
 
 
@@ -129,7 +131,7 @@ class _Table:
             ledger_kernels.row_pattern(flow.V[n:], self.v_cols[slot], self.v_counts[slot])
             self.v_modal[slot] = bool(np.all(self.v_counts[slot] == 1))
             for k in range(lam.size):   # int |e^(lam s)|^2 over a step, as piece_factors
-                self.m_h[slot, k] = self.dt * ledger_kernels.phi1_real(2.0 * lam[k].real * self.dt)
+                self.m_h[slot, k] = self.dt * phi1_real(2.0 * lam[k].real * self.dt)
             kvq = self.k_skew @ flow.V[:n] if self.k_skew is not None else None
             self.vt[slot] = ledger_kernels.rows_transposed(flow.V[n:], kvq)
         self.built[slot] = 1
@@ -197,6 +199,8 @@ class ExactPropagator(IntegratorBase):
             raise ValueError(f'forcing has {forcing.n_inputs} inputs, model has {model.n_inputs}')
         if int(taylor_order) != taylor_order or not 2 <= taylor_order <= 12:
             raise ValueError(f'taylor_order must be an integer in [2, 12], got {taylor_order}')
+        if len(model.impactors):   # a cold cache compiles the event search while the rest is set up
+            prefetch()
         self.model = model
         self.configurations = MassUpdate(model) if configurations is None else configurations
         self.forcing = forcing
@@ -332,7 +336,7 @@ class ExactPropagator(IntegratorBase):
         return int(self.counters[kernels.CNT_SWITCHES]) + self._python_switches
 
     def work_counters(self):
-        """Work done so far, by kind: a dict of counts (see ``kernels.exact.CNT_*``)."""
+        """Work done so far, by kind: a dict of counts (see ``kernels.codes.CNT_*``)."""
         names = ('steps', 'searches', 'candidates', 'taylor_expansions', 'flow_evaluations',
                  'ledger_panels', 'fallback_scans', 'kernel_switches', 'segments',
                  'quiet_steps', 'ledger_closed', 'roots_certified')

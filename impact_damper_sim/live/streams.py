@@ -130,7 +130,9 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
         Any scene problem, naming the key; a scene whose ``offline_only`` says why it
         cannot run live.
     """
+    from ..integrate.kernels.prefetch import prefetch
     from ..scene.build import load
+    prefetch()   # a live run follows: a cold cache starts compiling the event search now
     model = load(scene, overrides=list(overrides))
     if model.scene['offline_only']:
         raise SceneError(f"scene {model.name!r} is for offline studies only: "

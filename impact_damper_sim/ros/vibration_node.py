@@ -176,8 +176,8 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
                                       f"ignored (known: {', '.join(PARAMETERS)})")
         rate_limit = p['speed_rate_limit'] or None
         busy = _Busy(self.get_logger().info, 'loading the scene and the compiled kernels '
-                     '(a cold Numba cache compiles them once: 26 s on 2 quiet cores, 40 s or '
-                     'more on a busy machine; 2 s after that)')
+                     '(a cold Numba cache compiles them once: 21-25 s on 2 quiet cores, 40 s '
+                     'or more on a busy machine; 2-3 s after that)')
         try:
             scene, target = live_scene(p['scene'], p['overrides'] or (),
                                        speed_rate_limit=rate_limit)
@@ -325,7 +325,8 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
             return False
         self.stats.commands += 1
         topic = (itf.SPEED_COMMAND, itf.UNBALANCE_COMMAND)[which]
-        self._log('info', f'{topic} {value:g} accepted at sim time {self.live.t:.3f} s', 1.0,
+        # every command a person sends is acknowledged; only a flood (> 10/s) is thinned
+        self._log('info', f'{topic} {value:g} accepted at sim time {self.live.t:.3f} s', 0.1,
                   topic)
         return True
 

@@ -10,8 +10,13 @@ path. Compiled kernels are cached in ``NUMBA_CACHE_DIR``, a per-user directory u
 
 Modules: :mod:`.flow` (evaluating and bounding the exact modal flow), :mod:`.poly`
 (polynomials: safe steps, Bernstein bounds, certified roots), :mod:`.scan` (the safe-step event
-scan), :mod:`.ledger` (energy ledger quadrature), :mod:`.exact` (the exact propagator's event
-loop), :mod:`.newmark` and :mod:`.filters`.
+scan), :mod:`.search` (the event search and the quiet-window certificate), :mod:`.contact`
+(impacts, sticks, releases and configuration switches), :mod:`.codes` (status codes, event
+kinds, sticking rules, work counters), :mod:`.ledger` (energy ledger quadrature: its forms)
+with :mod:`.quadrature` (the series, integrals and factors they share), :mod:`.exact` (the
+exact propagator's event loop, and the entry point of :mod:`impact_damper_sim.integrate.exact`),
+:mod:`.prefetch` (what a cold start compiles in helper processes first), :mod:`.newmark` and
+:mod:`.filters`.
 
 Compile time (an empty cache compiles the kernels a run calls, once): a kernel is compiled
 for the first call that needs it, once per argument types (:class:`Kernel`). Numba links a
