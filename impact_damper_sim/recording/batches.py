@@ -76,8 +76,12 @@ ACCEL_DTYPE = dtype_of(ACCEL_FIELDS, ACCEL_POINT_STEP)
 IMPACT_DTYPE = dtype_of(IMPACT_FIELDS, IMPACT_POINT_STEP)
 
 
-class _Cdr:
-    """A little-endian CDR (XCDR1) writer; alignment is counted after the 4-byte header."""
+class CdrWriter:
+    """A little-endian CDR (XCDR1) writer; alignment is counted after the 4-byte header.
+
+    The one writer of the package's message bytes: batches here, every other message of the
+    node in :mod:`.node_messages`.
+    """
 
     def __init__(self):
         self.parts = [b'\x00\x01\x00\x00']
@@ -92,14 +96,37 @@ class _Cdr:
         self.parts.append(data)
         self.size += len(data)
 
+    def put(self, fmt, *values):
+        """Primitives of one struct code (``'d'``, ``'I'``, ``'q'``, ...), aligned to it."""
+        self.align(struct.calcsize(fmt.lstrip('0123456789')[0]))
+        self.raw(struct.pack('<' + fmt, *values))
+
     def u32(self, value):
-        self.align(4)
-        self.raw(struct.pack('<I', value))
+        self.put('I', value)
+
+    def stamp(self, ns):
+        sec, nsec = divmod(int(ns), 1_000_000_000)
+        self.put('iI', sec, nsec)
 
     def string(self, text):
         data = text.encode() + b'\x00'
-        self.u32(len(data))
+        self.put('I', len(data))
         self.raw(data)
+
+    def doubles(self, values):
+        """A ``float64[]`` sequence: its length, then the values (aligned only if any)."""
+        values = [float(v) for v in values]
+        self.put('I', len(values))
+        if values:
+            self.put(f'{len(values)}d', *values)
+
+    def strings(self, texts):
+        self.put('I', len(texts))
+        for text in texts:
+            self.string(text)
+
+    def bytes(self):
+        return b''.join(self.parts)
 
 
 class BatchEncoder:
@@ -121,7 +148,7 @@ class BatchEncoder:
     def __init__(self, frame_id, fields, point_step):
         self.dtype = dtype_of(fields, point_step)
         self.point_step = int(point_step)
-        head = _Cdr()
+        head = CdrWriter()
         head.raw(b'\x00' * 8)            # stamp: sec int32, nanosec uint32
         head.string(frame_id)
         head.align(4)
@@ -129,7 +156,7 @@ class BatchEncoder:
         self._stamp_at = 4
         # height, width, fields, is_bigendian, point_step, row_step, data length: width
         # changes per message, so the part after it is made once with a fixed offset
-        mid = _Cdr()
+        mid = CdrWriter()
         mid.size = head.size + 8         # after height and width
         mid.u32(len(fields))
         for name, offset, datatype in fields:

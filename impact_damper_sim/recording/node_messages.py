@@ -25,7 +25,8 @@ from typing import NamedTuple
 import numpy as np
 
 from . import node_topics as nt
-from .batches import ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS, IMPACT_POINT_STEP, BatchEncoder
+from .batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS, IMPACT_POINT_STEP,
+                      BatchEncoder, CdrWriter)
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
 _HEADER = b'\x00\x01\x00\x00'   # CDR encapsulation: little-endian
@@ -33,55 +34,9 @@ _HEADER = b'\x00\x01\x00\x00'   # CDR encapsulation: little-endian
 PARAMETER_BOOL, PARAMETER_INTEGER, PARAMETER_DOUBLE, PARAMETER_STRING = 1, 2, 3, 4
 
 
-class _Cdr:
-    """A little-endian XCDR1 writer; alignment is counted after the encapsulation header."""
-
-    def __init__(self):
-        self.parts = [_HEADER]
-        self.size = 0
-
-    def align(self, n):
-        pad = -self.size % n
-        if pad:
-            self.raw(b'\x00' * pad)
-
-    def raw(self, data):
-        self.parts.append(data)
-        self.size += len(data)
-
-    def put(self, fmt, *values):
-        """Primitives of one struct code (``'d'``, ``'I'``, ``'q'``, ...), aligned to it."""
-        self.align(struct.calcsize(fmt.lstrip('0123456789')[0]))
-        self.raw(struct.pack('<' + fmt, *values))
-
-    def stamp(self, ns):
-        sec, nsec = divmod(int(ns), 1_000_000_000)
-        self.put('iI', sec, nsec)
-
-    def string(self, text):
-        data = text.encode() + b'\x00'
-        self.put('I', len(data))
-        self.raw(data)
-
-    def doubles(self, values):
-        """A ``float64[]`` sequence: its length, then the values (aligned only if any)."""
-        values = [float(v) for v in values]
-        self.put('I', len(values))
-        if values:
-            self.put(f'{len(values)}d', *values)
-
-    def strings(self, texts):
-        self.put('I', len(texts))
-        for text in texts:
-            self.string(text)
-
-    def bytes(self):
-        return b''.join(self.parts)
-
-
 def clock_cdr(ns):
     """``rosgraph_msgs/Clock`` bytes for sim time ``ns`` (ns, >= 0)."""
-    w = _Cdr()
+    w = CdrWriter()
     w.stamp(ns)
     return w.bytes()
 
@@ -103,7 +58,7 @@ def vector3_stamped_cdr(ns, frame_id, vector):
     vector : sequence of 3 float
         x, y, z (in the unit the topic states).
     """
-    w = _Cdr()
+    w = CdrWriter()
     w.stamp(ns)
     w.string(frame_id)
     w.put('3d', *(float(v) for v in vector))
@@ -124,7 +79,7 @@ def joint_state_cdr(ns, names, position=(), velocity=(), effort=(), frame_id='')
     frame_id : str
         ``header.frame_id``.
     """
-    w = _Cdr()
+    w = CdrWriter()
     w.stamp(ns)
     w.string(frame_id)
     w.strings(list(names))
@@ -159,7 +114,7 @@ def parameter_event_cdr(ns, node, changed):
     changed : sequence of (str, bool or int or float or str)
         ``changed_parameters``: name and new value, in order.
     """
-    w = _Cdr()
+    w = CdrWriter()
     w.stamp(ns)
     w.string(node)
     w.put('I', 0)                       # new_parameters
@@ -195,7 +150,7 @@ class ImuEncoder:
 
     def __init__(self, frame_id, noise_variance=0.0):
         var = float(noise_variance)
-        w = _Cdr()
+        w = CdrWriter()
         w.stamp(0)
         w.string(frame_id)
         w.put('4d', 0.0, 0.0, 0.0, 1.0)                 # orientation (not measured)
