@@ -11,6 +11,7 @@ import pytest
 from impact_damper_sim.live.schedule import Schedule, ScheduleError
 from impact_damper_sim.recording import node_topics as nt
 from impact_damper_sim.recording.batches import rows_of, sample_times_ns
+from impact_damper_sim.scene.schema import SceneError
 from impact_damper_sim.scene.units import G0
 from impact_damper_sim.studies.record import record_log
 
@@ -106,6 +107,20 @@ def test_every_problem_of_a_schedule_names_its_key(tmp_path):
     assert lines[5] == ("key 'schedule[2].noise_std': unit 'm' is not an acceleration (it "
                         'is a length); use one of m/s^2, mm/s^2, g, in/s^2, ft/s^2')
     assert lines[6] == "key 'schedule[2].noise_seed': -2 is out of range [0, 2147483647]"
+
+
+def test_a_schedule_file_of_the_wrong_shape_is_named_a_schedule(tmp_path):
+    # A bare list (the entries without the `schedule:` key) was reported as "a scene must be
+    # a mapping": the message names what the file is meant to be.
+    bad = tmp_path / 'list.yaml'
+    bad.write_text('- {at: 0.5 s, unbalance: 3}\n')
+    with pytest.raises(SceneError) as info:
+        Schedule.load(bad)
+    assert str(info.value).startswith(f'{bad}: a schedule must be a mapping at top level; '
+                                      'got list')
+    (tmp_path / 'dir.yaml').mkdir()
+    with pytest.raises(SceneError, match='not a schedule file'):
+        Schedule.load(tmp_path / 'dir.yaml')
 
 
 def test_entries_apply_at_the_next_sample_boundary():

@@ -135,7 +135,7 @@ class Schedule:
 
         from ..scene.loading import load_yaml
         path = os.fspath(path)
-        raw = load_yaml(pathlib.Path(path), source=path)
+        raw = load_yaml(pathlib.Path(path), source=path, kind='schedule')
         try:
             value = validate(SCHEMA, raw, source=path)
         except SceneError as exc:

@@ -184,7 +184,7 @@ def _reader_problem(text, exc):
     return f'{what} U+{code:04X} at line {line}, column {column} ({why})'
 
 
-def load_yaml(path_or_text, *, source=None):
+def load_yaml(path_or_text, *, source=None, kind='scene'):
     """Read a scene file or YAML text into a raw mapping (no validation).
 
     Parameters
@@ -194,6 +194,9 @@ def load_yaml(path_or_text, *, source=None):
         YAML text itself.
     source : str, optional
         Name used in messages (default: the path, or ``'<text>'``).
+    kind : str, optional
+        What the file holds, for messages (``'scene'``; a command schedule says
+        ``'schedule'``).
 
     Returns
     -------
@@ -212,23 +215,23 @@ def load_yaml(path_or_text, *, source=None):
         path = os.fspath(path_or_text)
         source = source or path
         try:
-            kind = file_kind(path)   # before opening: opening a FIFO blocks
-            if kind:
-                raise SceneError(f'{source}: not a scene file ({kind}, not a regular file)')
+            file = file_kind(path)   # before opening: opening a FIFO blocks
+            if file:
+                raise SceneError(f'{source}: not a {kind} file ({file}, not a regular file)')
             with open(path, 'rb') as stream:
-                kind = file_kind(stream.fileno())   # replaced in between
-                if kind:
-                    raise SceneError(f'{source}: not a scene file ({kind}, not a regular file)')
+                file = file_kind(stream.fileno())   # replaced in between
+                if file:
+                    raise SceneError(f'{source}: not a {kind} file ({file}, not a regular file)')
                 raw = stream.read(MAX_SCENE_BYTES + 1)   # never more, whatever the file
         except OSError as exc:
-            raise SceneError(f'{source}: cannot read scene file: {exc.strerror}') from None
+            raise SceneError(f'{source}: cannot read {kind} file: {exc.strerror}') from None
         if len(raw) > MAX_SCENE_BYTES:
-            raise SceneError(f'{source}: not a scene file (over {MAX_SCENE_BYTES} bytes; '
-                             'scenes are a few kilobytes)')
+            raise SceneError(f'{source}: not a {kind} file (over {MAX_SCENE_BYTES} bytes; '
+                             f'{kind}s are a few kilobytes)')
         try:
             text = raw.decode('utf-8')
         except UnicodeDecodeError:
-            raise SceneError(f'{source}: not a scene file (not UTF-8 text)') from None
+            raise SceneError(f'{source}: not a {kind} file (not UTF-8 text)') from None
     else:
         text, source = path_or_text, source or '<text>'
         if len(text) > MAX_SCENE_BYTES:
@@ -259,7 +262,7 @@ def load_yaml(path_or_text, *, source=None):
         loader.dispose()
     if not isinstance(data, dict):
         got = 'an empty document' if data is None else f'{type(data).__name__} {_describe(data)}'
-        raise SceneError(f'{source}: a scene must be a mapping at top level; got {got}')
+        raise SceneError(f'{source}: a {kind} must be a mapping at top level; got {got}')
     return data
 
 
