@@ -201,3 +201,24 @@ def test_a_kernel_another_process_is_compiling_is_waited_for_and_loaded(tmp_path
     value, result, started, misses = out.split()
     assert float(value) == 3 * 14.0 and float(result) == 14.0
     assert int(misses) == 2   # top and middle compiled there; leaf loaded, not compiled twice
+
+
+PREFETCH = '''
+from impact_damper_sim.integrate import kernels
+from impact_damper_sim.integrate.kernels.prefetch import prefetch
+started = prefetch()
+again = prefetch()   # already farmed: nothing more started
+for helper in kernels._HELPERS.values():   # the compile itself is not this test's subject
+    helper.kill()
+    helper.wait()
+print(','.join(started), len(kernels._HELPERS), ','.join(again))
+'''
+
+
+@pytest.mark.parametrize('helpers, expected', [(2, 'search,scan_multi 2 '), (0, ' 0 ')])
+def test_prefetch_farms_the_event_search_on_a_cold_cache(tmp_path, helpers, expected):
+    """Issue 24: a run's first second starts the event search and its fallback scan in helper
+    processes (none when no helper may start, and nothing twice)."""
+    result = run(tmp_path, PREFETCH, helpers)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.rstrip('\n') == expected

@@ -87,12 +87,17 @@ def prefetch(entries=ENTRIES):
     Returns
     -------
     list of str
-        The kernels sent to helper processes.
+        The kernels sent to helper processes by this call.
     """
-    from . import _farm
+    from . import _FARMED, _farm
     started = []
     for module, name, spec in entries:
         dispatcher = getattr(importlib.import_module(module), name)
-        if hasattr(dispatcher, 'internal') and _farm(dispatcher.internal(), parse_types(spec)):
+        if not hasattr(dispatcher, 'internal'):   # NUMBA_DISABLE_JIT: plain Python
+            continue
+        twin, args = dispatcher.internal(), parse_types(spec)
+        if args in twin.overloads or (twin, args) in _FARMED:   # loaded here, or farmed
+            continue
+        if _farm(twin, args):
             started.append(name)
     return started
