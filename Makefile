@@ -1,6 +1,6 @@
 # Two commands do all the set-up on a fresh machine with Python 3.11+ and make:
-#   make run    create .venv, install the pinned runtime (incl. ROS 2 Jazzy wheels), run
-#               vibration_node
+#   make run    create .venv, install the pinned runtime (incl. ROS 2 Jazzy wheels), compile
+#               the node's kernels into the per-user cache (once), run vibration_node
 #   make test   the same, plus the optional extras and test tooling, then the test suite
 PYTHON ?= python3
 VENV   := .venv
