@@ -18,7 +18,7 @@ from impact_damper_sim.modal.whirl import (OrbitStations, RotorModel, condensed_
                                            gyroscopic_matrix, orbit_radii, whirl_modes)
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.studies.campbell import (RPM, campbell_study, describe_whirl,
-                                                polar_inertia, rotor_model, scene_speed)
+                                                rotor_model, scene_speed)
 
 M, K, KZ, C = 2.0, 1.5e5, 5.0e4, 40.0          # kg, N/m, N/m, N s/m
 ID, IP, KT = 0.5, 0.35, 3.0e4                  # kg m^2, kg m^2, N m/rad
@@ -325,7 +325,7 @@ def test_campbell_model_is_the_simulated_model(scene_file):
     for scene in (load(scene_file(DISK, 'disk')), load('ross_rotor')):
         rotor = rotor_model(scene)
         speed = scene_speed(scene)
-        assert polar_inertia(scene) and speed > 0
+        assert scene.polar_inertia() and speed > 0
         scale = np.abs(scene.model.C).max()
         assert np.abs(rotor.C + speed * rotor.G - scene.model.C).max() <= 1e-12 * scale
         assert np.abs(rotor.K - scene.model.K).max() == 0.0
@@ -338,7 +338,8 @@ def test_ross_rotor_modal_subspace_against_every_dof():
     # rpm; 0 at rest), and the directions are the same.
     scene = load('ross_rotor')
     reduced = rotor_model(scene)
-    full = condensed_rotor(scene.system, gyroscopic_matrix(scene.system, polar_inertia(scene)))
+    full = condensed_rotor(scene.system,
+                           gyroscopic_matrix(scene.system, scene.polar_inertia()))
     worst = 0.0
     for rpm in (0.0, 5000.0, 10000.0):
         a, b = whirl_modes(reduced, rpm * RPM), whirl_modes(full, rpm * RPM)

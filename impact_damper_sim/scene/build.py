@@ -269,6 +269,26 @@ class SceneModel:
         self.speed_profile, self.unbalance = self._make_rotor()
         self.forcing = self._make_forcing()
 
+    def polar_inertia(self):
+        """Polar inertia of each ``rotor.gyroscopic`` node (the Campbell study's too).
+
+        Returns
+        -------
+        dict of int to float
+            Node id to the sum of its point masses' inertia about X (kg m^2), 0.0 for a node
+            without one, in ``rotor.gyroscopic.nodes`` order; empty without
+            ``rotor.gyroscopic``.
+        """
+        rotor = self.scene['rotor']
+        gyro = rotor['gyroscopic'] if rotor else None
+        if gyro is None:
+            return {}
+        polar = {}
+        for pm in self.scene['structure']['point_masses'] or ():
+            if pm['inertia'] is not None:
+                polar[pm['node']] = polar.get(pm['node'], 0.0) + pm['inertia'][0]
+        return {node: polar.get(node, 0.0) for node in gyro['nodes']}
+
     def _gyroscopic_disks(self):
         """``(ry, rz, Ip)`` of each ``rotor.gyroscopic`` node: active DOF indices of its tilts
         and its point-mass polar inertia (kg m^2); empty without ``rotor.gyroscopic``.
@@ -287,13 +307,8 @@ class SceneModel:
             raise SceneError("scene key 'rotor.gyroscopic': needs rotor.speed.kind constant "
                              '(the flow is linear time-invariant per configuration)',
                              self.source)
-        polar = {}
-        for pm in self.scene['structure']['point_masses'] or ():
-            if pm['inertia'] is not None:
-                polar[pm['node']] = polar.get(pm['node'], 0.0) + pm['inertia'][0]
         disks = []
-        for i, node in enumerate(gyro['nodes']):
-            ip = polar.get(node, 0.0)
+        for i, (node, ip) in enumerate(self.polar_inertia().items()):
             if ip <= 0.0:
                 raise SceneError(f"scene key 'rotor.gyroscopic.nodes[{i}]': node {node} has no "
                                  'point-mass polar inertia (inertia about X) > 0', self.source)

@@ -30,31 +30,6 @@ RPM = np.pi / 30.0
 DIAGONAL_RTOL = 1e-14
 
 
-def polar_inertia(scene):
-    """Polar inertia of each spinning node of the scene's ``rotor.gyroscopic``.
-
-    Parameters
-    ----------
-    scene : SceneModel
-        A built scene.
-
-    Returns
-    -------
-    dict of int to float
-        Node id to the sum of its point masses' inertia about X (kg m^2); empty without
-        ``rotor.gyroscopic``.
-    """
-    rotor = scene.scene['rotor']
-    gyro = rotor['gyroscopic'] if rotor else None
-    if gyro is None:
-        return {}
-    polar = {}
-    for pm in scene.scene['structure']['point_masses'] or ():
-        if pm['inertia'] is not None:
-            polar[pm['node']] = polar.get(pm['node'], 0.0) + pm['inertia'][0]
-    return {node: polar.get(node, 0.0) for node in gyro['nodes']}
-
-
 def rotor_model(scene):
     """The scene's rotating model in its modal coordinates, gyroscopic matrix per unit speed.
 
@@ -71,7 +46,7 @@ def rotor_model(scene):
         no spin axis.
     """
     from ..modal.whirl import gyroscopic_matrix, modal_rotor
-    polar = polar_inertia(scene)
+    polar = scene.polar_inertia()
     G = gyroscopic_matrix(scene.system, polar) if polar else None
     return modal_rotor(scene.basis, G, spin_axis=scene.scene['rotor'] is not None)
 
@@ -309,7 +284,7 @@ def campbell_study(scene, speeds_rpm, harmonics=(1.0,), overrides=()):
              'direction': data.directions[k, b] or None,
              'whirl_index': num(data.whirl_index[k, b])}
             for k, s in enumerate(speeds_rpm) for b in range(data.n_branches)]
-    gyro = sorted(polar_inertia(built))
+    gyro = sorted(built.polar_inertia())
     couplings = built.scene['structure'].get('cross_couplings') or []
     return {
         'study': 'campbell', 'scene': built.name, 'source': built.source,
@@ -332,5 +307,5 @@ def campbell_study(scene, speeds_rpm, harmonics=(1.0,), overrides=()):
         'rows': rows, 'wall_time_s': wall}
 
 
-__all__ = ['RPM', 'campbell_study', 'describe_whirl', 'node_positions', 'polar_inertia',
+__all__ = ['RPM', 'campbell_study', 'describe_whirl', 'node_positions',
            'rotor_model', 'scene_speed', 'whirl_at_speed', 'whirl_shapes']
