@@ -78,6 +78,51 @@ def test_a_grid_gives_one_labelled_log_per_run_and_a_failing_run_its_reason(tmp_
     assert first == second
 
 
+def test_tick_period_is_a_run_input_and_a_manifest_column(tmp_path):
+    """tick_period: 50 ms is checked, recorded into every run's log (full-rate batches of
+    50 ms of samples), listed after duration_s in both manifests, and part of the run id."""
+    import yaml
+    from mcap.reader import make_reader
+    from test_record import _messages
+    text = 'scene: sdof\nduration: 100 ms\ntick_period: 50 ms\ngrid:\n  impactors.0.cor: [0.6]\n'
+    spec = _write(tmp_path, text)
+    (run,) = load_spec(spec)
+    assert run['tick_period'] == pytest.approx(0.05, rel=1e-15)
+    default = load_spec(_write(tmp_path, text.replace('tick_period: 50 ms\n', ''), 'd.yaml'))
+    explicit = load_spec(_write(tmp_path, text.replace('50 ms', '0.01'), 'e.yaml'))
+    assert default[0]['tick_period'] == 0.01 and explicit[0]['id'] == default[0]['id']
+    assert run['id'] != default[0]['id']   # a changed tick_period is another run
+    out = tmp_path / 'data'
+    result = run_dataset(str(spec), str(out), executor='serial')
+    assert (result['recorded'], result['failed']) == (1, 0)
+    doc, rows = _manifest(out)
+    assert doc['runs'][0]['tick_period_s'] == pytest.approx(0.05, rel=1e-15)
+    assert float(rows[0]['tick_period_s']) == pytest.approx(0.05, rel=1e-15)
+    columns = list(rows[0])
+    assert columns[:7] == ['id', 'status', 'error', 'scene', 'duration_s', 'tick_period_s',
+                           'noise_std']
+    log = out / doc['runs'][0]['file']
+    with open(log, 'rb') as f:
+        meta = {m.name: dict(m.metadata) for m in make_reader(f).iter_metadata()}
+    params = yaml.safe_load(meta['impact_damper_sim']['node_parameters'])
+    assert params['tick_period'] == pytest.approx(0.05, rel=1e-15)
+    widths = [m[4].width for m in _messages(log, decode=True) if m[0].endswith('/batch')]
+    assert params['sample_rate'] == 2000 and widths == [100, 100]   # 2 ticks of 50 ms
+    # the same spec again: the run is there, nothing is recorded
+    assert run_dataset(str(spec), str(out), executor='serial')['skipped'] == 1
+
+
+@pytest.mark.parametrize('value, reason', [
+    ('0', '0 is out of range'), ('500 ms', '500 ms is out of range'),
+    ('5 kg', "unit 'kg' is not a time"), ('abc', "cannot read 'abc' as a time")])
+def test_a_bad_tick_period_names_the_key_and_the_range(tmp_path, value, reason):
+    spec = _write(tmp_path, f'scene: sdof\nduration: 0.1\ntick_period: {value}\n')
+    with pytest.raises(DatasetError) as info:
+        load_spec(spec)
+    assert str(info.value).startswith(f"{spec}: key 'tick_period': {reason}")
+    assert str(info.value).endswith('[0.001, 0.1] s') and '\n' not in str(info.value)
+
+
 def test_an_interrupted_data_set_continues_where_it_stopped(tmp_path):
     spec = _write(tmp_path, SPEC.replace('[0.5, 0.7, 5]', '[0.5, 0.7]'))
     out = tmp_path / 'data'

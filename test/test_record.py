@@ -302,6 +302,85 @@ def test_study_record_command(tmp_path, capsys, schedule_file):
     assert 'x real time' in capsys.readouterr().out
 
 
+def _metadata(path):
+    from mcap.reader import make_reader
+    with open(path, 'rb') as f:
+        return {m.name: dict(m.metadata) for m in make_reader(f).iter_metadata()}
+
+
+def test_study_record_tick_period_batches_the_same_samples(tmp_path, capsys):
+    """--tick-period 100ms: full-rate batches of 200 samples (HPOTP, 2000 Hz) instead of 20,
+    the same samples and time stamps when concatenated, the per-sample Imu stream unchanged.
+
+    The first 0.2 s of the ramp has no impacts: the response is linear, and the chunk split
+    changes it by rounding only (~1e-14 of the peak). With impacts the rounding at a chunk
+    boundary is amplified from impact to impact (about a decade per 5 ms at a fast ramp),
+    so another tick_period gives other samples of the same dynamics (docs/study.md)."""
+    import yaml
+
+    from impact_damper_sim.cli.study import main
+    logs, results = {}, {}
+    for name, extra in (('default', []), ('coarse', ['--tick-period', '100ms'])):
+        logs[name] = tmp_path / f'{name}.mcap'
+        assert main(['record', 'hpotp', '--duration', '0.2', '--out', str(logs[name]),
+                     '--json', *extra]) == 0
+        results[name] = json.loads(capsys.readouterr().out)
+        assert results[name]['sim_time_s'] == pytest.approx(0.2)
+    topic = '/accel/hpotp_casing_bottom/batch'
+    widths = {name: [m[4].width for m in _messages(path, decode=True) if m[0] == topic]
+              for name, path in logs.items()}
+    assert widths == {'default': [20] * 20, 'coarse': [200] * 2}
+    t_fine, a_fine = _samples(logs['default'])
+    t_coarse, a_coarse = _samples(logs['coarse'])
+    np.testing.assert_array_equal(t_coarse, t_fine)   # every sample once, the same stamps
+    assert t_fine.size == 400 and np.max(np.abs(a_fine)) > 0
+    # 1e-9 of the peak: the same steps, a chunk split elsewhere may sum in another order
+    assert np.max(np.abs(a_coarse - a_fine)) <= 1e-9 * np.max(np.abs(a_fine))
+    assert results['coarse']['impacts'] == results['default']['impacts'] == 0
+    # the per-sample Imu stream: the same messages at the same log times and stamps, the
+    # same values to rounding (its decimation filter runs across the chunks)
+    imu = {name: [m for m in _messages(path, decode=True) if m[0] == '/accel/hpotp_casing_bottom']
+           for name, path in logs.items()}
+    assert len(imu['default']) == len(imu['coarse']) > 100
+
+    def stamps(msgs):
+        return [(m[1], m[2], m[4].header.stamp.sec, m[4].header.stamp.nanosec) for m in msgs]
+
+    def values(msgs):
+        return np.array([[m[4].linear_acceleration.x, m[4].linear_acceleration.y,
+                          m[4].linear_acceleration.z] for m in msgs])
+
+    assert stamps(imu['coarse']) == stamps(imu['default'])
+    fine_imu = values(imu['default'])
+    assert np.max(np.abs(values(imu['coarse']) - fine_imu)) <= 1e-9 * np.max(np.abs(fine_imu))
+    params = {name: yaml.safe_load(_metadata(path)['impact_damper_sim']['node_parameters'])
+              for name, path in logs.items()}
+    assert params['default']['tick_period'] == 0.01 and params['coarse']['tick_period'] == 0.1
+
+
+@pytest.mark.parametrize('value', ['0', '0.5', 'abc', '5 kg'])
+def test_study_record_refuses_a_tick_period_out_of_the_nodes_range(tmp_path, capsys, value):
+    from impact_damper_sim.cli.study import main
+    out = tmp_path / 'bad.mcap'
+    assert main(['record', 'hpotp', '--duration', '0.1', '--out', str(out),
+                 '--tick-period', value]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith('study: error: --tick-period: ') and '[0.001, 0.1] s' in err, err
+    assert not out.exists()
+
+
+def test_record_log_checks_its_tick_period(tmp_path):
+    from impact_damper_sim.studies.record import TICK_PERIOD_RANGE
+    assert TICK_PERIOD_RANGE == (0.001, 0.1)
+    out = tmp_path / 'bad.mcap'
+    for value in (0.0005, 0.2, math.nan, 'x', True):
+        with pytest.raises(SceneError, match=r'^tick_period: .* is out of range '
+                                             r'\[0\.001, 0\.1\] s$'):
+            record_log('sdof', out, 0.1, tick_period=value)
+    assert not out.exists()
+
+
 # -- a live node with the same schedule ----------------------------------------------------------
 
 def test_a_live_node_playing_the_schedule_steps_the_same_samples(recorded, schedule_file,

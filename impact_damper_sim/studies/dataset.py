@@ -11,6 +11,8 @@ command schedules and noise seeds (units allowed wherever a scene takes them)::
     scene: hpotp
     duration: 2 s
     noise_std: 0.05 g            # optional, at start (m/s^2 or units)
+    tick_period: 100 ms          # optional, the node's tick_period: 1 ms to 100 ms,
+                                 # default 10 ms
     overrides: [rotor.multiplier=2]   # optional, every run
     grid:                        # every combination ...
       impactors.0.clearance: [2 mil, 3 mil]
@@ -29,7 +31,8 @@ command schedules and noise seeds (units allowed wherever a scene takes them)::
 
 Each run is one ``study record`` (:func:`.record.record_log`) into ``DIR/runs/<id>.mcap``;
 its id is a digest of everything that decides its bytes (scene, overrides, schedule text,
-seed, noise, duration, software version), so a run whose inputs are unchanged keeps its id.
+seed, noise, duration, tick period, software version), so a run whose inputs are unchanged
+keeps its id.
 ``DIR/manifest.json`` and ``DIR/manifest.csv`` list every run: id, every parameter, the
 summary labels (impacts per second, stuck fraction, peak and RMS acceleration in g, diverged
 or not, the sim time reached), the file, its size and its sha256, and for a failed run its
@@ -60,8 +63,8 @@ from ..scene.schema import SceneError
 #: label columns of the manifest, from :func:`.record.record_log`'s result
 LABELS = ('impacts_per_s', 'stuck_fraction', 'peak_g', 'rms_g', 'diverged', 'failure',
           'sim_time_s', 'wall_s', 'real_time_factor', 'messages')
-SPEC_KEYS = ('scene', 'duration', 'noise_std', 'overrides', 'grid', 'schedules', 'seeds',
-             'sample')
+SPEC_KEYS = ('scene', 'duration', 'noise_std', 'tick_period', 'overrides', 'grid', 'schedules',
+             'seeds', 'sample')
 
 
 class DatasetError(SceneError):
@@ -104,8 +107,9 @@ def load_spec(path):
     list of dict
         One per run, in spec order: ``id``, ``scene``, ``overrides`` (the fixed ones, then
         the run's), ``keys`` (the run's own scene keys and values, as written), ``schedule``
-        (absolute path or None), ``seed``, ``noise_std`` (m/s^2), ``duration`` (s) and
-        ``inputs`` (what the id digests).
+        (absolute path or None), ``seed``, ``noise_std`` (m/s^2), ``duration`` (s),
+        ``tick_period`` (s) and ``inputs_sha256`` (the digest of the inputs the id is made
+        of).
 
     Raises
     ------
@@ -119,6 +123,7 @@ def load_spec(path):
     import impact_damper_sim
     from ..scene.loading import load_yaml
     from ..scene.units import UnitError, parse_quantity
+    from .record import TICK_PERIOD, check_tick_period, tick_period_range_text
     path = os.fspath(path)
     raw = load_yaml(pathlib.Path(path), source=path)
     base = os.path.dirname(os.path.abspath(path))
@@ -164,6 +169,17 @@ def load_spec(path):
         scene = os.path.join(base, scene)   # a scene file next to the spec
     duration = quantity('duration', 'time', positive=True)
     noise_std = quantity('noise_std', 'acceleration', default=0.0)
+    tick_period = None
+    try:
+        tick_period = check_tick_period(parse_quantity(raw.get('tick_period', TICK_PERIOD),
+                                                       'time', key='tick_period'))
+    except UnitError as exc:
+        reason = str(exc).removeprefix("'tick_period': ")
+        errors.append(f"key 'tick_period': {reason}; expected a time in "
+                      f'{tick_period_range_text()}')
+    except SceneError:
+        errors.append(f"key 'tick_period': {raw['tick_period']} is out of range "
+                      f'{tick_period_range_text()}')
     fixed = text_list('overrides', raw.get('overrides', []))
     runs = []   # (keys dict, schedule, seed)
     if 'sample' in raw:
@@ -239,11 +255,13 @@ def load_spec(path):
         inputs = {'scene': scene, 'scene_sha256': (_file_sha256(scene) if os.path.isfile(scene)
                                                    else None),
                   'overrides': overrides, 'schedule_sha256': schedule_sha, 'seed': seed,
-                  'noise_std': noise_std, 'duration': duration, 'software_version': version}
+                  'noise_std': noise_std, 'duration': duration, 'tick_period': tick_period,
+                  'software_version': version}
         digest = hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()
         plan.append({'id': 'r' + digest[:12], 'scene': scene, 'overrides': overrides,
                      'keys': keys, 'schedule': schedule, 'seed': seed, 'noise_std': noise_std,
-                     'duration': duration, 'inputs_sha256': digest})
+                     'duration': duration, 'tick_period': tick_period,
+                     'inputs_sha256': digest})
     ids = [run['id'] for run in plan]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
@@ -275,7 +293,8 @@ def record_run(run, out_dir):
     try:
         result = record_log(run['scene'], part, run['duration'], schedule=run['schedule'],
                             overrides=run['overrides'], seed=run['seed'],
-                            noise_std=run['noise_std'], overwrite=True, progress=False)
+                            noise_std=run['noise_std'], tick_period=run['tick_period'],
+                            overwrite=True, progress=False)
         os.replace(part, final)
     except Exception as exc:   # any failure is this run's, never the data set's
         lines = str(exc).strip().splitlines()
@@ -293,8 +312,8 @@ def _columns(plan):
     keys = []
     for run in plan:
         keys += [k for k in run['keys'] if k not in keys]
-    return (['id', 'status', 'error', 'scene', 'duration_s', 'noise_std', 'seed', 'schedule']
-            + keys + list(LABELS) + ['file', 'bytes', 'sha256', 'inputs_sha256'])
+    return (['id', 'status', 'error', 'scene', 'duration_s', 'tick_period_s', 'noise_std', 'seed',
+             'schedule'] + keys + list(LABELS) + ['file', 'bytes', 'sha256', 'inputs_sha256'])
 
 
 def _manifest_rows(plan, rows):
@@ -304,8 +323,8 @@ def _manifest_rows(plan, rows):
         if row is None:
             continue
         full = {'id': run['id'], 'scene': run['scene'], 'duration_s': run['duration'],
-                'noise_std': run['noise_std'], 'seed': run['seed'],
-                'schedule': run['schedule'], 'overrides': run['overrides'],
+                'tick_period_s': run['tick_period'], 'noise_std': run['noise_std'],
+                'seed': run['seed'], 'schedule': run['schedule'], 'overrides': run['overrides'],
                 'inputs_sha256': run['inputs_sha256'], **run['keys'], **row}
         out.append(full)
     return out

@@ -3,7 +3,8 @@
 ::
 
     study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
-                 [--noise-std A] [--set KEY=VALUE ...] [--overwrite] [--progress] [--json]
+                 [--noise-std A] [--tick-period T] [--set KEY=VALUE ...] [--overwrite]
+                 [--progress] [--json]
 
 :func:`record_log` steps :class:`~impact_damper_sim.live.realtime.LiveSimulation` with no
 wall clock and writes what ``vibration_node`` would publish and record with the same
@@ -20,9 +21,9 @@ real-time factor, CPU, lag; there is none here). ``impactor_state`` is written o
 change and every ``state_period`` of sim time (the node's timer runs on the wall clock,
 which at real time is the same).
 
-Deterministic: the same scene, overrides, schedule, seed and software version give the same
-messages, byte for byte, in the same order; only the bag's creation time in the ``rosbag2``
-metadata record differs. Nothing here imports ROS.
+Deterministic: the same scene, overrides, schedule, seed, tick period and software version
+give the same messages, byte for byte, in the same order; only the bag's creation time in
+the ``rosbag2`` metadata record differs. Nothing here imports ROS.
 """
 from __future__ import annotations
 
@@ -36,8 +37,46 @@ from ..scene.units import G0
 
 #: the node's defaults that shape the log (ros/parameters.py)
 TICK_PERIOD = 0.01     # s of sim time per stepped chunk (the node's tick_period)
+#: the node's closed range of tick_period (s; ros/parameters.py declares the same)
+TICK_PERIOD_RANGE = (0.001, 0.1)
 STATE_PERIOD = 1.0     # s between impactor_state messages (the node's state_period)
 NODE_NAME = '/vibration_node'
+
+
+def tick_period_range_text():
+    """The allowed tick_period, as error messages give it: ``[0.001, 0.1] s``."""
+    low, high = TICK_PERIOD_RANGE
+    return f'[{low:g}, {high:g}] s'
+
+
+def check_tick_period(value, name='tick_period'):
+    """Return ``value`` (s) as a float if it is a tick_period the node takes.
+
+    Parameters
+    ----------
+    value : float
+        Sim time per stepped chunk (s).
+    name : str
+        What the caller calls it (``tick_period``, ``--tick-period``), named in the error.
+
+    Raises
+    ------
+    SceneError
+        ``value`` is not a number in :data:`TICK_PERIOD_RANGE` (closed); the message names
+        ``name`` and the range.
+    """
+    from ..scene.schema import SceneError
+    low, high = TICK_PERIOD_RANGE
+    number = None
+    if not isinstance(value, bool):
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            pass
+    if number is None or not low <= number <= high:   # NaN is outside too
+        shown = f'{number:g} s' if number is not None else repr(value)
+        raise SceneError(f'{name}: {shown} is out of range {tick_period_range_text()}')
+    return number
 
 
 class RecordResult(dict):
@@ -74,7 +113,11 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     sample_rate, imu_rate : float, optional
         The node's ``sample_rate`` and ``imu_rate`` (Hz); default from the scene.
     tick_period, state_period : float
-        The node's ``tick_period`` and ``state_period`` (s of sim time).
+        The node's ``tick_period`` (s of sim time per stepped chunk, in
+        :data:`TICK_PERIOD_RANGE`: the full-rate batch, impact batch, ``/clock`` and rotor
+        messages come once per chunk; the per-sample Imu messages keep their number and
+        times) and
+        ``state_period`` (s of sim time).
     overwrite_option : str
         How the caller asks for ``overwrite`` (named when the file exists).
     stream : file, optional
@@ -93,8 +136,8 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     Raises
     ------
     SceneError
-        A bad scene, override or schedule (each problem named), or a schedule the scene
-        cannot take.
+        A bad scene, override or schedule (each problem named), a schedule the scene
+        cannot take, or a ``tick_period`` out of :data:`TICK_PERIOD_RANGE`.
     FileExistsError
         ``out`` exists and ``overwrite`` is false.
     """
@@ -108,6 +151,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     duration = float(duration)
     if not (math.isfinite(duration) and duration > 0):
         raise SceneError(f'--duration: must be a finite time > 0 s, got {duration:g}')
+    tick_period = check_tick_period(tick_period)
     scene_model, target = live_scene(scene, overrides)
     live = LiveSimulation(scene_model, sample_rate=sample_rate, imu_rate=imu_rate,
                           initial_target=target, noise_std=noise_std, seed=seed)
@@ -283,4 +327,5 @@ class _Progress:
             self.stream.flush()
 
 
-__all__ = ['RecordResult', 'STATE_PERIOD', 'TICK_PERIOD', 'record_log']
+__all__ = ['RecordResult', 'STATE_PERIOD', 'TICK_PERIOD', 'TICK_PERIOD_RANGE',
+           'check_tick_period', 'record_log', 'tick_period_range_text']
