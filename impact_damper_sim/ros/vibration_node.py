@@ -176,8 +176,8 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
                                       f"ignored (known: {', '.join(PARAMETERS)})")
         rate_limit = p['speed_rate_limit'] or None
         busy = _Busy(self.get_logger().info, 'loading the scene and the compiled kernels '
-                     '(a cold Numba cache compiles them once: 21-25 s on 2 quiet cores, 40 s '
-                     'or more on a busy machine; 2-3 s after that)')
+                     '(a cold Numba cache compiles them once: 10-25 s on 2 cores, by machine, '
+                     '40 s or more on a busy one; 1-3 s after that)')
         try:
             scene, target = live_scene(p['scene'], p['overrides'] or (),
                                        speed_rate_limit=rate_limit)
