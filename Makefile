@@ -76,9 +76,10 @@ test-slow: $(DEV)
 # and test/test_generated_docs.py fails when those sources change.
 
 # the paper's results next to ours (docs/validation.md and docs/validation/*.png; the run
-# time is in the document's header)
+# time is in the document's header); OpenBLAS's Haswell kernels on x86-64, so that the chaotic
+# impact runs give the same numbers on every CPU (tools/generated_docs.py pinned_numerics_env)
 validation: $(DEV)
-	$(VENV)/bin/impact_damper_study validate --out docs/validation.md --overwrite
+	$(PY) tools/generated_docs.py validation --write
 
 # regenerate docs/validation.md into a temporary directory and fail on any difference in
 # results (dates and wall times aside); make test runs it first
