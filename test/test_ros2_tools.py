@@ -243,11 +243,17 @@ def run(command, env, cwd, timeout=60.0):
         proc.close()
 
 
+#: commands run side by side: a person with a few shells. All ~20 at once (each a Python
+#: process of about 1 s of CPU) starved the node's process on 2 cores for 0.67 s and a
+#: `ros2 topic pub --once` publisher exited before the node's side had matched it
+PARALLEL_COMMANDS = 4
+
+
 def run_all(commands, env, cwd, timeout=60.0):
-    """Run commands at once; {command: (exit status, output)}."""
+    """Run commands, ``PARALLEL_COMMANDS`` at a time; {command: (exit status, output)}."""
     if not commands:
         return {}
-    with ThreadPoolExecutor(max_workers=len(commands)) as pool:
+    with ThreadPoolExecutor(max_workers=min(len(commands), PARALLEL_COMMANDS)) as pool:
         futures = {c: pool.submit(run, c, env, cwd, timeout) for c in commands}
         return {c: f.result() for c, f in futures.items()}
 
@@ -405,8 +411,11 @@ def test_ros2_run_node_and_every_documented_command_against_it(tmp_path):
             if k == 'hz':
                 topic = HZ.match(proc.command).group(1)
                 match = proc.wait_for(r'average rate: ([\d.]+)', 30.0)
+                # the last report: its window spans the run so far, the first one only the
+                # first second (43/s once, a start-up stall in it; 95/s by the end)
+                rates = re.findall(r'average rate: ([\d.]+)', proc.output)
                 nominal = RATES.get(topic)
-                if not match or (nominal and not 0.5 * nominal < float(match.group(1))
+                if not match or (nominal and not 0.5 * nominal < float(rates[-1])
                                  < 1.5 * nominal):
                     problems.append(f'{proc.command}: rate not measured or not about '
                                     f'{nominal}/s:\n{proc.output}')
