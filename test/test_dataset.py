@@ -196,3 +196,99 @@ def test_a_dask_cluster_records_the_same_logs(tmp_path):
     for a, b in zip(serial['rows'], dask['rows']):
         assert _messages(tmp_path / 'serial' / a['file']) == _messages(
             tmp_path / 'dask' / b['file'])
+
+
+GATHER_SPEC = 'scene: sdof\nduration: 100 ms\ngrid:\n  impactors.0.cor: {cors}\nseeds: [0, 1]\n'
+
+
+def _parts(tmp_path):
+    """Two slices of one grid, each recorded into its own directory (two machines)."""
+    dirs = []
+    for name, cors in (('a', '[0.5]'), ('b', '[0.7, 5]')):
+        spec = _write(tmp_path, GATHER_SPEC.format(cors=cors), f'{name}.yaml')
+        run_dataset(str(spec), str(tmp_path / name), executor='serial')
+        dirs.append(tmp_path / name)
+    return dirs
+
+
+def test_parts_recorded_apart_are_gathered_into_one_data_set(tmp_path, capsys):
+    from impact_damper_sim.cli.study import main
+    a, b = _parts(tmp_path)
+    out = tmp_path / 'all'
+    assert main(['dataset', '--gather', str(a), str(b), '--out', str(out)]) == 0
+    line = capsys.readouterr().out
+    assert line.startswith('6 runs gathered from 2 directories: 4 copied, 0 already there, '
+                           '0 conflicts, 0 bad logs skipped, 2 failed; manifest ')
+    parts = {r['id']: (d, r) for d in (a, b) for r in _manifest(d)[0]['runs']}
+    doc, rows = _manifest(out)
+    assert doc['gathered_from'] == [str(a), str(b)]
+    assert [r['id'] for r in doc['runs']] == sorted(parts) == [r['id'] for r in rows]
+    for r in doc['runs']:
+        d, src = parts[r['id']]
+        assert r == src   # the same row: parameters, labels, status, reason, sha256
+        if r['status'] == 'ok':
+            assert (out / r['file']).read_bytes() == (d / src['file']).read_bytes()
+    assert sorted(p.name for p in (out / 'runs').iterdir()) == sorted(
+        r['id'] + '.mcap' for r in doc['runs'] if r['status'] == 'ok')   # no .part left
+    assert list(rows[0]) == list(_manifest(a)[1][0])   # the same CSV columns
+    # the full spec recognises every gathered run: nothing is recorded again
+    full = _write(tmp_path, GATHER_SPEC.format(cors='[0.5, 0.7, 5]'), 'full.yaml')
+    result = run_dataset(str(full), str(out), executor='serial')
+    assert result['skipped'] == result['planned'] == 6 and result['recorded'] == 0
+    # gathering again copies nothing
+    mtimes = {p.name: p.stat().st_mtime_ns for p in (out / 'runs').iterdir()}
+    assert main(['dataset', '--gather', str(a), str(b), '--out', str(out), '--json']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary['copied'], summary['already_there'], summary['ok'],
+            summary['failed']) == (0, 4, 4, 2)
+    assert {p.name: p.stat().st_mtime_ns for p in (out / 'runs').iterdir()} == mtimes
+
+
+def test_a_tampered_log_is_skipped_and_a_conflict_is_reported(tmp_path, capsys):
+    from impact_damper_sim.cli.study import main
+    a, b = _parts(tmp_path)
+    ok = [r for r in _manifest(a)[0]['runs'] if r['status'] == 'ok']
+    data = bytearray((a / ok[0]['file']).read_bytes())
+    data[len(data) // 2] ^= 0xFF   # one byte changed
+    (a / ok[0]['file']).write_bytes(bytes(data))
+    out = tmp_path / 'all'
+    assert main(['dataset', '--gather', str(a), str(b), '--out', str(out)]) == 1
+    captured = capsys.readouterr()
+    assert '3 copied, 0 already there, 0 conflicts, 1 bad logs skipped' in captured.out
+    assert f"run {ok[0]['id']} in {a}: sha256 " in captured.err
+    assert not (out / ok[0]['file']).exists()
+    ids = [r['id'] for r in _manifest(out)[0]['runs']]
+    assert ok[0]['id'] not in ids and ok[1]['id'] in ids   # the others went on
+    # a third part that holds one of a's runs with other bytes: a conflict, a's is kept
+    c = tmp_path / 'c'
+    (c / 'runs').mkdir(parents=True)
+    doc = json.loads((a / 'manifest.json').read_text())
+    row = dict(ok[1], sha256=hashlib.sha256(b'other').hexdigest())
+    doc['runs'] = [row]
+    (c / 'manifest.json').write_text(json.dumps(doc))
+    (c / row['file']).write_bytes(b'other')
+    assert main(['dataset', '--gather', str(a), str(c), '--out', str(out), '--json']) == 1
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert summary['conflicts'] == [{'id': row['id'], 'kept': str(a), 'other': str(c)}]
+    assert f"run {row['id']}: {a} and {c} hold different logs" in captured.err
+    assert (out / row['file']).read_bytes() == (a / row['file']).read_bytes()
+
+
+def test_a_part_without_a_readable_manifest_is_refused(tmp_path, capsys):
+    from impact_damper_sim.cli.study import main
+    a, _ = _parts(tmp_path)
+    empty = tmp_path / 'empty'
+    empty.mkdir()
+    out = tmp_path / 'all'
+    assert main(['dataset', '--gather', str(a), str(empty), '--out', str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == f'study: error: {empty}: no manifest.json (not a data set directory)'
+    (empty / 'manifest.json').write_text('{"runs": [')
+    assert main(['dataset', '--gather', str(a), str(empty), '--out', str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and f"{empty / 'manifest.json'}: unreadable manifest" in err
+    assert not out.exists()   # nothing written
+    assert main(['dataset', str(tmp_path / 'a.yaml'), '--gather', str(a),
+                 '--out', str(out)]) == 2
+    assert 'SPEC.yaml cannot be given with --gather' in capsys.readouterr().err

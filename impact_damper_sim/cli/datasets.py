@@ -7,6 +7,7 @@
                  [--progress] [--json]
     study dataset SPEC.yaml --out DIR [--executor process|serial|dask] [--workers N]
                   [--dask-address ADDR] [--retry-failed] [--progress] [--json]
+    study dataset --gather DIR [DIR ...] --out OUT [--json]
 
 ``record`` (:mod:`..studies.record`): exit status 0 with a one-line summary on stdout (or
 JSON); 2 with one message per problem on stderr for a bad scene, override, duration,
@@ -15,7 +16,10 @@ simulation diverged (the log holds everything up to it, and the summary says so)
 
 ``dataset`` (:mod:`..studies.dataset`): exit status 0 when every run is recorded (diverged
 runs are labelled, not failed), 1 when some failed (each with its reason in the manifest),
-2 for a bad spec. Importing this module is cheap: the engine is imported when a command runs.
+2 for a bad spec. ``dataset --gather`` (:func:`..studies.dataset.gather_datasets`): 0 when
+every finished run was gathered, 1 when a log did not match its sha256 (or was missing) or two
+parts hold the same run with other bytes, 2 for a part without a readable manifest (nothing
+written). Importing this module is cheap: the engine is imported when a command runs.
 """
 from __future__ import annotations
 
@@ -141,16 +145,27 @@ def add_dataset_parser(sub):
     """
     p = sub.add_parser(
         'dataset', help='a labelled data set of node logs: a grid or a seeded sample of runs',
+        usage='%(prog)s SPEC.yaml --out DIR [--executor process|serial|dask] [--workers N]\n'
+              '                     [--dask-address ADDR] [--retry-failed] [--progress] [--json]\n'
+              '       %(prog)s --gather DIR [DIR ...] --out OUT [--json]',
         description='Record one node log per run of a spec (a grid or a seeded random sample '
                     'over scene keys, command schedules and noise seeds) on a process pool or '
                     'a Dask cluster, and write DIR/manifest.json and DIR/manifest.csv (run id, '
                     'every parameter, impacts/s, stuck fraction, peak and RMS g, diverged, '
                     'file and sha256; a failed run with its reason). Resumable: runs whose '
-                    'inputs and file are unchanged are skipped.')
-    p.add_argument('spec', metavar='SPEC.yaml', help='the data set spec (docs/study.md)')
+                    'inputs and file are unchanged are skipped. With --gather, merge data '
+                    'sets recorded part by part (one per machine) into OUT instead: every '
+                    'finished log copied after checking its sha256, one manifest.')
+    p.add_argument('spec', metavar='SPEC.yaml', nargs='?',
+                   help='the data set spec (docs/study.md); not with --gather')
     p.add_argument('--out', required=True, metavar='DIR',
-                   help='data set directory (logs in DIR/runs; shared by every worker)')
-    p.add_argument('--executor', choices=('process', 'serial', 'dask'), default='process',
+                   help='data set directory (logs in DIR/runs; shared by every worker); with '
+                        '--gather, the merged data set')
+    p.add_argument('--gather', nargs='+', metavar='DIR',
+                   help='merge these data set directories (each with its manifest.json) into '
+                        '--out: logs copied, not moved, each checked against its sha256; runs '
+                        'already in --out are not copied again')
+    p.add_argument('--executor', choices=('process', 'serial', 'dask'),
                    help='where runs go (default process)')
     p.add_argument('--workers', type=int, metavar='N',
                    help='worker processes or local Dask workers (default: CPU count)')
@@ -174,8 +189,13 @@ def run_dataset(args):
     """
     from ..scene.schema import SceneError
     from ..studies.dataset import run_dataset as run
+    if args.gather is not None:
+        return run_gather(args)
+    if args.spec is None:
+        raise SceneError('dataset: give SPEC.yaml, or --gather DIR [DIR ...]')
     try:
-        result = run(args.spec, args.out, executor=args.executor, workers=args.workers,
+        result = run(args.spec, args.out, executor=args.executor or 'process',
+                     workers=args.workers,
                      dask_address=args.dask_address, retry_failed=args.retry_failed,
                      progress=args.progress)
     except ValueError as exc:   # a bad executor option (SceneError is reported by main)
@@ -195,4 +215,45 @@ def run_dataset(args):
     return 1 if result['failed'] else 0
 
 
-__all__ = ['add_dataset_parser', 'add_record_parser', 'run_dataset', 'run_record']
+def run_gather(args):
+    """Run ``study dataset --gather``; return the exit status (0 all gathered, 1 a log that
+    did not match its sha256 or a conflict); a part without a readable manifest raises
+    ``SceneError`` (exit 2, nothing written).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        ``gather``, ``out``, ``json``; ``spec``, ``executor``, ``workers``, ``dask_address``,
+        ``retry_failed`` and ``progress`` must be unset.
+    """
+    from ..scene.schema import SceneError
+    from ..studies.dataset import gather_datasets
+    given = [name for name, value in (
+        ('SPEC.yaml', args.spec), ('--executor', args.executor), ('--workers', args.workers),
+        ('--dask-address', args.dask_address), ('--retry-failed', args.retry_failed or None),
+        ('--progress', args.progress)) if value is not None]
+    if given:
+        raise SceneError(f"dataset --gather: {', '.join(given)} cannot be given with --gather "
+                         '(it records nothing; run `study dataset SPEC.yaml --out OUT` after '
+                         'it to record what is missing)')
+    try:
+        result = gather_datasets(args.gather, args.out)
+    except OSError as exc:   # --out not writable, say
+        raise SceneError(f'dataset --gather: {exc}') from None
+    if args.json:
+        _print_json({k: v for k, v in result.items() if k != 'runs'})
+    else:
+        print(f"{result['ok'] + result['failed']} runs gathered from {len(args.gather)} "
+              f"directories: {result['copied']} copied, {result['already_there']} already "
+              f"there, {len(result['conflicts'])} conflicts, {len(result['bad'])} bad logs "
+              f"skipped, {result['failed']} failed; manifest {result['manifest']}")
+    for bad in result['bad']:
+        _error(f"run {bad['id']} in {bad['dir']}: {bad['reason']}; skipped")
+    for c in result['conflicts']:
+        _error(f"run {c['id']}: {c['kept']} and {c['other']} hold different logs (sha256); "
+               f"kept the one from {c['kept']}")
+    return 1 if result['bad'] or result['conflicts'] else 0
+
+
+__all__ = ['add_dataset_parser', 'add_record_parser', 'run_dataset', 'run_gather',
+           'run_record']
