@@ -16,7 +16,7 @@ simulation diverged (the log holds everything up to it, and the summary says so)
 
 ``dataset`` (:mod:`..studies.dataset`): exit status 0 when every run is recorded (diverged
 runs are labelled, not failed), 1 when some failed (each with its reason in the manifest),
-2 for a bad spec. ``dataset --gather`` (:func:`..studies.dataset.gather_datasets`): 0 when
+2 for a bad spec. ``dataset --gather`` (:func:`..studies.dataset_gather.gather_datasets`): 0 when
 every finished run was gathered, 1 when a log did not match its sha256 (or was missing) or two
 parts hold the same run with other bytes, 2 for a part without a readable manifest (nothing
 written). Importing this module is cheap: the engine is imported when a command runs.
@@ -227,7 +227,7 @@ def run_gather(args):
         ``retry_failed`` and ``progress`` must be unset.
     """
     from ..scene.schema import SceneError
-    from ..studies.dataset import gather_datasets
+    from ..studies.dataset_gather import gather_datasets
     given = [name for name, value in (
         ('SPEC.yaml', args.spec), ('--executor', args.executor), ('--workers', args.workers),
         ('--dask-address', args.dask_address), ('--retry-failed', args.retry_failed or None),
