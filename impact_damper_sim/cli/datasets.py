@@ -91,19 +91,13 @@ def run_record(args):
     """
     from ..scene.schema import SceneError
     from ..scene.units import UnitError, parse_quantity
-    from ..studies.record import check_tick_period, record_log, tick_period_range_text
+    from ..studies.record import parse_tick_period, record_log
     try:
         duration = parse_quantity(args.duration, 'time', key='--duration')
         noise_std = parse_quantity(args.noise_std, 'acceleration', key='--noise-std')
     except UnitError as exc:
         raise SceneError(str(exc)) from None
-    try:
-        tick_period = parse_quantity(args.tick_period, 'time', key='--tick-period')
-    except UnitError as exc:   # one line naming the option and what it takes
-        reason = str(exc).removeprefix("'--tick-period': ")
-        raise SceneError(f'--tick-period: {reason}; expected a time in '
-                         f'{tick_period_range_text()}') from None
-    tick_period = check_tick_period(tick_period, '--tick-period')
+    tick_period = parse_tick_period(args.tick_period, '--tick-period')
     if not duration > 0:
         raise SceneError(f'--duration: must be > 0 s, got {args.duration}')
     if not noise_std >= 0:

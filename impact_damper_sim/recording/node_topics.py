@@ -11,6 +11,14 @@ from the same keys does.
 """
 from __future__ import annotations
 
+#: the node's ``tick_period``: default and closed range (s of sim time per stepped chunk);
+#: ``ros/parameters.py`` declares the parameter with these, ``study record`` writes with them
+TICK_PERIOD = 0.01
+TICK_PERIOD_RANGE = (0.001, 0.1)
+#: the node's ``state_period``: default and range (s between ``impactor_state`` messages)
+STATE_PERIOD = 1.0
+STATE_PERIOD_RANGE = (0.01, 60.0)
+
 ACCEL_PREFIX = 'accel/'
 BATCH_SUFFIX = '/batch'
 IMPACTS = 'impacts'

@@ -12,6 +12,7 @@ import math
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
+from ..recording import node_topics as _topics
 from ..scene.schema import SceneError
 
 #: integration methods the live node steps ('' = the scene's simulation.method)
@@ -55,11 +56,11 @@ PARAMETERS = {
                               'commanded rotor)', (0.0, 1.0e6), False),
     'publish_clock': (True, 'publish /clock (turn off on all but one node of a system)',
                       None, True),
-    'tick_period': (0.01, 'sim time stepped per chunk (s); samples are computed one chunk '
-                          'ahead and published one by one at their own time',
-                    (0.001, 0.1), True),
-    'state_period': (1.0, 'period of the impactor_state republish (s); it is also sent on '
-                          'every change', (0.01, 60.0), True),
+    'tick_period': (_topics.TICK_PERIOD, 'sim time stepped per chunk (s); samples are '
+                    'computed one chunk ahead and published one by one at their own time',
+                    _topics.TICK_PERIOD_RANGE, True),
+    'state_period': (_topics.STATE_PERIOD, 'period of the impactor_state republish (s); it '
+                     'is also sent on every change', _topics.STATE_PERIOD_RANGE, True),
     'diagnostics_period': (1.0, 'period of /diagnostics (s)', (0.1, 60.0), True),
     'max_lag': (0.25, 'largest schedule deficit kept before it is dropped and reported (s)',
                 (0.01, 10.0), True),

@@ -125,7 +125,7 @@ def load_spec(path):
     import impact_damper_sim
     from ..scene.loading import load_yaml
     from ..scene.units import UnitError, parse_quantity
-    from .record import TICK_PERIOD, check_tick_period, tick_period_range_text
+    from .record import TICK_PERIOD, parse_tick_period
     path = os.fspath(path)
     raw = load_yaml(pathlib.Path(path), source=path)
     base = os.path.dirname(os.path.abspath(path))
@@ -173,15 +173,9 @@ def load_spec(path):
     noise_std = quantity('noise_std', 'acceleration', default=0.0)
     tick_period = None
     try:
-        tick_period = check_tick_period(parse_quantity(raw.get('tick_period', TICK_PERIOD),
-                                                       'time', key='tick_period'))
-    except UnitError as exc:
-        reason = str(exc).removeprefix("'tick_period': ")
-        errors.append(f"key 'tick_period': {reason}; expected a time in "
-                      f'{tick_period_range_text()}')
-    except SceneError:
-        errors.append(f"key 'tick_period': {raw['tick_period']} is out of range "
-                      f'{tick_period_range_text()}')
+        tick_period = parse_tick_period(raw.get('tick_period', TICK_PERIOD), "key 'tick_period'")
+    except SceneError as exc:
+        errors.append(str(exc))
     fixed = text_list('overrides', raw.get('overrides', []))
     runs = []   # (keys dict, schedule, seed)
     if 'sample' in raw:
@@ -310,12 +304,26 @@ def record_run(run, out_dir):
     return row
 
 
+#: a run's inputs in the manifest: (column, key of a :func:`load_spec` plan entry); the
+#: grid or sample keys follow them, then the labels and the file. One table for writing the
+#: manifest and for reading it back (:mod:`.dataset_gather`)
+RUN_COLUMNS = (('id', 'id'), ('scene', 'scene'), ('duration_s', 'duration'),
+               ('tick_period_s', 'tick_period'), ('noise_std', 'noise_std'), ('seed', 'seed'),
+               ('schedule', 'schedule'), ('overrides', 'overrides'),
+               ('inputs_sha256', 'inputs_sha256'))
+#: the outcome columns of a run (the rest of a manifest row)
+RESULT_COLUMNS = ('status', 'error', *LABELS, 'file', 'bytes', 'sha256')
+
+
 def _columns(plan):
+    """The CSV's columns: the inputs (the overrides stay in the JSON), the run's keys, the
+    outcome, the inputs' digest last."""
     keys = []
     for run in plan:
         keys += [k for k in run['keys'] if k not in keys]
-    return (['id', 'status', 'error', 'scene', 'duration_s', 'tick_period_s', 'noise_std', 'seed',
-             'schedule'] + keys + list(LABELS) + ['file', 'bytes', 'sha256', 'inputs_sha256'])
+    inputs = [c for c, _ in RUN_COLUMNS if c not in ('id', 'overrides', 'inputs_sha256')]
+    return (['id', 'status', 'error'] + inputs + keys + list(LABELS)
+            + ['file', 'bytes', 'sha256', 'inputs_sha256'])
 
 
 def _manifest_rows(plan, rows):
@@ -324,11 +332,8 @@ def _manifest_rows(plan, rows):
         row = rows.get(run['id'])
         if row is None:
             continue
-        full = {'id': run['id'], 'scene': run['scene'], 'duration_s': run['duration'],
-                'tick_period_s': run['tick_period'], 'noise_std': run['noise_std'],
-                'seed': run['seed'], 'schedule': run['schedule'], 'overrides': run['overrides'],
-                'inputs_sha256': run['inputs_sha256'], **run['keys'], **row}
-        out.append(full)
+        out.append({**{column: run[key] for column, key in RUN_COLUMNS}, **run['keys'],
+                    **row})
     return out
 
 

@@ -16,13 +16,12 @@ import json
 import os
 import re
 
-from .dataset import LABELS, DatasetError, _file_sha256, _manifest_rows, write_manifest
+from .dataset import (RESULT_COLUMNS, RUN_COLUMNS, DatasetError, _file_sha256,
+                      _manifest_rows, write_manifest)
 
 #: the manifest fields of a run that are not a grid or sample key
-_RUN_FIELDS = frozenset(('id', 'status', 'error', 'scene', 'duration_s', 'tick_period_s',
-                         'noise_std', 'seed', 'schedule', 'overrides', 'inputs_sha256', *LABELS,
-                         'file', 'bytes', 'sha256'))
-_OK_FIELDS = ('id', 'status', 'error', *LABELS, 'file', 'bytes', 'sha256')
+_RUN_FIELDS = frozenset((*(column for column, _ in RUN_COLUMNS), *RESULT_COLUMNS))
+_OK_FIELDS = ('id', *RESULT_COLUMNS)
 _ID = re.compile(r'[A-Za-z0-9_-][A-Za-z0-9_.-]*\Z')
 _SHA256 = re.compile(r'[0-9a-f]{64}\Z')
 
@@ -58,12 +57,11 @@ def _read_part(part):
 
 
 def _plan_entry(row):
-    """A plan entry (:func:`load_spec`'s form) rebuilt from a manifest row."""
-    return {'id': row['id'], 'scene': row.get('scene'), 'duration': row.get('duration_s'),
-            'tick_period': row.get('tick_period_s'), 'noise_std': row.get('noise_std'),
-            'seed': row.get('seed'), 'schedule': row.get('schedule'),
-            'overrides': row.get('overrides') or [], 'inputs_sha256': row.get('inputs_sha256'),
-            'keys': {k: v for k, v in row.items() if k not in _RUN_FIELDS}}
+    """A plan entry (:func:`.dataset.load_spec`'s form) rebuilt from a manifest row."""
+    entry = {key: row.get(column) for column, key in RUN_COLUMNS}
+    entry['overrides'] = entry['overrides'] or []
+    entry['keys'] = {k: v for k, v in row.items() if k not in _RUN_FIELDS}
+    return entry
 
 
 def _copy_verified(source, target, sha256, block=1 << 20):

@@ -33,13 +33,10 @@ import time
 
 import numpy as np
 
+# the node's defaults that shape the log (its parameter table reads the same ones)
+from ..recording.node_topics import STATE_PERIOD, TICK_PERIOD, TICK_PERIOD_RANGE
 from ..scene.units import G0
 
-#: the node's defaults that shape the log (ros/parameters.py)
-TICK_PERIOD = 0.01     # s of sim time per stepped chunk (the node's tick_period)
-#: the node's closed range of tick_period (s; ros/parameters.py declares the same)
-TICK_PERIOD_RANGE = (0.001, 0.1)
-STATE_PERIOD = 1.0     # s between impactor_state messages (the node's state_period)
 NODE_NAME = '/vibration_node'
 
 
@@ -49,7 +46,7 @@ def tick_period_range_text():
     return f'[{low:g}, {high:g}] s'
 
 
-def check_tick_period(value, name='tick_period'):
+def check_tick_period(value, name='tick_period', shown=None):
     """Return ``value`` (s) as a float if it is a tick_period the node takes.
 
     Parameters
@@ -58,6 +55,8 @@ def check_tick_period(value, name='tick_period'):
         Sim time per stepped chunk (s).
     name : str
         What the caller calls it (``tick_period``, ``--tick-period``), named in the error.
+    shown : str, optional
+        The value as the user wrote it (``'500 ms'``), for the error; default ``value`` in s.
 
     Raises
     ------
@@ -74,9 +73,41 @@ def check_tick_period(value, name='tick_period'):
         except (TypeError, ValueError):
             pass
     if number is None or not low <= number <= high:   # NaN is outside too
-        shown = f'{number:g} s' if number is not None else repr(value)
+        if shown is None:
+            shown = f'{number:g} s' if number is not None else repr(value)
         raise SceneError(f'{name}: {shown} is out of range {tick_period_range_text()}')
     return number
+
+
+def parse_tick_period(text, name='tick_period'):
+    """Read a tick_period as a user writes it (s, or a time with its unit: ``'100 ms'``).
+
+    Parameters
+    ----------
+    text : str or float
+        The value as given (s when a bare number).
+    name : str
+        The option or key it came from, named in the error.
+
+    Returns
+    -------
+    float
+        The tick period (s), in :data:`TICK_PERIOD_RANGE`.
+
+    Raises
+    ------
+    SceneError
+        Not a time, or out of range: one line naming ``name``, the value and the range.
+    """
+    from ..scene.schema import SceneError
+    from ..scene.units import UnitError, parse_quantity
+    try:
+        seconds = parse_quantity(text, 'time', key=name)
+    except UnitError as exc:
+        reason = str(exc).removeprefix(f"'{name}': ")
+        raise SceneError(f'{name}: {reason}; expected a time in '
+                         f'{tick_period_range_text()}') from None
+    return check_tick_period(seconds, name, shown=str(text))
 
 
 class RecordResult(dict):
@@ -328,4 +359,4 @@ class _Progress:
 
 
 __all__ = ['RecordResult', 'STATE_PERIOD', 'TICK_PERIOD', 'TICK_PERIOD_RANGE',
-           'check_tick_period', 'record_log', 'tick_period_range_text']
+           'check_tick_period', 'parse_tick_period', 'record_log', 'tick_period_range_text']
