@@ -481,6 +481,40 @@ def test_main_runs_and_stops_on_sigint(tmp_path):
     assert 'Traceback' not in output
 
 
+def test_a_report_cut_by_ctrl_c_is_not_an_error(ros_context):
+    """Ctrl-C shuts the context down, and a report the report thread is publishing then fails
+    ("publisher's context is invalid"; a newcomer's Ctrl-C printed it as an ERROR). With the
+    context down the thread ends quietly; with it up, a failed report is still logged."""
+    import rclpy
+    monitor = VibrationMonitor(context=ros_context)
+    logged = []
+    monitor.get_logger().error = lambda text, **_: logged.append(text)
+
+    def fail(jobs):
+        raise RuntimeError("Failed to publish: publisher's context is invalid")
+
+    monitor._process = fail
+
+    def queue_job():
+        with monitor._queue:
+            monitor._jobs.append(None)
+            monitor._queue.notify()
+
+    try:
+        queue_job()
+        deadline = time.monotonic() + 5.0
+        while not logged and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert len(logged) == 1 and 'report failed' in logged[0]   # context up: an error
+        rclpy.try_shutdown(context=ros_context)
+        queue_job()
+        monitor._worker.join(timeout=5.0)
+        assert not monitor._worker.is_alive()
+        assert len(logged) == 1, logged   # context down: no error, the thread ended
+    finally:
+        monitor.destroy_node()
+
+
 def test_malformed_parameter_request_is_refused_and_the_monitor_stays_up(ros_context):
     """A SetParameters with ParameterValue type 200 (any process on the domain can send
     one) gets a refusal; the executor keeps spinning."""

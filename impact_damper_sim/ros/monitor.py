@@ -398,6 +398,8 @@ class VibrationMonitor(Node):
                 try:
                     self._process(self._take_jobs())
                 except Exception as error:   # keep monitoring whatever one batch did
+                    if not self.context.ok():
+                        return   # Ctrl-C shut the context down under a publish: no failure
                     self.get_logger().error(f'report failed: {error!r}',
                                             throttle_duration_sec=10.0)
 
