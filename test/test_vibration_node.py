@@ -24,7 +24,7 @@ from std_msgs.msg import Float64  # noqa: E402
 
 from impact_damper_sim.recording.batches import rows_of  # noqa: E402
 from impact_damper_sim.ros import interface as itf  # noqa: E402
-from impact_damper_sim.ros import vibration_node  # noqa: E402
+from impact_damper_sim.ros import vibration_node, wire  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode, main  # noqa: E402
 from impact_damper_sim.scene.schema import SceneError  # noqa: E402
 
@@ -424,7 +424,7 @@ def test_a_waiting_callback_gets_the_lock_at_the_next_chunk():
     without the hand-over Python's unfair lock lets the stepper win again (measured: 60 to
     900 chunks of 1 ms each, quiet or with both cores loaded; with it 1 to 4 at most, median
     1). Counted in chunks, not seconds, so a loaded machine does not make it flaky."""
-    lock = vibration_node._HandoffLock()
+    lock = wire.HandoffLock()
     stop = threading.Event()
     chunks = [0]
 
@@ -1075,9 +1075,9 @@ def test_rotor_joint_states_carry_angle_and_speed(ros_context):
 
 def test_slow_start_up_says_what_it_is_doing():
     """A cold Numba cache keeps the node busy for tens of seconds: it logs that it is."""
-    from impact_damper_sim.ros.vibration_node import _Busy
+    from impact_damper_sim.ros.wire import BusyNotice
     said = []
-    busy = _Busy(said.append, 'compiling', period=0.05)
+    busy = BusyNotice(said.append, 'compiling', period=0.05)
     time.sleep(0.3)
     elapsed = busy.stop()
     n = len(said)

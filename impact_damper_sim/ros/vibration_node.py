@@ -45,69 +45,8 @@ from .node_publishing import PublishingMixin
 from .node_recording import RecordingMixin
 from .parameters import PARAMETERS, RCLPY_PARAMETERS, ParameterError, check, declare_all, \
     parameters_markdown
-from .wire import Outlet, freeze_start_up_heap, guard_services, ignore_further_interrupts, \
-    settle_interrupt, shutdown_quietly, spin_guarded
-
-
-class _HandoffLock:
-    """A re-entrant lock that the stepping thread hands over when someone waits for it.
-
-    Python locks are not fair: a thread that releases a lock and takes it again at once
-    keeps winning, and stepping flat out (``real_time_factor`` 0) would starve commands and
-    diagnostics. Waiters are counted; :meth:`hand_over`, called by the stepper between
-    chunks, pauses 0.5 ms when anyone waits.
-    """
-
-    def __init__(self):
-        self._lock = threading.RLock()
-        self.waiting = 0
-
-    def __enter__(self):
-        self.waiting += 1
-        self._lock.acquire()
-        self.waiting -= 1
-        return self
-
-    def __exit__(self, *exc_info):
-        self._lock.release()
-
-    def acquire(self, timeout):
-        """Take the lock, waiting at most ``timeout`` s; True when taken (release it)."""
-        self.waiting += 1
-        try:
-            return self._lock.acquire(timeout=timeout)
-        finally:
-            self.waiting -= 1
-
-    def release(self):
-        """Release a lock taken with :meth:`acquire`."""
-        self._lock.release()
-
-    def hand_over(self):
-        """Let a waiting thread take the lock (call with the lock released)."""
-        if self.waiting > 0:
-            time.sleep(0.0005)
-
-
-class _Busy:
-    """Logs, every ``period`` s until stopped, that a slow start-up step is still running."""
-
-    def __init__(self, log, what, period=5.0):
-        self._done = threading.Event()
-        self._t0 = time.monotonic()
-
-        def run():
-            while not self._done.wait(period):
-                log(f'still {what} ({time.monotonic() - self._t0:.0f} s)')
-
-        self._thread = threading.Thread(target=run, name='startup_notice', daemon=True)
-        self._thread.start()
-
-    def stop(self):
-        """Stop the notices; return the elapsed time (s)."""
-        self._done.set()
-        self._thread.join()
-        return time.monotonic() - self._t0
+from .wire import BusyNotice, HandoffLock, Outlet, freeze_start_up_heap, guard_services, \
+    ignore_further_interrupts, settle_interrupt, shutdown_quietly, spin_guarded
 
 
 class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
@@ -164,7 +103,7 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         self._wall = clock
         # commands, parameter changes and diagnostics (executor thread) and stepping
         # (stepping thread) touch the simulation under this lock, one chunk at a time
-        self._lock = _HandoffLock()
+        self._lock = HandoffLock()
         self._thread = None
         self._stop = threading.Event()
         # set by a parameter change and by stop(): a long wait (a tiny real_time_factor) must
@@ -182,7 +121,7 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
             self.get_logger().warning(f'parameter {name!r} is not one of this node\'s; '
                                       f"ignored (known: {', '.join(PARAMETERS)})")
         rate_limit = p['speed_rate_limit'] or None
-        busy = _Busy(self.get_logger().info, 'loading the scene and the compiled kernels '
+        busy = BusyNotice(self.get_logger().info, 'loading the scene and the compiled kernels '
                      '(a cold Numba cache compiles them once: 10-25 s on 2 cores, by machine, '
                      '40 s or more on a busy one; 1-3 s after that)')
         try:

@@ -12,10 +12,13 @@
 * :func:`spin_guarded`, :func:`settle_interrupt` and :func:`shutdown_quietly` spin and end a
   ``main`` without racing rclpy's own SIGINT handler, which shuts the context down on another
   thread.
+* :class:`HandoffLock` (the node's lock, handed over between chunks so that callbacks are not
+  starved) and :class:`BusyNotice` (a start-up step's "still ..." log lines).
 """
 from __future__ import annotations
 
 import struct
+import threading
 import time
 
 import numpy as np
@@ -372,3 +375,64 @@ def shutdown_quietly(context=None):
     except _rclpy.RCLError:
         if (context or rclpy.get_default_context()).ok():
             raise   # a failure of our own, not the handler's shutdown
+
+
+class HandoffLock:
+    """A re-entrant lock that the stepping thread hands over when someone waits for it.
+
+    Python locks are not fair: a thread that releases a lock and takes it again at once
+    keeps winning, and stepping flat out (``real_time_factor`` 0) would starve commands and
+    diagnostics. Waiters are counted; :meth:`hand_over`, called by the stepper between
+    chunks, pauses 0.5 ms when anyone waits.
+    """
+
+    def __init__(self):
+        self._lock = threading.RLock()
+        self.waiting = 0
+
+    def __enter__(self):
+        self.waiting += 1
+        self._lock.acquire()
+        self.waiting -= 1
+        return self
+
+    def __exit__(self, *exc_info):
+        self._lock.release()
+
+    def acquire(self, timeout):
+        """Take the lock, waiting at most ``timeout`` s; True when taken (release it)."""
+        self.waiting += 1
+        try:
+            return self._lock.acquire(timeout=timeout)
+        finally:
+            self.waiting -= 1
+
+    def release(self):
+        """Release a lock taken with :meth:`acquire`."""
+        self._lock.release()
+
+    def hand_over(self):
+        """Let a waiting thread take the lock (call with the lock released)."""
+        if self.waiting > 0:
+            time.sleep(0.0005)
+
+
+class BusyNotice:
+    """Logs, every ``period`` s until stopped, that a slow start-up step is still running."""
+
+    def __init__(self, log, what, period=5.0):
+        self._done = threading.Event()
+        self._t0 = time.monotonic()
+
+        def run():
+            while not self._done.wait(period):
+                log(f'still {what} ({time.monotonic() - self._t0:.0f} s)')
+
+        self._thread = threading.Thread(target=run, name='startup_notice', daemon=True)
+        self._thread.start()
+
+    def stop(self):
+        """Stop the notices; return the elapsed time (s)."""
+        self._done.set()
+        self._thread.join()
+        return time.monotonic() - self._t0
