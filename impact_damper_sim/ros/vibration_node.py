@@ -412,6 +412,7 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
             imu_period = 1.0 / self.live.imu_rate
             per_ms = max(self.BURST, math.ceil(1e-3 * rtf / imu_period - 1e-9))
             earned = self.CATCH_UP_RATE * rtf * (now - self._last_cycle) / imu_period
+            # (+1e-9: 4 x 0.5 ms of a 2 kHz stream can round to 3.999...)
             held = self._flush(now + min(self.EARLY, self.EARLY_SAMPLES * imu_period / rtf),
                                max(per_ms, math.floor(min(earned, self.MAX_BURST) + 1e-9)))
             self._last_cycle = now
