@@ -392,7 +392,8 @@ def test_parameters_of_every_type(ros_context, scale):
 def test_real_time_factor_fuzz_with_the_stepping_thread(ros_context, scale):
     """The stepping thread itself (it died on 5e-324 and slept 1e4 s on 1e-6): random factors
     in quick succession, the tiny ones included; after 1.0 is set again the stream resumes
-    at once (> 0.5 s of sim time in the next 1 s of wall time) and the thread is alive.
+    (the thread's longest wait is made endless here, so only the new factor's wake-up can
+    resume it; how soon is a wall-clock figure, not asserted) and the thread is alive.
 
     A subscriber is matched (never spun): without one the node publishes what it steps at
     once instead of at its time, and never waits long."""
@@ -407,6 +408,7 @@ def test_real_time_factor_fuzz_with_the_stepping_thread(ros_context, scale):
     while not node._accel_pubs[0].has_subscribers() and time.monotonic() < end:
         time.sleep(0.05)
     assert node._accel_pubs[0].has_subscribers()
+    node.MAX_WAIT = 1e6   # no periodic re-read: only a wake ends a long wait
     values = [1e-6, 5e-324, 2.2250738585072014e-308, 0.0, 1e-300, 0.5, 1000.0, 1.0, 1e-3]
     # random factors, then the issue's sequence (1.0 running, a tiny one, 1.0 again)
     sequence = [(rng.choice(values), rng.choice([0.0, 0.01, 0.05, 0.2]))
@@ -420,9 +422,11 @@ def test_real_time_factor_fuzz_with_the_stepping_thread(ros_context, scale):
             assert node._thread.is_alive(), (k, value)
         assert node.set_parameters([Parameter('real_time_factor', value=1.0)])[0].successful
         t0 = node.live.t
-        time.sleep(1.0)
+        end = time.monotonic() + 20.0   # a deadline, not a figure: the machine may be busy
+        while node.live.t - t0 <= 0.5 and time.monotonic() < end:
+            time.sleep(0.01)
         assert node._thread.is_alive()
-        assert node.live.t - t0 > 0.5, (f'{node.live.t - t0:.3f} s of sim time in 1 s after '
+        assert node.live.t - t0 > 0.5, (f'{node.live.t - t0:.3f} s of sim time in 20 s after '
                                         f'the sequence {sequence}')
         assert node.live.failure is None, node.live.failure
         node.publish_diagnostics()
@@ -654,7 +658,8 @@ def _type_name(msg_type):
 #: CPU seconds the loader may spend on one scene file (an alias bomb of 457 bytes took 200 s):
 #: 2 s plus 20 s per MiB of file (5,000 impactors, 0.46 MiB, load in 6.4 s on a 2-core box)
 LOAD_BUDGET_S = (2.0, 20.0)
-#: wall seconds `study simulate` may spend on a mutated 50 ms scene
+#: CPU seconds (this process's) `study simulate` may spend on a mutated 50 ms scene: CPU
+#: time, not wall time, so that another job on the machine does not fail the test
 SIMULATE_BUDGET_S = 20.0
 
 
@@ -703,7 +708,7 @@ def test_bad_scene_files(tmp_path, capsys, scale):
     documents, thousands of items) through the loader, ``study simulate`` and the node's
     console entry point: each is accepted or refused with exit 2 (3 for a run that diverges)
     and one message, never a traceback, within LOAD_BUDGET_S CPU s to load (linear in the
-    file's size) and SIMULATE_BUDGET_S wall s to simulate."""
+    file's size) and SIMULATE_BUDGET_S CPU s to simulate."""
     from impact_damper_sim.scene.build import load
     rng = _rng('scenes', scale)
     base = tmp_path / 'base.yaml'
@@ -736,11 +741,11 @@ def test_bad_scene_files(tmp_path, capsys, scale):
             sim = scene.scene['simulation']
             steps = sim['duration'] / sim['dt'] * (1 + len(scene.impactors))
         if steps <= 50_000:
-            t0 = time.monotonic()
+            t0 = time.process_time()
             rc, out, err = _study(['simulate', str(path), '--json'], capsys)
-            wall = time.monotonic() - t0
-            assert wall < SIMULATE_BUDGET_S, f'{where}: simulate took {wall:.1f} s'
-            slowest = max(slowest, (wall, where))
+            cpu_s = time.process_time() - t0
+            assert cpu_s < SIMULATE_BUDGET_S, f'{where}: simulate took {cpu_s:.1f} CPU s'
+            slowest = max(slowest, (cpu_s, where))
             assert rc in (0, 2, 3), f'{where}: exit {rc}: {err[:500]}'
             if rc == 0:
                 result = json.loads(out)
@@ -765,7 +770,7 @@ def test_bad_scene_files(tmp_path, capsys, scale):
             outcomes['node exit 2'] += 1
         outcomes[kind.split(':')[0]] += 1
     print(f'\nscene files: {dict(outcomes)}; lines per refusal {dict(lines_per_message)}; '
-          f'slowest simulate {slowest[0]:.2f} s ({slowest[1]})')
+          f'slowest simulate {slowest[0]:.2f} CPU s ({slowest[1]})')
 
 
 # --------------------------------------------------------------------------- MCAP logs

@@ -51,5 +51,5 @@ def test_an_absurd_timestamp_is_refused(tmp_path):
         writer.write('/x', 'std_msgs/msg/Float64', None, data, 0, 0)
         writer.write('/x', 'std_msgs/msg/Float64', None, data, MAX_LOG_SPAN_NS,
                      MAX_LOG_SPAN_NS)
-    t0 = time.monotonic()
-    assert RosLog(ok).message_count == 2 and time.monotonic() - t0 < 5.0
+    t0 = time.process_time()   # CPU, not wall: another job on the machine does not count
+    assert RosLog(ok).message_count == 2 and time.process_time() - t0 < 5.0

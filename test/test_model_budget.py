@@ -69,9 +69,9 @@ def test_more_impactors_than_the_limit_are_refused_before_building(tmp_path, mon
 def test_dofs_over_the_budget_are_refused_with_the_estimate_and_the_limit(monkeypatch, capsys):
     """100,000 elements (600,006 DOFs): dense condensation of 2.9 TB, refused up front."""
     _no_build(monkeypatch)
-    start = time.monotonic()
+    start = time.process_time()   # CPU, not wall: another job on the machine does not count
     rc = study(['simulate', 'cantilever', '--set', 'structure.lines.0.n_elements=100000'])
-    assert rc == 2 and time.monotonic() - start < 30
+    assert rc == 2 and time.process_time() - start < 30
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert re.search(r'model too large: 600,006 DOFs \(100,001 nodes\), .* would need about '
                      r'[0-9.e+]+ GiB of memory \(limit [0-9.]+ GiB\): use fewer nodes '

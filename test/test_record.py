@@ -227,7 +227,9 @@ def test_every_message_reads_with_rosbags_mcap_ros2_and_rclpy(recorded):
     pytest.importorskip('rosbags')
     from rclpy.serialization import deserialize_message
     from rosbags.highlevel import AnyReader
-    from rosidl_runtime_py.utilities import get_message
+
+    # the replay's own type lookup (rosidl_runtime_py comes only with the ROS 2 command line)
+    from impact_damper_sim.ros.replay_plan import message_class
     (path, _), _ = recorded
     ours = _messages(path, decode=True)
     with AnyReader([path]) as reader:
@@ -238,7 +240,7 @@ def test_every_message_reads_with_rosbags_mcap_ros2_and_rclpy(recorded):
     for topic, _, _, data, decoded in ours:
         via_bag = by_bytes[(topic, data)]
         type_name = via_bag.__msgtype__
-        native = deserialize_message(data, get_message(type_name))
+        native = deserialize_message(data, message_class(type_name))
         stamp = getattr(getattr(native, 'header', None), 'stamp', None)
         if stamp is not None:   # the three readers agree on the stamp and the frame
             assert (stamp.sec, stamp.nanosec) == (via_bag.header.stamp.sec,

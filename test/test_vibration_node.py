@@ -377,10 +377,14 @@ def test_two_namespaced_nodes_without_crosstalk(ros_context):
             n.destroy_node()
 
 
-def test_pacing_at_real_time_and_as_fast_as_possible(ros_context):
-    """10 s at real_time_factor 1: achieved 1 +- 0.02 and CPU reported; at 0, stepping flat
-    out still leaves the executor free: a command is applied and the 1 s timer fires."""
-    # one 10 s diagnostics period (the 1 s timer would start a new one under the test)
+def test_pacing_never_runs_ahead_and_flat_out_leaves_the_executor_free(ros_context):
+    """The real stepping thread at real_time_factor 1 never delivers ahead of the wall clock
+    (achieved <= 1 + 2 %, whatever the load) and CPU is reported; at 0, stepping flat out
+    still leaves the executor free: a command is applied and the 1 s state timer fires. How
+    close to 1 a loaded machine stays is a wall-clock figure: bench/node_realtime.py and
+    bench/node_scenes.py measure it; the pacing arithmetic is pinned on a fake clock in
+    test_achieved_factor_is_the_delivered_stream_on_a_short_period."""
+    # one diagnostics period (the 1 s timer would start a new one under the test)
     sim = VibrationNode(context=ros_context, parameter_overrides=[
         Parameter('scene', value='hpotp'), Parameter('overrides', value=LINEAR_HPOTP),
         Parameter('diagnostics_period', value=60.0)])
@@ -392,30 +396,39 @@ def test_pacing_at_real_time_and_as_fast_as_possible(ros_context):
     try:
         _spin(ex, 0.5)
         sim.publish_diagnostics()   # start a fresh period
-        _spin(ex, 10.0)
+        _spin(ex, 2.0)
         sim.publish_diagnostics()
         d = sim.last_diagnostics
-        assert d['real_time_factor_achieved'] == pytest.approx(1.0, abs=0.02)
+        assert 0 < d['real_time_factor_achieved'] <= 1.02
         assert 0 < d['cpu_percent'] < 200
-        assert d['level'] == 0
         sim.set_parameters([Parameter('real_time_factor', value=0.0)])
-        sim.publish_diagnostics()
         n_state = sim._state_pub.count
-        _spin(ex, 1.0)
         pub.publish(Float64(data=1000.0))
-        t_sent = time.monotonic()
-        # served while stepping flat out; how promptly is a wall-clock figure, measured in
-        # bench/node_realtime.py and pinned in chunks by the hand-over test below
-        while sim.live.profile.target != 1000.0 and time.monotonic() - t_sent < 5.0:
+        # liveness, not latency: generous deadlines (the latency is bench/node_realtime.py's)
+        end = time.monotonic() + 20.0
+        while (sim.live.profile.target != 1000.0 or sim._state_pub.count < n_state + 2) \
+                and time.monotonic() < end:
             ex.spin_once(timeout_sec=0.01)
         assert sim.live.profile.target == 1000.0
-        _spin(ex, 1.5)
         assert sim._state_pub.count >= n_state + 2   # the 1 s state timer kept firing
-        sim.publish_diagnostics()
-        assert sim.last_diagnostics['real_time_factor_achieved'] > 2.0
     finally:
         sim.destroy_node()
         cmd.destroy_node()
+
+
+def test_flat_out_steps_without_waiting_for_the_clock(ros_context):
+    """At real_time_factor 0 the stepping thread never waits: with the wall clock frozen,
+    every wake-up steps a chunk and asks for no sleep."""
+    clock = FakeClock()
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP, clock=clock, real_time_factor=0.0)
+    try:
+        t0 = node.live.t
+        delays = [node._cycle() for _ in range(50)]
+        assert not any(d > 0 for d in delays), delays
+        assert node.live.t >= t0 + 40 * node._tick_period
+        assert clock.now == 1000.0
+    finally:
+        node.destroy_node()
 
 
 def test_a_waiting_callback_gets_the_lock_at_the_next_chunk():
@@ -468,9 +481,9 @@ def test_shutdown_after_ctrl_c_does_not_race_the_sigint_handler(monkeypatch):
     timer = threading.Timer(0.05, ctx.handle.shutdown)
     timer.start()
     start = time.monotonic()
-    settle_interrupt(ctx, timeout_s=5.0)
+    settle_interrupt(ctx, timeout_s=60.0)
     assert not ctx.ok()   # before the join: it returned because the handler's shutdown came
-    assert time.monotonic() - start < 4.0
+    assert time.monotonic() - start < 30.0   # not the timeout (a deadline, not a figure)
     timer.join()
     shutdown_quietly(ctx)   # already down: nothing to do
 
@@ -522,25 +535,36 @@ def test_spin_guarded_ends_quietly_when_ctrl_c_shuts_the_context_under_it():
     assert len(calls) == 2 and [str(e) for e in reported] == ['a malformed message']
 
 
-def test_recording_keeps_real_time(ros_context, tmp_path):
-    """Recording on (writer thread off the stepping path): still 1 +- 0.02 of real time."""
-    sim = VibrationNode(context=ros_context, parameter_overrides=[
-        Parameter('scene', value='hpotp'), Parameter('overrides', value=LINEAR_HPOTP),
-        Parameter('record', value=str(tmp_path / 'rt.mcap')),
-        Parameter('diagnostics_period', value=60.0)])   # one 5 s period
-    ex = SingleThreadedExecutor(context=ros_context)
-    ex.add_node(sim)
+def test_recording_keeps_the_stream_on_time(ros_context, tmp_path):
+    """Recording on (the writer thread off the stepping path), on a fake clock: 2 s of the
+    2 kHz stream deliver on time (achieved 1 within 0.4 %), and the finished log holds every
+    message the node wrote, none dropped. The wall-clock cost of recording is a bench figure
+    (bench/node_realtime.py, "recording" cases)."""
+    clock = FakeClock()
+    path = tmp_path / 'rt.mcap'
+    node = make_node(ros_context, 'hpotp', LINEAR_HPOTP, clock=clock, imu_rate=2000.0,
+                     record=str(path))
+    node._accel_pubs[0].has_subscribers = lambda: True   # the stream waits for its times
     try:
-        _spin(ex, 0.5)
-        sim.publish_diagnostics()
-        _spin(ex, 5.0)
-        sim.publish_diagnostics()
-        d = sim.last_diagnostics
-        assert d['real_time_factor_achieved'] == pytest.approx(1.0, abs=0.02)
-        assert d['record_messages_dropped'] == 0 and d['record_error'] == ''
-        assert d['record_messages_written'] > 5000   # 5 s of 1 kHz Imu and 100 batches/s
+        while clock.now < 1000.1:
+            clock.now += _wake(node)
+        node.publish_diagnostics()
+        while clock.now < 1002.1:
+            clock.now += _wake(node)
+        node.publish_diagnostics()
+        d = node.last_diagnostics
+        assert d['real_time_factor_achieved'] == pytest.approx(1.0, abs=4e-3)
+        assert d['record_error'] == ''
+        rec = node.stop_recording()
+        stats = rec.stats()
+        assert stats['messages_dropped'] == 0 and stats['error'] is None
+        assert stats['messages_written'] > 4000   # 2 s of 2 kHz Imu, and the batches
+        from mcap.reader import make_reader
+        with open(path, 'rb') as f:
+            summary = make_reader(f).get_summary()
+        assert summary.statistics.message_count == stats['messages_written']
     finally:
-        sim.destroy_node()
+        node.destroy_node()
 
 
 SHIPPED_SCENES = sorted(p.stem for p in (
@@ -1106,33 +1130,49 @@ def test_diagnostics_say_behind_only_when_short_of_the_requested_factor(ros_cont
         node.destroy_node()
 
 
+class _WaitProbe(threading.Event):
+    """The stepping thread's wake event, telling when the thread blocks in a long wait."""
+
+    def __init__(self, long_s):
+        super().__init__()
+        self.long_s = long_s
+        self.blocked = threading.Event()
+
+    def wait(self, timeout=None):
+        if not self.is_set() and timeout is not None and timeout >= self.long_s:
+            self.blocked.set()
+        return super().wait(timeout)
+
+
 @pytest.mark.parametrize('tiny', [1e-6, 5e-324])
 def test_a_new_real_time_factor_wakes_the_stepping_thread(ros_context, tiny):
     """A tiny factor asks for a wait of hours per chunk (1e-6: 1e4 s; 5e-324 overflowed the
-    wait and killed the thread); setting 1.0 again resumes the stream at once."""
+    wait and killed the thread); setting 1.0 again ends that wait: with the longest wait
+    made endless here, the stream can only move again if the new factor woke the thread."""
     node = VibrationNode(context=ros_context, parameter_overrides=[
         Parameter('scene', value='sdof')])
     # a subscriber: the thread then waits for each sample's time (a stream nobody reads is
     # sent as soon as it is stepped, and its thread never waits long)
     node._accel_pubs[0].has_subscribers = lambda: True
+    node.MAX_WAIT = 1e6   # no periodic re-read: only a wake ends the wait
+    probe = node._wake = _WaitProbe(long_s=1.0)
     try:
-        time.sleep(0.3)
+        end = time.monotonic() + 20.0   # a stream under way: samples stepped, waiting their time
+        while node.live.t < 0.2 and time.monotonic() < end:
+            time.sleep(0.01)
         assert node.set_parameters([Parameter('real_time_factor', value=tiny)])[0].successful
-        # the thread is in its longest wait (MAX_WAIT, 0.5 s, from the change on), about
-        # 0.35 s of it left when 1.0 is set
-        time.sleep(0.65)
+        assert probe.blocked.wait(20.0), 'the stepping thread never entered its long wait'
         t0 = node.live.t
-        set_at = time.monotonic()
+        time.sleep(0.2)
+        assert node.live.t == t0   # blocked: nothing stepped
         assert node.set_parameters([Parameter('real_time_factor', value=1.0)])[0].successful
-        while node.live.t <= t0 + 0.02 and time.monotonic() < set_at + 1.0:
+        end = time.monotonic() + 20.0
+        while node.live.t <= t0 + 0.02 and time.monotonic() < end:
             time.sleep(0.002)
-        # woken at once: the stream moves within 0.15 s, not after the rest of a 0.5 s wait
-        assert time.monotonic() - set_at < 0.15, time.monotonic() - set_at
-        time.sleep(1.0)
+        assert node.live.t > t0 + 0.02   # woken: the stream moves again
         assert node._thread.is_alive()
-        assert node.live.t - t0 > 0.5   # about 1 s of sim time in 1 s
         node.publish_diagnostics()
-        assert node.last_diagnostics['level'] == 0, node.last_diagnostics['message']
+        assert node.last_diagnostics['level'] < 2, node.last_diagnostics['message']
     finally:
         node.destroy_node()
 
@@ -1153,14 +1193,14 @@ def test_watchdog_reports_a_dead_or_stalled_stepping_thread(ros_context):
         def hold():
             with node._lock:
                 held.set()
-                release.wait(5.0)
+                release.wait(60.0)
 
         holder = threading.Thread(target=hold)
         holder.start()
         held.wait(2.0)
         t0 = time.monotonic()
         node.publish_diagnostics()
-        assert time.monotonic() - t0 < 3.0
+        assert time.monotonic() - t0 < 30.0   # it did not wait for the lock (held 60 s)
         assert node.last_diagnostics['level'] == 2
         assert 'stalled' in node.last_diagnostics['message']
         release.set()
