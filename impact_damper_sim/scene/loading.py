@@ -1,8 +1,10 @@
 """From a scene file or YAML text to a raw scene, and in one call to a validated one.
 
 Reading is strict and bounded: :func:`load_yaml` refuses what is not a regular UTF-8 file under
-:data:`MAX_SCENE_BYTES`, duplicate keys, tagged values it cannot convert and documents over the
-depth and alias budgets, each with its line. :func:`apply_overrides` edits the raw mapping with
+:data:`MAX_SCENE_BYTES`, documents over the count budgets (:data:`MAX_SCENE_NODES` values,
+:data:`MAX_SCENE_DEPTH` levels, :data:`~impact_damper_sim.integrate.divergence.MAX_IMPACTORS`
+impactors: counted on the YAML event stream, before the document is composed), duplicate keys,
+tagged values it cannot convert and alias bombs, each with its line. :func:`apply_overrides` edits the raw mapping with
 ``key=value`` strings read by the same YAML loader, and :func:`load_scene` chains both with
 :func:`~.schema.validate`. This is the text-and-file side of the scene schema, separate from the
 fields in :mod:`.schema` and :mod:`.containers`, which see only Python values.
@@ -20,8 +22,13 @@ import yaml
 
 from .schema import SceneError, _describe, _got, _join, validate
 
-__all__ = ['MAX_SCENE_BYTES', 'MAX_SCENE_DEPTH', 'MAX_SCENE_VALUES', 'load_yaml', 'file_kind',
-           'apply_overrides', 'load_scene']
+try:   # libyaml's parser: the pre-scan reads a 1 MB file's events in 0.1 s, not 2.5 s
+    from yaml.cyaml import CParser as _CParser
+except ImportError:   # PyYAML built without libyaml: the pure-Python parser, as slow
+    _CParser = None
+
+__all__ = ['MAX_SCENE_BYTES', 'MAX_SCENE_DEPTH', 'MAX_SCENE_NODES', 'MAX_SCENE_VALUES',
+           'load_yaml', 'file_kind', 'apply_overrides', 'load_scene']
 
 
 # --- YAML loading ----------------------------------------------------------------------------
@@ -85,6 +92,12 @@ _StrictLoader.add_implicit_resolver(
 MAX_SCENE_BYTES = 1 << 20
 MAX_SCENE_DEPTH = 32
 MAX_SCENE_VALUES = 1_000_000
+#: Values written in a file (keys, scalars, lists, mappings, aliases unexpanded), counted on
+#: the event stream before the document is composed: PyYAML composes and constructs about
+#: 10,000 values a second (10,000 impactors, 160,000 events: 15.6 s on a loaded machine).
+#: 1,000 impactors with every key written and every unit a mapping are about 50,000; the
+#: shipped scenes 70 to 1,030.
+MAX_SCENE_NODES = 100_000
 
 
 def _check_budget(root, source):
@@ -124,6 +137,87 @@ def _check_budget(root, source):
         active.add(key)
         stack.append((node, True))
         stack.extend((c, False) for c in children if id(c) not in sizes)
+
+
+def _events(text, libyaml=True):
+    """The YAML events of ``text``: from libyaml when PyYAML has it and ``libyaml``, else
+    from the pure-Python parser (the composer's)."""
+    parser = _CParser(text) if libyaml and _CParser is not None else yaml.SafeLoader(text)
+    try:
+        while parser.check_event():
+            yield parser.get_event()
+    finally:
+        parser.dispose()
+
+
+def _prescan(text, source, kind):
+    """Refuse a document over :data:`MAX_SCENE_NODES` values, :data:`MAX_SCENE_DEPTH` levels
+    or (a scene) :data:`~impact_damper_sim.integrate.divergence.MAX_IMPACTORS` items in its
+    top-level ``impactors`` list, reading its events only as far as the first excess.
+
+    Composing is what costs (about 0.1 ms a value in Python); an event costs 1 us with
+    libyaml. Aliases are not expanded here: :func:`_check_budget` bounds them after.
+
+    Raises
+    ------
+    SceneError
+        Over a budget: one line with the line number, the limit and the allowed range.
+    yaml.YAMLError
+        A syntax error, as the composer's parser reports it.
+    """
+    if _CParser is not None:
+        try:
+            return _count_events(_events(text), source, kind)
+        except yaml.YAMLError:
+            pass   # read again by the composer's parser: its error is the one reported,
+            # and it may accept what libyaml refuses
+    return _count_events(_events(text, libyaml=False), source, kind)
+
+
+def _count_events(events, source, kind):
+    # one frame per open collection: [is a mapping, next child is a key, last key,
+    # items counted (the scene's impactors only, else None)]
+    stack, nodes = [], 0
+    for event in events:
+        if isinstance(event, yaml.CollectionEndEvent):
+            stack.pop()
+            continue
+        if not isinstance(event, yaml.NodeEvent):
+            continue   # stream and document start and end
+        nodes += 1
+        line = event.start_mark.line + 1 if event.start_mark else 0
+        if nodes > MAX_SCENE_NODES:
+            raise SceneError(f'{source}:{line}: over the limit of {MAX_SCENE_NODES:,} values '
+                             f'in a {kind} (allowed 1 to {MAX_SCENE_NODES:,} keys, items and '
+                             'values; the shipped scenes have at most 1,100): refused before '
+                             'reading the rest')
+        if len(stack) >= MAX_SCENE_DEPTH:
+            raise SceneError(f'{source}:{line}: values nested deeper than {MAX_SCENE_DEPTH} '
+                             'levels; a scene is a few levels deep')
+        key = None   # the key this node is the value of, in a mapping
+        if stack:
+            parent = stack[-1]
+            if parent[0]:
+                if parent[1]:
+                    parent[2] = event.value if isinstance(event, yaml.ScalarEvent) else None
+                else:
+                    key = parent[2]
+                parent[1] = not parent[1]
+            elif parent[3] is not None:
+                parent[3] += 1
+                if parent[3] > limit:
+                    raise SceneError(
+                        f"{source}:{line}: scene key 'impactors': over the limit of "
+                        f'{limit:,} impactors (allowed 0 to {limit:,}; impactor '
+                        f'{limit + 1:,} is on this line): each costs time every step and '
+                        'memory in every stuck configuration; use fewer impactors')
+        if isinstance(event, yaml.CollectionStartEvent):
+            counted = (kind == 'scene' and len(stack) == 1 and key == 'impactors'
+                       and isinstance(event, yaml.SequenceStartEvent))
+            if counted:   # here, not at the top: the integrate layer brings NumPy
+                from ..integrate.divergence import MAX_IMPACTORS as limit
+            stack.append([isinstance(event, yaml.MappingStartEvent), True, None,
+                          0 if counted else None])
 
 
 def _is_path(path_or_text):
@@ -207,9 +301,9 @@ def load_yaml(path_or_text, *, source=None, kind='scene'):
     ------
     SceneError
         For a missing file, one that is not a regular file, over :data:`MAX_SCENE_BYTES` or
-        not UTF-8 text, a YAML syntax error (with line and column), a duplicate key, values
-        nested or aliased over the budgets (:func:`_check_budget`), or a top level that is
-        not a mapping.
+        not UTF-8 text, over the count budgets (:func:`_prescan`, before composing), a YAML
+        syntax error (with line and column), a duplicate key, values nested or aliased over
+        the budgets (:func:`_check_budget`), or a top level that is not a mapping.
     """
     if _is_path(path_or_text):
         path = os.fspath(path_or_text)
@@ -241,6 +335,7 @@ def load_yaml(path_or_text, *, source=None, kind='scene'):
     except yaml.reader.ReaderError as exc:
         raise SceneError(f'{source}: YAML error: {_reader_problem(text, exc)}') from None
     try:
+        _prescan(text, source, kind)   # counts before composing: composing is the cost
         try:
             node = loader.get_single_node()
         except RecursionError:   # PyYAML composes recursively: a few frames per level

