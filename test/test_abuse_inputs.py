@@ -132,3 +132,75 @@ def test_the_node_refuses_10000_impactors_in_one_line_with_exit_2(tmp_path):
     assert len(lines) == 1, stderr
     assert IMPACTORS_LINE.match(lines[0][len('vibration_node: '):]), stderr
     assert 'Traceback' not in stderr
+
+
+# --- the node: helpers as in test_vibration_node.py -------------------------------------------
+
+class FakeClock:
+    """Wall clock the test advances by hand (s)."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def make_node(ctx, scene='sdof', overrides=(), clock=None, name='vibration_node', **params):
+    from rclpy.parameter import Parameter
+
+    from impact_damper_sim.ros.vibration_node import VibrationNode
+    overrides_param = [Parameter('overrides', value=list(overrides))] if overrides else []
+    return VibrationNode(
+        name, context=ctx, start_stepping=False, clock=clock or FakeClock(),
+        parameter_overrides=[Parameter('scene', value=scene), *overrides_param,
+                             *[Parameter(k, value=v) for k, v in params.items()]])
+
+
+def _wake(node):
+    """One wake-up of the stepping thread: its cycles until one asks to sleep (s)."""
+    for _ in range(100):
+        delay = node._cycle()
+        if delay > 0:
+            return delay
+    raise AssertionError('the stepping thread never sleeps')
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('rtf, seconds', [(1e-3, 30), (1e-6, 20)])
+def test_a_tiny_real_time_factor_is_paced_and_never_reported_negative(ros_context, rtf,
+                                                                      seconds):
+    """Every topic subscribed (its items wait for their time), wake-ups at uneven times up to
+    MAX_WAIT, ``/diagnostics`` every second. At 1e-6 the node reported ``achieved -0.000 of
+    1e-06`` (-8.7e-09): the pacer measured its lag against the last item published, which at
+    1e-6 stands still for 500 s between samples, so it dropped a "deficit" on every wake-up,
+    the schedule never reached the next sample, and the achieved factor was the jitter of
+    those re-anchorings, either sign. At 1e-3 (a sample a second) no sample was sent."""
+    pytest.importorskip('rclpy')
+    import itertools
+    clock = FakeClock()
+    node = make_node(ros_context, 'hpotp', ['impactors=[]'], clock=clock,
+                     real_time_factor=rtf)
+    sent = []
+    for outlet in node.outlets:
+        outlet.has_subscribers = lambda: True
+        outlet.pub.publish = lambda data: None
+    node._accel_pubs[0].pub.publish = sent.append
+    steps = itertools.cycle((0.5, 0.13, 0.37, 0.05, 0.29, 0.011))
+    try:
+        node.publish_diagnostics()
+        achieved = []
+        for _ in range(seconds):
+            end = clock.now + 1.0
+            while clock.now < end:
+                clock.now += min(_wake(node), next(steps), end - clock.now + 1e-9)
+            node.publish_diagnostics()
+            achieved.append(node.last_diagnostics['real_time_factor_achieved'])
+            assert node.last_diagnostics['level'] == 0, node.last_diagnostics['message']
+        assert min(achieved) >= 0.0, achieved
+        assert achieved == pytest.approx([rtf] * seconds, rel=0.02)
+        assert node.pacer.deficits == 0
+        if rtf == 1e-3:   # 30 ms of sim time: its 1 kHz Imu samples, less the filter's delay
+            assert len(sent) >= 3
+    finally:
+        node.destroy_node()

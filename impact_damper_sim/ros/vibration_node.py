@@ -421,7 +421,9 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         if live.failure is not None:
             self._report_failure()
             return self._tick_period
-        target, lag = self.pacer.target(self._published_t())
+        # lag of the stream, not of the last item out: at a tiny factor that stands still
+        # between items (500 s at 1e-6) and every wake-up dropped a "deficit"
+        target, lag = self.pacer.target(self._delivered_t(now))
         self.stats.lag = max(self.stats.lag, lag)
         if live.t < target + self._lookahead * self.pacer.real_time_factor - 1e-12 \
                 or math.isinf(target):
@@ -441,14 +443,14 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         return self._t_published
 
     def _delivered_t(self, wall):
-        """Sim time (s) whose items are all out by wall time ``wall`` (s): the published
-        time, or, with no backlog, the stepped time up to the schedule (between two wake-ups
-        the published time stands still while the schedule moves on). Call with the lock."""
-        due = self.pacer.sim_at(wall)
+        """Sim time (s) whose items are all out by wall time ``wall`` (s): the schedule's,
+        up to the first item still queued (the queue is in time order: all before it are
+        out) and the stepped time; never before the published time (an item may leave up
+        to ``EARLY`` before its time). Never decreases between resets of the pacer, so the
+        achieved factor is never negative. Call with the lock."""
         pending = self._pending
-        if pending and pending[0][0] * 1e-9 <= due:
-            return self._t_published   # a backlog: what consumers have got so far
-        return max(self._t_published, min(self.live.t, due))
+        first = pending[0][0] * 1e-9 if pending else math.inf
+        return max(self._t_published, min(self.live.t, self.pacer.sim_at(wall), first))
 
     def destroy_node(self):
         """Stop stepping, finish any recording, then destroy the node."""
