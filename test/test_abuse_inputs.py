@@ -204,3 +204,67 @@ def test_a_tiny_real_time_factor_is_paced_and_never_reported_negative(ros_contex
             assert len(sent) >= 3
     finally:
         node.destroy_node()
+
+
+def _logged(node):
+    """Capture a node's log lines (rclpy's logger replaced): a list of (level, text)."""
+    lines = []
+    node.get_logger = lambda: type('L', (), {
+        level: staticmethod(lambda text, level=level, **_: lines.append((level, text)))
+        for level in ('info', 'warning', 'error')})()
+    return lines
+
+
+def _poll(condition, timeout=20.0, every=None):
+    """Call ``every`` (if given) and test ``condition`` until it holds or ``timeout`` s pass."""
+    import time
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if every is not None:
+            every()
+        if condition():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+@pytest.mark.ros
+def test_two_nodes_with_one_fully_qualified_name_each_warn_once(ros_context):
+    """Two nodes named /vibration_node: /clock ran backwards 385 times in 6 s and neither
+    warned. Each now warns once, from its diagnostics timer, naming the name and what goes
+    wrong; a node of another fully qualified name in the graph is no clash."""
+    rclpy = pytest.importorskip('rclpy')
+    from rclpy.node import Node
+    other = rclpy.Context()   # a second participant on the test's own domain
+    rclpy.init(context=other, domain_id=ros_context.get_domain_id())
+    def warned(lines):
+        return [t for lvl, t in lines if lvl == 'warning' and 'fully qualified' in t]
+
+    # not stepping, on a fake clock: as fast as possible, so no "behind real time" either
+    a = make_node(ros_context, 'sdof', real_time_factor=0.0)
+    a_lines = _logged(a)
+    nodes = [a]
+    try:
+        bystander = Node('vibration_node', namespace='/elsewhere', context=other)
+        nodes.append(bystander)
+        assert _poll(lambda: ('vibration_node', '/elsewhere') in
+                     a.get_node_names_and_namespaces(), every=a._diag_timer.callback)
+        a._diag_timer.callback()
+        assert not [t for lvl, t in a_lines if lvl != 'info'], a_lines
+        b = make_node(other, 'sdof', real_time_factor=0.0)
+        nodes.append(b)
+        b_lines = _logged(b)
+        assert _poll(lambda: warned(a_lines) and warned(b_lines),
+                     every=lambda: (a._diag_timer.callback(), b._diag_timer.callback()))
+        for _ in range(3):   # once, not once a period
+            a._diag_timer.callback()
+            b._diag_timer.callback()
+        for lines in (a_lines, b_lines):
+            assert len(warned(lines)) == 1, lines
+            text = warned(lines)[0]
+            assert '/vibration_node' in text and '/clock' in text, text
+            assert 'parameters' in text and '__node:=' in text, text
+    finally:
+        for node in reversed(nodes):
+            node.destroy_node()
+        rclpy.try_shutdown(context=other)

@@ -45,8 +45,8 @@ from .node_publishing import PublishingMixin
 from .node_recording import RecordingMixin
 from .parameters import PARAMETERS, RCLPY_PARAMETERS, ParameterError, check, declare_all, \
     parameters_markdown
-from .wire import BusyNotice, HandoffLock, Outlet, freeze_start_up_heap, guard_services, \
-    ignore_further_interrupts, settle_interrupt, shutdown_quietly, spin_guarded
+from .wire import BusyNotice, HandoffLock, NameClash, Outlet, freeze_start_up_heap, \
+    guard_services, ignore_further_interrupts, settle_interrupt, shutdown_quietly, spin_guarded
 
 
 class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
@@ -213,7 +213,10 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
                                      itf.COMMAND_QOS)]
         self.create_service(SetBool, '~/record', self.on_record_request)
         self._tick_period = p['tick_period']
-        self._diag_timer = self.create_timer(p['diagnostics_period'], self.publish_diagnostics)
+        # the graph is read with the diagnostics: often enough, and off the stepping thread
+        clash = NameClash(self, lambda text: self._log('warning', text))
+        self._diag_timer = self.create_timer(p['diagnostics_period'],
+                                             lambda: (self.publish_diagnostics(), clash()))
         self._state_timer = self.create_timer(p['state_period'], self.publish_state)
         # samples per stepped chunk, and how far (wall s) stepping runs ahead of publishing
         self._chunk = max(1, int(round(p['tick_period'] * self.live.sample_rate)))

@@ -14,6 +14,8 @@
   thread.
 * :class:`HandoffLock` (the node's lock, handed over between chunks so that callbacks are not
   starved) and :class:`BusyNotice` (a start-up step's "still ..." log lines).
+* :class:`NameClash` warns when another node with the node's fully qualified name appears in
+  the ROS graph.
 """
 from __future__ import annotations
 
@@ -436,3 +438,43 @@ class BusyNotice:
         self._done.set()
         self._thread.join()
         return time.monotonic() - self._t0
+
+
+class NameClash:
+    """Warns, once each time it appears, of another node with this node's fully qualified
+    name in the ROS graph (rclpy and DDS allow it and say nothing).
+
+    Two such nodes both publish ``/clock`` (sim time then runs backwards for every
+    subscriber: 385 times in 6 s, measured), and their parameters and services are
+    ambiguous. Call it from a slow timer, never from the stepping thread: it reads the graph
+    that discovery keeps (a few microseconds).
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node.
+    log : callable
+        Called with the one-line warning (str).
+    """
+
+    def __init__(self, node, log):
+        self._node, self._log = node, log
+        self.clashing = False
+
+    def __call__(self):
+        """Look once; True while another node has this node's name."""
+        node = self._node
+        try:
+            graph = node.get_node_names_and_namespaces()
+        except Exception:   # the context is shutting down: no graph to read
+            return self.clashing
+        clashing = graph.count((node.get_name(), node.get_namespace())) > 1
+        if clashing and not self.clashing:
+            name = node.get_fully_qualified_name()
+            self._log(f'another node in the ROS graph has this fully qualified name, {name}: '
+                      'two nodes publishing /clock make sim time run backwards, and their '
+                      f'parameters and services ({name}/record) are ambiguous; give one '
+                      'another name (--ros-args -r __node:=<name>) or namespace '
+                      '(-r __ns:=/<namespace>)')
+        self.clashing = clashing
+        return clashing
