@@ -5,6 +5,8 @@
   close), small chunks closed at least every 0.5 s.
 * :class:`AsyncRecorder` -- the same behind a queue and a writer thread, for the stepping loop.
 * :func:`recover` -- a finished copy of a file cut off by a crash (``study recover``).
+* :class:`FileLockedError` -- what a second writer of a log being written gets (one writer per
+  file, :mod:`.log_file`).
 
 Messages arrive already serialized (``rclpy.serialization.serialize_message``): nothing here
 imports rclpy. QoS is an ``rclpy.qos.QoSProfile`` (read by attribute) or a plain dict.
@@ -20,6 +22,7 @@ _EXPORTS = {
     'DEFAULT_FLUSH_PERIOD': 'rosbag2_mcap',
     'DEFAULT_FSYNC_PERIOD': 'rosbag2_mcap',
     'DefinitionNotFoundError': 'definitions',
+    'FileLockedError': 'log_file',
     'RecoveryError': 'recovery',
     'RecoveryReport': 'recovery',
     'Rosbag2McapWriter': 'rosbag2_mcap',

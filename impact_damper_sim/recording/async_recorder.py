@@ -11,17 +11,26 @@ called from any thread and from a signal handler (it takes no lock the caller co
 runs at interpreter exit for recorders never closed. SIGKILL loses the queue and the open
 chunk (at most about ``flush_period + wake_period`` of data); ``study recover`` repairs the
 rest.
+
+The caller's contract is the writer's (see :class:`.Rosbag2McapWriter`): opening errors raise
+here, in the caller, as one-line ``OSError`` exceptions (a second writer of the same file
+included);
+after :meth:`close`, :attr:`AsyncRecorder.error` is not None whenever the file is not a
+finished log, and :attr:`AsyncRecorder.finished` and ``stats()['finished']`` say whether it
+is.
 """
 from __future__ import annotations
 
 import atexit
 import collections
+import errno
 import os
 import threading
 import weakref
 
 from .bag_metadata import qos_list
 from .definitions import AmentIndexError, check_ament_index, message_definition
+from .log_file import log_error
 from .rosbag2_mcap import Rosbag2McapWriter, check_times, check_topic, full_type_name
 
 #: Queue capacity (messages); about 30 MB of ``sensor_msgs/Imu``.
@@ -62,11 +71,13 @@ class AsyncRecorder:
     ------
     FileExistsError
         If the file exists and ``overwrite`` is not true (raised here, in the caller).
+    impact_damper_sim.recording.log_file.FileLockedError
+        An ``OSError``: another writer is writing the file (overwrite or not).
     AmentIndexError
         An ``OSError``: the message definitions cannot be read (``AMENT_PREFIX_PATH`` unset or
         wrong), checked before the file is created, so nothing is written.
     OSError
-        If the file cannot be created.
+        If the file cannot be created (one line: ``cannot create <path>: <reason>``).
 
     A refused start leaves no file behind: every check comes before the file is created.
     """
@@ -97,6 +108,7 @@ class AsyncRecorder:
         self._dropped = 0
         self._high_water = 0
         self._thread_error = None
+        self._unfinished_at_close = None   # set when close() returns before the thread ends
         self._thread = threading.Thread(target=self._run, name=f'mcap-recorder:{self.path}',
                                         daemon=True)
         self._thread.start()
@@ -232,6 +244,10 @@ class AsyncRecorder:
         _open_recorders.discard(self)
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout)
+            if self._thread.is_alive():   # error says so while it is true
+                self._unfinished_at_close = log_error(
+                    errno.ETIMEDOUT, f'{self.path} was still being finished by the writer '
+                    f'thread when close() returned (timeout {timeout} s)', self.path)
         return self.stats()
 
     @property
@@ -240,9 +256,23 @@ class AsyncRecorder:
         return self._writer.closed and not self._thread.is_alive()
 
     @property
+    def finished(self):
+        """bool: True once the file is a finished log (closed with its summary, no error)."""
+        return self.closed and self._writer.finished and self._thread_error is None
+
+    @property
     def error(self):
-        """OSError or Exception or None: the first disk error, or a writer-thread failure."""
-        return self._writer.error if self._writer.error is not None else self._thread_error
+        """OSError or Exception or None: the first disk error (or the file lost while
+        written), a writer-thread failure, or, after a :meth:`close` whose timeout expired
+        and while the thread still finishes the file, an ``OSError`` (ETIMEDOUT) saying so.
+        After close it is None only for a finished log."""
+        if self._writer.error is not None:
+            return self._writer.error
+        if self._thread_error is not None:
+            return self._thread_error
+        if self._unfinished_at_close is not None and self._thread.is_alive():
+            return self._unfinished_at_close
+        return None
 
     def topic_counts(self):
         """Return messages written per topic (dict of str to int, messages)."""
@@ -257,14 +287,14 @@ class AsyncRecorder:
             ``messages_written`` (in the file), ``messages_dropped`` (queue full, closing, or
             disk error), ``bytes_written`` (CDR payload bytes), ``file_bytes`` (bytes),
             ``queue_length`` and ``queue_high_water`` (messages), ``error`` (str or None),
-            ``closed`` (bool).
+            ``closed`` (bool), ``finished`` (bool, see :attr:`finished`).
         """
         stats = self._writer.stats()
         error = self.error
         stats.update(messages_dropped=self._dropped + self._writer.messages_dropped,
                      queue_length=len(self._queue), queue_high_water=self._high_water,
                      error=None if error is None else f'{type(error).__name__}: {error}',
-                     closed=self.closed)
+                     closed=self.closed, finished=self.finished)
         return stats
 
     def __enter__(self):

@@ -19,7 +19,14 @@ chunk goes to the OS at once (no user-space buffer), and the open chunk is close
 every ``flush_period`` (0.5 s) and the file fsync'd at most every ``fsync_period`` (1 s). A
 SIGKILL therefore loses at most the open chunk, at most about 0.5 s of data (a power loss: at
 most about 1.5 s); ``study recover`` (:func:`.recovery.recover`) turns such a file into a
-finished one. rosbag2 readers ignore the difference.
+finished one. Each schema and channel record is also written outside the chunks, to the file
+at once, when its topic is registered (the open chunk is closed first; the chunk after keeps
+mcap's own copy): a crash file has no summary repeating them, and one corrupt chunk would
+otherwise take every definition with it and leave no message attributable. rosbag2 readers
+(``ros2 bag``, rosbags, mcap's readers) ignore the differences.
+
+One writer per file: the file is locked (``flock``, see :mod:`.log_file`) from before it is
+truncated until it is closed, and a second writer is refused naming the holder.
 
 Disk errors (``OSError`` on a write, flush, fsync) never raise out of :meth:`write`,
 :meth:`add_metadata`, :meth:`poll` or :meth:`close`: the writer stores the first one in
@@ -33,16 +40,18 @@ this module does not import rclpy (only :mod:`impact_damper_sim.ros` may).
 """
 from __future__ import annotations
 
-import errno
 import os
 import time
 from importlib.metadata import PackageNotFoundError, version
 
+from mcap.data_stream import RecordBuilder
+from mcap.records import Channel as ChannelRecord, Schema as SchemaRecord
 from mcap.writer import CompressionType, Writer
 
 from .. import __version__
 from .bag_metadata import DEFAULT_ROS_DISTRO, bag_metadata, dump_yaml, qos_list
 from .definitions import message_definition, split_type_name, type_hash
+from .log_file import close_log, open_log, vanished
 
 #: Chunk size (bytes, uncompressed): a chunk is closed once it holds more than this.
 DEFAULT_CHUNK_SIZE = 64 * 1024
@@ -106,14 +115,6 @@ def check_times(log_time_ns, publish_time_ns):
                          f'{log_time_ns!r} and publish_time {publish_time_ns!r}')
 
 
-class _FileExistsError(FileExistsError):
-    """``FileExistsError`` whose text is its message alone (not ``[Errno 17] ...: 'path'``), so
-    that a caller can show ``str(exc)`` as one line."""
-
-    def __str__(self):
-        return self.strerror
-
-
 class _RawFile:
     """Unbuffered output: each write goes to the OS at once, so a closed chunk survives a kill.
 
@@ -159,6 +160,25 @@ class Rosbag2McapWriter:
     Not thread-safe and not re-entrant: call it from one thread, and not from a signal
     handler that may interrupt it (:class:`.AsyncRecorder` is safe for both).
 
+    Contract for callers (the node, ``study record``, ``study dataset``, ``study recover``):
+
+    * Opening raises, and its ``str()`` is one line naming the file and the reason, with no
+      ``[Errno N]`` prefix: ``FileExistsError`` (``<path> exists; not overwriting it (set
+      <overwrite_option> to replace it)``); :class:`.log_file.FileLockedError`, an
+      ``OSError`` (``<path> is being written by process 1234 (<command line>); not writing
+      it``), whether ``overwrite`` is set or not, the other writer's file untouched; any
+      other ``OSError`` as ``cannot create <path>: <reason>`` (``FileNotFoundError`` for a
+      missing directory, ``PermissionError``, ``IsADirectoryError``, ``OSError`` with errno
+      EROFS for a read-only file system, ...).
+    * Nothing raises for a disk error after that: the first one is stored in :attr:`error`
+      and passed to ``on_error`` once, from the thread that hit it.
+    * After :meth:`close`, :attr:`error` is not None whenever the file is not a finished,
+      readable log: a write, fsync or close error (``ENOSPC`` on a full disk, ``EIO``, ...),
+      or the file deleted (alone or with its directory) or moved while being written
+      (``ENOENT``, ``<path> was deleted while being written ...``; checked at every fsync
+      and at close). :attr:`finished` is True exactly when the file is closed with its
+      summary and no error; ``stats()['finished']`` says the same.
+
     Parameters
     ----------
     path : str or os.PathLike
@@ -190,14 +210,17 @@ class Rosbag2McapWriter:
     Raises
     ------
     FileExistsError
-        If ``path`` exists and ``overwrite`` is false.
+        If ``path`` exists and ``overwrite`` is false (and no writer holds it).
+    impact_damper_sim.recording.log_file.FileLockedError
+        An ``OSError``: another writer, in this process or another, is writing ``path``.
     OSError
-        If the file cannot be created.
+        If the file cannot be created (one-line text, see above).
 
     Attributes
     ----------
     error : OSError or None
-        The first disk error; once set, nothing more is written.
+        The first disk error, or the file lost while written; once set, nothing more is
+        written.
     messages_written : int
         Messages accepted into the file (messages).
     messages_dropped : int
@@ -232,14 +255,9 @@ class Rosbag2McapWriter:
         self._start_ns = None  # earliest and latest log time (ns)
         self._end_ns = None
         self._closed = False
-        flags = os.O_WRONLY | os.O_CREAT | getattr(os, 'O_CLOEXEC', 0)
-        flags |= os.O_TRUNC if overwrite else os.O_EXCL   # O_EXCL: no race with another writer
-        try:
-            self._fd = os.open(self.path, flags, 0o644)
-        except FileExistsError:
-            raise _FileExistsError(
-                errno.EEXIST, f'{self.path} exists; not overwriting it (set '
-                f'{overwrite_option} to replace it)', self.path) from None
+        self._finished = False
+        self._fd = open_log(self.path, overwrite, overwrite_option)
+        self._stat = os.fstat(self._fd)   # to tell at fsync and close if the file vanished
         self._file = _RawFile(self._fd)
         self._mcap = Writer(self._file, chunk_size=chunk_size,
                             compression=_COMPRESSION[compression], enable_crcs=True)
@@ -300,6 +318,10 @@ class Rosbag2McapWriter:
         if metadata is None:
             metadata = {'offered_qos_profiles': dump_yaml(qos), 'topic_type_hash': hash_string}
         try:
+            # close the open chunk first: mcap keeps its own copy of the records below for
+            # the next chunk, which then comes after the copy written here (a reader that
+            # loses either one to damage still finds the other)
+            self._mcap.flush()
             schema_id = 0
             if schema_name:
                 key = (schema_name, schema_encoding, schema_data)
@@ -308,14 +330,31 @@ class Rosbag2McapWriter:
                     schema_id = self._mcap.register_schema(schema_name, schema_encoding,
                                                            schema_data)
                     self._schemas[key] = schema_id
+                    self._write_record(SchemaRecord(id=schema_id, name=schema_name,
+                                                    encoding=schema_encoding,
+                                                    data=schema_data))
             channel_id = self._mcap.register_channel(topic, message_encoding, schema_id,
                                                      metadata)
+            self._write_record(ChannelRecord(id=channel_id, topic=topic,
+                                             message_encoding=message_encoding,
+                                             schema_id=schema_id, metadata=metadata))
         except OSError as exc:
             self._fail(exc)
             return None
         channel = _Channel(channel_id, topic, schema_name, message_encoding, qos, hash_string)
         self._channels[topic] = channel
         return channel
+
+    def _write_record(self, record):
+        """Write a record to the file now, outside any chunk (it survives a corrupt chunk).
+
+        mcap's Writer has written out everything but its open chunk between two calls, and
+        it asks the file for its offsets, so a record written here keeps its indexes right
+        (its data-section CRC is off: ``enable_data_crcs`` is false).
+        """
+        builder = RecordBuilder()
+        record.write(builder)
+        self._file.write(builder.end())
 
     # ------------------------------------------------------------------ writing
     def write(self, topic, type_name, qos, data, log_time_ns, publish_time_ns):
@@ -437,6 +476,10 @@ class Rosbag2McapWriter:
                                and now - self._last_fsync >= self.fsync_period):
                 self._last_fsync = now
                 os.fsync(self._fd)
+                # writes to a deleted file succeed: look for it, so on_error says so now
+                lost = vanished(self._fd, self.path, self._stat)
+                if lost is not None:
+                    self._fail(lost)
         except OSError as exc:
             self._fail(exc)
 
@@ -469,7 +512,8 @@ class Rosbag2McapWriter:
         """Write the ``rosbag2`` record and the summary, fsync and close; idempotent.
 
         After a disk error the file is closed as it is (no summary); ``study recover`` makes
-        a finished copy.
+        a finished copy. Afterwards :attr:`finished` tells whether the file is a finished
+        log, and :attr:`error` why not.
         """
         if self._closed:
             return
@@ -482,15 +526,25 @@ class Rosbag2McapWriter:
                 os.fsync(self._fd)
             except OSError as exc:
                 self._fail(exc)
+        lost = vanished(self._fd, self.path, self._stat)
+        if lost is not None:
+            self._fail(lost)
         try:
-            os.close(self._fd)
+            close_log(self._fd)
         except OSError as exc:
             self._fail(exc)
+        self._finished = self.error is None
 
     @property
     def closed(self):
         """bool: True once :meth:`close` has run."""
         return self._closed
+
+    @property
+    def finished(self):
+        """bool: True once :meth:`close` has written the summary and closed the file with
+        no error: a finished, readable log at :attr:`path`."""
+        return self._finished
 
     @property
     def file_bytes(self):
@@ -515,13 +569,13 @@ class Rosbag2McapWriter:
         dict
             ``messages_written``, ``messages_dropped`` (messages), ``bytes_written`` (CDR
             payload bytes), ``file_bytes`` (bytes in the file), ``error`` (str or None),
-            ``closed`` (bool).
+            ``closed`` (bool), ``finished`` (bool, see :attr:`finished`).
         """
         return {'messages_written': self.messages_written,
                 'messages_dropped': self.messages_dropped,
                 'bytes_written': self.bytes_written, 'file_bytes': self.file_bytes,
                 'error': None if self.error is None else str(self.error),
-                'closed': self._closed}
+                'closed': self._closed, 'finished': self._finished}
 
     def __enter__(self):
         return self
