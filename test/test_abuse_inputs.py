@@ -268,3 +268,19 @@ def test_two_nodes_with_one_fully_qualified_name_each_warn_once(ros_context):
         for node in reversed(nodes):
             node.destroy_node()
         rclpy.try_shutdown(context=other)
+
+
+def test_the_documented_throttle_of_accepted_commands_is_the_nodes():
+    """docs/node.md said an accepted command is logged at most once a second per topic; the
+    node logs every one a person sends and thins a flood to 10 lines a second per topic (a
+    one-second throttle hid the second of two ``ros2 topic pub --once`` in a row: issue 27).
+    The behaviour itself is tested on a fake clock in test_vibration_node.py
+    (``test_every_command_a_person_sends_is_acknowledged_a_flood_is_thinned``)."""
+    pytest.importorskip('rclpy')
+    from impact_damper_sim.ros.vibration_node import VibrationNode
+    with open(os.path.join(ROOT, 'docs', 'node.md'), encoding='utf-8') as f:
+        doc = ' '.join(f.read().split())
+    assert 'at most once a second per topic' not in doc
+    said = re.findall(r'Accepted commands are logged at INFO[^.]*?at most (\d+) lines a '
+                      r'second per topic', doc)
+    assert said == [str(round(1.0 / VibrationNode.COMMAND_LOG_PERIOD))], said

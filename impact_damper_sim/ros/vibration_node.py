@@ -91,6 +91,10 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
     #: longest single wait of the stepping thread (s): it re-reads the schedule at least this
     #: often, whatever the pacing asks
     MAX_WAIT = 0.5
+    #: shortest interval (s) between two "accepted" lines of one command topic: every
+    #: command a person sends is acknowledged (once a second hid the second of two
+    #: ``ros2 topic pub --once`` in a row, issue 27); a flood is thinned to 10 lines a second
+    COMMAND_LOG_PERIOD = 0.1
     #: the stepping thread is reported stalled (ERROR) after this long without a cycle (s)
     STALL = 2.0
     #: a diagnostics period is "behind" when its achieved real-time factor falls short of
@@ -274,9 +278,8 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
             return False
         self.stats.commands += 1
         topic = (itf.SPEED_COMMAND, itf.UNBALANCE_COMMAND)[which]
-        # every command a person sends is acknowledged; only a flood (> 10/s) is thinned
-        self._log('info', f'{topic} {value:g} accepted at sim time {self.live.t:.3f} s', 0.1,
-                  topic)
+        self._log('info', f'{topic} {value:g} accepted at sim time {self.live.t:.3f} s',
+                  self.COMMAND_LOG_PERIOD, topic)
         return True
 
     def _on_set_parameters(self, params):
