@@ -1,14 +1,18 @@
 """``study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]`` (see :mod:`.recovery`).
 
-Exit status 0 with the counts on stdout; 2 with one message on stderr (no traceback) for a
-missing, empty, garbage or non-ROS 2 input, or an existing OUT without ``--overwrite``.
-Importing this module is cheap (mcap is imported when the command runs).
+Exit status 0 with the counts on stdout; 1 with one line on stderr saying why when nothing
+could be kept from an input that was cut off or damaged (an intact log with no messages is
+not a failure); 2 with one message on stderr (no traceback) for a missing, empty, garbage or
+non-ROS 2 input, an existing OUT without ``--overwrite``, or an OUT that cannot be written
+(a writer holding it included). Importing this module is cheap (mcap is imported when the
+command runs).
 """
 from __future__ import annotations
 
 import json
 import sys
 
+EXIT_NOTHING_KEPT = 1
 EXIT_USAGE = 2
 #: where :func:`.recovery.recover` took a lost channel definition from, in words
 _SOURCES = {'summary section': "the file's summary section",
@@ -29,7 +33,8 @@ def add_recover_parser(sub):
                     'off by a crash (kill -9, power loss: no summary, no footer) into a valid, '
                     'finished MCAP in rosbag2 layout: schemas, channels with their QoS, '
                     'messages with their log and publish times, metadata records. Prints the '
-                    'counts per topic.')
+                    'counts per topic. Exit status 1 (one line saying why) when it keeps no '
+                    'message of a cut-off or damaged input.')
     p.add_argument('crashed', metavar='CRASHED.mcap', help='the cut-off MCAP file')
     p.add_argument('out', metavar='OUT.mcap', help='the recovered file to write')
     p.add_argument('--overwrite', action='store_true', help='replace OUT if it exists')
@@ -38,6 +43,41 @@ def add_recover_parser(sub):
 
 def _error(message):
     print(f'study: error: {message}', file=sys.stderr)
+
+
+def nothing_kept(report):
+    """Say why a recovery kept no message, or return None (it kept some, or the input was an
+    intact log holding none).
+
+    Parameters
+    ----------
+    report : RecoveryReport
+        What :func:`.recovery.recover` did.
+
+    Returns
+    -------
+    str or None
+        One line: the input, what was lost and where, and what the output holds.
+    """
+    damaged = report.corrupt_chunks or report.damaged_ranges or report.skipped_messages
+    if report.messages or (report.complete and not damaged):
+        return None
+    why = []
+    if report.corrupt_chunks:
+        s = '' if report.corrupt_chunks == 1 else 's'
+        why.append(f'its only data was in {report.corrupt_chunks} corrupt chunk{s} '
+                   f'({report.corrupt_chunk_messages} messages by their indexes)')
+    if report.damaged_ranges:
+        skipped = sum(end - start for start, end in report.damaged_ranges)
+        why.append(f'{skipped} bytes of damaged records were skipped')
+    if report.skipped_messages:
+        why.append(f'{report.skipped_messages} messages are on channels whose definitions '
+                   'were lost')
+    if not why:
+        why.append(f'no complete chunk reached the file before it was cut off '
+                   f'({report.stop_reason})')
+    return (f'recovered no messages from {report.source}: {"; ".join(why)} '
+            f'({report.destination} holds no messages)')
 
 
 def run_recover(args):
@@ -51,22 +91,30 @@ def run_recover(args):
     Returns
     -------
     int
-        Exit status: 0 on success, 2 for bad input or an existing output.
+        Exit status: 0 on success, 1 when no message was kept of a cut-off or damaged
+        input, 2 for bad input or an output that exists or cannot be written.
     """
+    from .log_file import FileLockedError, OneLineError
     from .recovery import RecoveryError, recover
     try:
         report = recover(args.crashed, args.out, overwrite=args.overwrite)
-    except RecoveryError as exc:
+    except (RecoveryError, FileLockedError) as exc:
         _error(str(exc))
         return EXIT_USAGE
     except FileExistsError:
         _error(f'{args.out} exists; pass --overwrite to replace it')
         return EXIT_USAGE
-    except OSError as exc:
-        _error(f'{exc.filename or args.out}: {exc.strerror or exc}')
+    except OSError as exc:   # the writer's errors are one line naming the file already
+        _error(str(exc) if isinstance(exc, OneLineError)
+               else f'{exc.filename or args.out}: {exc.strerror or exc}')
         return EXIT_USAGE
+    failure = nothing_kept(report)
     if args.json:
         print(json.dumps(report.__dict__, indent=2))
+    if failure is not None:
+        _error(failure)
+        return EXIT_NOTHING_KEPT
+    if args.json:
         return 0
     n_topics = len(report.topics)
     print(f'recovered {report.messages} messages on {n_topics} topic'
@@ -88,6 +136,9 @@ def run_recover(args):
         numbers = f'chunk{s} {", ".join(map(str, report.corrupt_chunk_numbers))}'
         print(f'skipped {report.corrupt_chunks} corrupt chunk{s} ({numbers}, counting from 0) '
               f'holding {report.corrupt_chunk_messages} messages; kept the chunks after them')
+    for start, end in report.damaged_ranges:
+        print(f'skipped bytes {start} to {end} (a broken record; reading went on at the next '
+              'intact chunk)')
     for where in sorted(set(report.restored_channels.values())):
         topics = [t for t, w in report.restored_channels.items() if w == where]
         print(f'took {len(topics)} channel definition{"" if len(topics) == 1 else "s"} '

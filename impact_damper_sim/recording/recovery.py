@@ -1,17 +1,22 @@
 """Recover an MCAP file cut off by a crash (no summary, no footer) into a finished one.
 
-The input is read front to back with mcap's :class:`~mcap.stream_reader.StreamReader`
-(chunks whole, each checked against its CRC and size), through a file wrapper that treats a
-short read as the end of the data. A chunk whose contents are broken (CRC or size mismatch)
-while its framing is intact is skipped, and reading goes on with the records after it (the
-message indexes that follow it tell how many messages it held); reading stops at the first
-record that is itself incomplete or broken. A channel whose record was in a skipped chunk
-(the recorder registers every topic at start, so the first chunk holds them all) is taken
-from the summary section (through the footer, or the summary offsets) or, failing that, from
-a later copy of the record; in a crash file with no summary its messages cannot be attributed
-and are counted as skipped. Everything read is copied: schemas, channels
+The input is read front to back, record by record (each framed by its opcode and length and
+parsed by mcap's record classes; chunks whole, each checked against its CRC and size). A
+chunk whose contents are broken (CRC or size mismatch) while its framing is intact is
+skipped, and reading goes on with the records after it (the message indexes that follow it
+tell how many messages it held). A record that is itself broken (a damaged opcode or
+length, a footer before the end) makes the reader look for the next intact chunk (its
+length fields consistent and its CRC right) and go on from there; reading stops at a broken
+record with no intact chunk after it (a crash file's cut-off end). The writer
+(:class:`.Rosbag2McapWriter`) writes each schema and channel record outside the chunks
+when its topic is registered, so in its files one damaged chunk loses that chunk's messages
+only. A channel whose only record was in a skipped chunk (older files, other writers) is
+taken from the summary section (through the footer, or the summary offsets) or, failing
+that, from a later copy of the record; in a crash file with no summary its messages cannot
+be attributed and are counted as skipped. Everything read is copied: schemas, channels
 (with their QoS and type-hash metadata), messages (log and publish times and sequence kept),
-metadata records and attachments. A crashed recording therefore keeps everything up to its last complete chunk.
+metadata records and attachments. A crashed recording therefore keeps everything up to its
+last complete chunk.
 The output is written in rosbag2's layout (:class:`.Rosbag2McapWriter`) with a fresh
 ``rosbag2`` record counting what was recovered (a stale one in the input is dropped).
 
@@ -20,8 +25,12 @@ Command: ``study recover CRASHED.mcap OUT.mcap [--overwrite] [--json]``.
 from __future__ import annotations
 
 import dataclasses
+import errno
+import io
 import os
+import struct
 
+from .log_file import log_error
 from .rosbag2_mcap import Rosbag2McapWriter
 
 MAGIC = b'\x89MCAP0\r\n'
@@ -69,6 +78,9 @@ class RecoveryReport:
     corrupt_chunk_messages : int
         Messages those chunks held, from their message indexes (messages; 0 when the
         indexes are missing too).
+    damaged_ranges : list of [int, int]
+        Byte ranges ``[start, end)`` skipped over because a record there was broken
+        (reading went on at the next intact chunk, at ``end``).
     start_ns, end_ns : int or None
         Earliest and latest recovered log time (ns since the epoch).
     """
@@ -89,6 +101,7 @@ class RecoveryReport:
     corrupt_chunks: int = 0
     corrupt_chunk_numbers: list = dataclasses.field(default_factory=list)
     corrupt_chunk_messages: int = 0
+    damaged_ranges: list = dataclasses.field(default_factory=list)
     start_ns: int | None = None
     end_ns: int | None = None
 
@@ -118,6 +131,100 @@ def _chunk_records(chunk):
     return breakup_chunk(chunk, validate_crc=True)
 
 
+class _Broken(Exception):
+    """The bytes at a place are not a whole, well-formed record (message says why)."""
+
+
+def _parsers():
+    """Record parsers by opcode: ``parse(stream, length)`` (mcap's record classes)."""
+    from mcap import records as r
+    from mcap.opcode import Opcode
+    table = {getattr(Opcode, name): (lambda cls: lambda stream, length: cls.read(stream))(cls)
+             for name, cls in [('ATTACHMENT', r.Attachment), ('ATTACHMENT_INDEX',
+                               r.AttachmentIndex), ('CHANNEL', r.Channel), ('CHUNK', r.Chunk),
+                               ('CHUNK_INDEX', r.ChunkIndex), ('DATA_END', r.DataEnd),
+                               ('FOOTER', r.Footer), ('HEADER', r.Header),
+                               ('MESSAGE_INDEX', r.MessageIndex), ('METADATA', r.Metadata),
+                               ('METADATA_INDEX', r.MetadataIndex), ('SCHEMA', r.Schema),
+                               ('STATISTICS', r.Statistics),
+                               ('SUMMARY_OFFSET', r.SummaryOffset)]}
+    table[Opcode.MESSAGE] = r.Message.read
+    return table
+
+
+def _record_at(f, pos, size, parsers):
+    """Read the record at byte ``pos``; raise :class:`_Broken` unless it is whole and parses.
+
+    Returns the record, the end of the record by its length field, and the end of what its
+    fields took (the same unless the length field is wrong, or a newer writer added fields).
+    An unknown opcode counts as broken: ROS 2 writers write none, and skipping an unknown
+    record by a damaged length could jump over good chunks.
+    """
+    from mcap.data_stream import ReadDataStream
+    f.seek(pos)
+    head = f.read(9)
+    if len(head) < 9:
+        raise _Broken(f'the file ends {9 - len(head)} bytes into a record header')
+    opcode, length = struct.unpack('<BQ', head)
+    parse = parsers.get(opcode)
+    if parse is None:
+        raise _Broken(f'unknown record opcode {opcode:#04x}')
+    if length > size - pos - 9:
+        raise _Broken(f'a record of {length} bytes runs {length - (size - pos - 9)} bytes '
+                      'past the end of the file')
+    stream = ReadDataStream(_StrictReader(io.BytesIO(f.read(length))))
+    try:
+        record = parse(stream, length)
+    except Exception as exc:   # any parse failure: fields that do not fit the record
+        raise _Broken(f'a broken record (opcode {opcode:#04x}): {type(exc).__name__}: '
+                      f'{exc}') from None
+    return record, pos + 9 + length, pos + 9 + stream.count
+
+
+#: Block (bytes) read at a time while looking for the next intact chunk.
+_SCAN_BLOCK = 1 << 20
+
+
+def _next_chunk(f, start, size, parsers):
+    """Offset of the first intact chunk at or after byte ``start``, or None.
+
+    A candidate is a chunk opcode whose length equals its fields' sizes (a 64-bit equation
+    that random bytes meet with odds of 2**-64) and whose records check against its CRC.
+    """
+    at = start
+    while at < size:
+        f.seek(at)
+        data = f.read(_SCAN_BLOCK)
+        i = data.find(b'\x06')
+        while i >= 0:
+            if _intact_chunk_at(f, at + i, size, parsers):
+                return at + i
+            i = data.find(b'\x06', i + 1)
+        at += len(data)
+    return None
+
+
+def _intact_chunk_at(f, pos, size, parsers):
+    f.seek(pos)
+    # opcode, length, start and end times, uncompressed size, CRC, compression length
+    head = f.read(41 + 4 + 8)
+    if len(head) < 41:
+        return False
+    length, compression_length = struct.unpack_from('<Q', head, 1)[0], \
+        struct.unpack_from('<I', head, 37)[0]
+    if compression_length > 4 or len(head) < 49 + compression_length \
+            or length > size - pos - 9:
+        return False
+    records_length = struct.unpack_from('<Q', head, 41 + compression_length)[0]
+    if length != 40 + compression_length + records_length:
+        return False
+    try:
+        _chunk_records(_record_at(f, pos, size, parsers)[0])
+    except Exception:   # _Broken, or a CRC / size mismatch
+        return False
+    return True
+
+
 def _check_source(path):
     from ..scene.loading import file_kind
     try:
@@ -142,8 +249,9 @@ def _check_source(path):
 def _summary_definitions(f, size):
     """Schemas and channels of the summary section, found through the footer.
 
-    Used for channels whose records were in a chunk that is now corrupt (the recorder
-    registers every topic at start, so the first chunk holds them all). Each place the
+    Used for channels whose only records were in a chunk that is now corrupt (files of
+    other writers, and ours before the definitions were also written outside chunks: the
+    first chunk held them all). Each place the
     footer points at is read on its own (the summary start, then every group start of the
     summary offsets), up to its first broken record, keeping what was read before it.
 
@@ -201,10 +309,12 @@ def _summary_definitions(f, size):
 def recover(source, destination, *, overwrite=False):
     """Copy the readable part of a (crashed) MCAP file into a finished rosbag2-layout file.
 
-    Schemas and channels come from where they are first read in the file; for one whose
-    record was in a corrupt chunk (the first chunk holds them all), from the summary section
-    or, failing that, from a later copy of the record (then the input is read twice). What
-    stays unattributed is counted in ``skipped_messages``.
+    Schemas and channels come from where they are first read in the file (our writer puts
+    a copy of each outside the chunks, before its first message); for one whose only record
+    was in a corrupt chunk (other writers put them all in the first chunk), from the summary
+    section or, failing that, from a later copy of the record (then the input is read
+    twice). What stays unattributed is counted in ``skipped_messages``. A broken record
+    (damaged framing) is skipped up to the next intact chunk (``damaged_ranges``).
 
     Parameters
     ----------
@@ -254,17 +364,15 @@ def _copy(source, destination, size, overwrite, fallback):
     """
     from mcap.records import (Attachment, Channel, Chunk, Footer, Header, Message,
                               MessageIndex, Metadata, Schema)
-    from mcap.stream_reader import StreamReader
 
     report = RecoveryReport(source, destination, bytes_total=size)
     fallback_schemas, fallback_channels = fallback
     skipped_ids = set()
+    parsers = _parsers()
     with open(source, 'rb') as f:
-        stream = _StrictReader(f)
-        records = iter(StreamReader(stream, emit_chunks=True, record_size_limit=size).records)
         try:
-            header = next(records)
-        except Exception as exc:   # any parse failure of the first record means no header
+            header, _, header_end = _record_at(f, len(MAGIC), size, parsers)
+        except _Broken as exc:   # any parse failure of the first record means no header
             raise RecoveryError(f'{source}: no complete MCAP header record ({exc})') from None
         if not isinstance(header, Header):
             raise RecoveryError(f'{source}: the first record is a {type(header).__name__}, '
@@ -272,7 +380,7 @@ def _copy(source, destination, size, overwrite, fallback):
         if header.profile != 'ros2':
             raise RecoveryError(f"{source}: not a ROS 2 MCAP file (profile {header.profile!r},"
                                 " expected 'ros2')")
-        report.bytes_used = stream.position
+        report.bytes_used = header_end
         schemas, in_channels, out_channels = {}, {}, {}
         writer = Rosbag2McapWriter(destination, overwrite=overwrite, fsync_period=None)
 
@@ -316,47 +424,57 @@ def _copy(source, destination, size, overwrite, fallback):
                 report.attachments += 1
 
         after_corrupt_chunk, n_chunks = False, 0
+        pos = scan_from = header_end   # scan_from: where unexplained bytes would begin
         try:
             while True:
+                if pos >= size:
+                    report.stop_reason = ('the file ends after a complete record, without a '
+                                          'footer (the open chunk was never written)')
+                    break
                 try:
-                    record = next(records)
+                    record, end, fields_end = _record_at(f, pos, size, parsers)
+                    if isinstance(record, Footer) and end != size - len(MAGIC):
+                        raise _Broken('a footer record before the end of the file')
+                except _Broken as exc:
+                    resume = _next_chunk(f, scan_from, size, parsers)
+                    if resume is None:
+                        report.stop_reason = (f'incomplete or broken record after byte {pos}: '
+                                              f'{exc}')
+                        break
+                    report.damaged_ranges.append([scan_from, resume])
+                    pos = scan_from = resume
+                    after_corrupt_chunk = False
+                    continue
+                pos, scan_from = end, fields_end
+                if isinstance(record, MessageIndex):
+                    if after_corrupt_chunk:   # the skipped chunk's messages, counted
+                        report.corrupt_chunk_messages += len(record.records)
+                    report.bytes_used = pos
+                    continue
+                inner = [record]
+                if isinstance(record, Chunk):
                     try:
-                        inner = _chunk_records(record) if isinstance(record, Chunk) else [record]
+                        inner = _chunk_records(record)
                     except Exception:   # its framing held: skip it, keep what follows
                         report.corrupt_chunk_numbers.append(n_chunks)
                         n_chunks += 1
                         report.corrupt_chunks += 1
                         after_corrupt_chunk = True
-                        report.bytes_used = stream.position
+                        report.bytes_used = scan_from = pos
                         continue
-                    n_chunks += isinstance(record, Chunk)
-                    if isinstance(record, MessageIndex):
-                        if after_corrupt_chunk:   # the skipped chunk's messages, counted
-                            report.corrupt_chunk_messages += len(record.records)
-                        continue
-                    after_corrupt_chunk = False
-                except StopIteration:
-                    report.stop_reason = 'the file ends after a complete record, without a footer'
-                    break
-                except Exception as exc:   # any failure to read or check a record ends the data
-                    if report.bytes_used == size:
-                        report.stop_reason = ('the file ends after a complete record, without '
-                                              'a footer (the open chunk was never written)')
-                    else:
-                        report.stop_reason = (f'incomplete or broken record after byte '
-                                              f'{report.bytes_used}: {type(exc).__name__}: '
-                                              f'{exc}')
-                    break
+                    n_chunks += 1
+                    pos = fields_end   # intact (CRC): it ends where its records end
+                after_corrupt_chunk = False
                 for item in inner:
                     copy(item)
-                report.bytes_used = stream.position
+                report.bytes_used = pos
                 if isinstance(record, Footer):
                     report.complete = True
                     break
         finally:
             writer.close()
-    if writer.error is not None:
-        raise OSError(f'{destination}: writing failed: {writer.error}') from writer.error
+    if not writer.finished:
+        raise _write_failed(writer)
     report.skipped_channels = len(skipped_ids)
     if skipped_ids & in_channels.keys():
         return report, (schemas, {i: in_channels[i] for i in skipped_ids & in_channels.keys()})
@@ -377,5 +495,15 @@ def _copy_channel(writer, channel, schema):
         schema.data if schema else b'', channel.message_encoding,
         qos if isinstance(qos, list) else [], metadata.get('topic_type_hash', ''), metadata)
     if out is None:
-        raise OSError(f'{writer.path}: writing failed: {writer.error}')
+        raise _write_failed(writer)
     return out
+
+
+def _write_failed(writer):
+    """The one-line ``OSError`` for an output that is not a finished file."""
+    error = writer.error
+    code = getattr(error, 'errno', None) or errno.EIO
+    reason = getattr(error, 'strerror', None) or str(error)
+    if writer.path in reason:   # the writer's own one-line text names the file already
+        return log_error(code, reason, writer.path)
+    return log_error(code, f'{writer.path}: writing failed: {reason}', writer.path)
