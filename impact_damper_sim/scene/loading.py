@@ -6,8 +6,9 @@ Reading is strict and bounded: :func:`load_yaml` refuses what is not a regular U
 impactors: counted on the YAML event stream, before the document is composed), duplicate keys,
 tagged values it cannot convert and alias bombs, each with its line. :func:`apply_overrides`
 edits the raw mapping with ``key=value`` strings read by the same YAML loader, and
-:func:`load_scene` chains both with :func:`~.schema.validate`. This is the text-and-file side of the scene schema, separate from the
-fields in :mod:`.schema` and :mod:`.containers`, which see only Python values.
+:func:`load_scene` chains both with :func:`~.schema.validate`. This is the text-and-file
+side of the scene schema, separate from the fields in :mod:`.schema` and :mod:`.containers`,
+which see only Python values.
 """
 from __future__ import annotations
 
