@@ -375,6 +375,18 @@ def test_a_log_that_vanishes_while_written_is_an_error(tmp_path, how, make):
     assert errors == [writer.error]
     stats = writer.stats()
     assert writer.finished is False and stats['finished'] is False and stats['error']
+    if how == 'file moved':   # a moved file still took the data, and the error says where
+        assert f'(the file is now {tmp_path / "elsewhere.mcap"})' in text, text
+        assert len(_messages(tmp_path / 'elsewhere.mcap')) == 2
+
+
+def test_a_chdir_is_not_a_move(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    writer = Rosbag2McapWriter('rel.mcap')
+    writer.write('/v', FLOAT64, None, _payload(0), T0, T0)
+    monkeypatch.chdir('/')
+    writer.close()
+    assert writer.finished and writer.error is None
 
 
 def test_a_deleted_log_is_reported_when_it_happens(tmp_path):

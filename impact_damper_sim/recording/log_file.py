@@ -257,7 +257,7 @@ def _command_line(pid):
     return text if len(text) <= _COMMAND_CHARS else text[:_COMMAND_CHARS - 3] + '...'
 
 
-def vanished(fd, path, st):
+def vanished(fd, path, st, absolute=None, check_moved=True):
     """Return a one-line ``OSError`` if the file was deleted or moved while written, else None.
 
     Parameters
@@ -265,16 +265,22 @@ def vanished(fd, path, st):
     fd : int
         The open log.
     path : str
-        Its name when it was opened.
+        Its name as the caller gave it (for the message).
     st : os.stat_result
         Its status when it was opened (device and inode).
+    absolute : str, optional
+        ``path`` made absolute when it was opened (so a later ``chdir`` is no move);
+        default ``path``.
+    check_moved : bool, optional
+        Also check that ``path`` still names the file (at close; while writing, a moved
+        file still takes the data, a deleted one keeps nothing).
 
     Returns
     -------
     OSError or None
         ``ENOENT``: ``<path> was deleted while being written ...`` (no name is left: the
         data goes when the file is closed) or ``<path> was moved while being written ...``
-        (the path is gone or names another file).
+        (the path is gone or names another file; where the file is now, when known).
     """
     try:
         now = os.fstat(fd)
@@ -285,12 +291,18 @@ def vanished(fd, path, st):
     if now.st_nlink == 0:
         return log_error(errno.ENOENT, f'{path} was deleted while being written (with its '
                          'directory, or on its own); what was recorded is lost', path)
+    if not check_moved:
+        return None
     try:
-        there = os.stat(path)
+        there = os.stat(absolute or path)
         moved = (there.st_dev, there.st_ino) != (st.st_dev, st.st_ino)
     except OSError:
         moved = True
-    if moved:
-        return log_error(errno.ENOENT, f'{path} was moved while being written (the name now '
-                         'names another file or none); the log is not at that path', path)
-    return None
+    if not moved:
+        return None
+    try:
+        where = f'the file is now {os.readlink(f"/proc/self/fd/{fd}")}'
+    except OSError:
+        where = 'the name now names another file or none'
+    return log_error(errno.ENOENT, f'{path} was moved while being written ({where}); the '
+                     'log is not at that path', path)

@@ -175,8 +175,9 @@ class Rosbag2McapWriter:
     * After :meth:`close`, :attr:`error` is not None whenever the file is not a finished,
       readable log: a write, fsync or close error (``ENOSPC`` on a full disk, ``EIO``, ...),
       or the file deleted (alone or with its directory) or moved while being written
-      (``ENOENT``, ``<path> was deleted while being written ...``; checked at every fsync
-      and at close). :attr:`finished` is True exactly when the file is closed with its
+      (``ENOENT``, ``<path> was deleted while being written ...``, checked at every fsync
+      and at close; ``<path> was moved while being written (the file is now ...)``, checked
+      at close: a moved file still takes the data). :attr:`finished` is True exactly when the file is closed with its
       summary and no error; ``stats()['finished']`` says the same.
 
     Parameters
@@ -258,6 +259,7 @@ class Rosbag2McapWriter:
         self._finished = False
         self._fd = open_log(self.path, overwrite, overwrite_option)
         self._stat = os.fstat(self._fd)   # to tell at fsync and close if the file vanished
+        self._absolute = os.path.abspath(self.path)
         self._file = _RawFile(self._fd)
         self._mcap = Writer(self._file, chunk_size=chunk_size,
                             compression=_COMPRESSION[compression], enable_crcs=True)
@@ -477,7 +479,7 @@ class Rosbag2McapWriter:
                 self._last_fsync = now
                 os.fsync(self._fd)
                 # writes to a deleted file succeed: look for it, so on_error says so now
-                lost = vanished(self._fd, self.path, self._stat)
+                lost = vanished(self._fd, self.path, self._stat, check_moved=False)
                 if lost is not None:
                     self._fail(lost)
         except OSError as exc:
@@ -526,7 +528,7 @@ class Rosbag2McapWriter:
                 os.fsync(self._fd)
             except OSError as exc:
                 self._fail(exc)
-        lost = vanished(self._fd, self.path, self._stat)
+        lost = vanished(self._fd, self.path, self._stat, self._absolute)
         if lost is not None:
             self._fail(lost)
         try:
