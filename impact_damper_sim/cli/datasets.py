@@ -11,12 +11,20 @@
 
 ``record`` (:mod:`..studies.record`): exit status 0 with a one-line summary on stdout (or
 JSON); 2 with one message per problem on stderr for a bad scene, override, duration,
-schedule or tick period, or an existing ``--out`` without ``--overwrite``; 3 when the
-simulation diverged (the log holds everything up to it, and the summary says so).
+schedule or tick period, an existing ``--out`` without ``--overwrite``, or an ``--out`` that
+cannot be created (missing or read-only directory; nothing written); 3 when the simulation
+diverged (the log holds everything up to it, and the summary says so); 4
+(:data:`..studies.record.EXIT_WRITE_FAILED`) when the log was not written to its end (disk
+full, I/O error, file or directory removed): one line on stderr naming the file, the error
+and what is on disk, no summary (``--json``: the run so far, ``finished`` false).
 
 ``dataset`` (:mod:`..studies.dataset`): exit status 0 when every run is recorded (diverged
 runs are labelled, not failed), 1 when some failed (each with its reason in the manifest),
-2 for a bad spec. ``dataset --gather`` (:func:`..studies.dataset_gather.gather_datasets`): 0 when
+2 for a bad spec or an ``--out`` that cannot be written, 4 when a disk error stopped the data
+set (one line on stderr; the run failed in the manifest, ``disk error: ...``), 128 + the
+signal number (130, 143, 129) when SIGINT, SIGTERM or SIGHUP stopped it (its workers killed,
+one line on stderr). No worker outlives the command, SIGKILL included
+(:mod:`..studies.dataset_pool`). ``dataset --gather`` (:func:`..studies.dataset_gather.gather_datasets`): 0 when
 every finished run was gathered, 1 when a log did not match its sha256 (or was missing) or two
 parts hold the same run with other bytes, 2 for a part without a readable manifest (nothing
 written). Importing this module is cheap: the engine is imported when a command runs.
@@ -25,7 +33,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..studies.output import EXIT_DIVERGED, refuse_existing
+from ..studies.output import EXIT_DIVERGED, EXIT_USAGE, refuse_existing
 from ..studies.output import fmt as _g
 from ..studies.output import print_error as _error
 from ..studies.output import print_json as _print_json
@@ -86,12 +94,16 @@ def run_record(args):
     Returns
     -------
     int
-        Exit status (0, or 3 when the run diverged); bad input raises ``SceneError`` or
+        Exit status: 0, 3 when the run diverged, 2 when ``--out`` cannot be created (one
+        line naming it; nothing written), 4 when writing failed (one line: the file, the
+        error, what is on disk and how to recover it; ``--json`` prints the run so far with
+        ``finished`` false and ``write_error``); other bad input raises ``SceneError`` or
         ``OutputExists`` for :func:`.study.main` to report (exit 2).
     """
     from ..scene.schema import SceneError
     from ..scene.units import UnitError, parse_quantity
-    from ..studies.record import parse_tick_period, record_log
+    from ..studies.record import (EXIT_WRITE_FAILED, LogOpenError, LogWriteError,
+                                  parse_tick_period, record_log)
     try:
         duration = parse_quantity(args.duration, 'time', key='--duration')
         noise_std = parse_quantity(args.noise_std, 'acceleration', key='--noise-std')
@@ -112,6 +124,14 @@ def run_record(args):
                             progress=args.progress)
     except FileExistsError as exc:   # created between the check and the open
         raise SceneError(str(exc)) from None
+    except LogOpenError as exc:   # nothing written: like bad input
+        _error(str(exc))
+        return EXIT_USAGE
+    except LogWriteError as exc:   # no summary of a run whose log is not (all) there
+        if args.json and exc.result is not None:
+            _print_json(dict(exc.result))
+        _error(str(exc))
+        return EXIT_WRITE_FAILED
     if args.json:
         _print_json(dict(result))
     else:
@@ -173,7 +193,10 @@ def add_dataset_parser(sub):
 
 
 def run_dataset(args):
-    """Run ``study dataset``; return the exit status (0 all recorded, 1 some failed).
+    """Run ``study dataset``; return the exit status: 0 all recorded, 1 some failed, 2 for
+    a bad spec or an ``--out`` that cannot be written (nothing started), 4 stopped by a
+    disk error (one line: the run and the error, what the manifest lists, what to do), 128
+    + the signal for SIGINT, SIGTERM, SIGHUP (one line: what the manifest lists).
 
     Parameters
     ----------
@@ -183,6 +206,8 @@ def run_dataset(args):
     """
     from ..scene.schema import SceneError
     from ..studies.dataset import run_dataset as run
+    from ..studies.dataset_pool import Interrupted
+    from ..studies.record import EXIT_WRITE_FAILED, LogOpenError
     if args.gather is not None:
         return run_gather(args)
     if args.spec is None:
@@ -196,9 +221,18 @@ def run_dataset(args):
         if isinstance(exc, SceneError):
             raise
         raise SceneError(str(exc)) from None
+    except LogOpenError as exc:   # --out not writable: nothing started
+        _error(str(exc))
+        return EXIT_USAGE
+    except Interrupted as exc:   # workers stopped, manifest saved: say what is kept
+        _error(str(exc))
+        return exc.exit_status
     if args.json:
         _print_json({k: v for k, v in result.items() if k != 'rows'})
-    else:
+    if result['stopped']:   # one line: the disk error, what is kept, what to do
+        _error(result['stopped'])
+        return EXIT_WRITE_FAILED
+    if not args.json:
         print(f"{result['planned']} runs planned: {result['skipped']} already done, "
               f"{result['recorded']} recorded now, {result['failed']} failed; "
               f"manifest {result['manifest']}")
@@ -211,8 +245,9 @@ def run_dataset(args):
 
 def run_gather(args):
     """Run ``study dataset --gather``; return the exit status (0 all gathered, 1 a log that
-    did not match its sha256 or a conflict); a part without a readable manifest raises
-    ``SceneError`` (exit 2, nothing written).
+    did not match its sha256 or a conflict, 4 stopped by a disk error in ``--out``, one
+    line); a part without a readable manifest raises ``SceneError`` (exit 2, nothing
+    written).
 
     Parameters
     ----------
@@ -230,8 +265,14 @@ def run_gather(args):
         raise SceneError(f"dataset --gather: {', '.join(given)} cannot be given with --gather "
                          '(it records nothing; run `study dataset SPEC.yaml --out OUT` after '
                          'it to record what is missing)')
+    from ..studies.record import EXIT_WRITE_FAILED, LogWriteError
     try:
         result = gather_datasets(args.gather, args.out)
+    except LogWriteError as exc:   # a disk error in --out: stopped, what is kept
+        _error(f'dataset --gather stopped by a disk error: {exc}; the logs copied before '
+               f'are kept in {args.out}/runs (checked against their sha256): free space and '
+               'run the same command again to go on from them')
+        return EXIT_WRITE_FAILED
     except OSError as exc:   # --out not writable, say
         raise SceneError(f'dataset --gather: {exc}') from None
     if args.json:

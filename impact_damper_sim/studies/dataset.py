@@ -39,8 +39,11 @@ or not, the sim time reached), the file, its size and its sha256, and for a fail
 one-line reason. The manifest is rewritten after every finished run, so a data set that is
 interrupted continues where it stopped: a run already in the manifest whose file is there
 with its recorded sha256 is skipped (a failed run too, unless ``--retry-failed``). A failing
-run does not stop the others. Runs are written to ``<id>.mcap.part`` and renamed when
-complete, so no half-written log carries a run's name.
+run does not stop the others; a disk error does (a full disk fails every later run too): the
+run is listed as failed, ``disk error: ...``, and recorded again by the next run of the
+command, with the runs not started. Runs are written to ``<id>.mcap.part`` and renamed when
+complete, so no half-written log carries a run's name; the ``.part`` of a run a disk error
+or a signal stopped is removed. No worker outlives the command (:mod:`.dataset_pool`).
 
 On a multi-machine Dask cluster every worker writes to ``DIR`` itself: give a directory that
 all workers see at the same path (a shared file system), see docs/study.md. Without one, run
@@ -67,6 +70,11 @@ LABELS = ('impacts_per_s', 'stuck_fraction', 'peak_g', 'rms_g', 'diverged', 'fai
           'sim_time_s', 'wall_s', 'real_time_factor', 'messages')
 SPEC_KEYS = ('scene', 'duration', 'noise_std', 'tick_period', 'overrides', 'grid', 'schedules',
              'seeds', 'sample')
+
+
+#: How a manifest's ``error`` of a run failed by a disk error starts; such a run is recorded
+#: again by the next ``study dataset`` without ``--retry-failed`` (the disk failed, not the run)
+DISK_ERROR = 'disk error: '
 
 
 class DatasetError(SceneError):
@@ -280,9 +288,13 @@ def record_run(run, out_dir):
     -------
     dict
         The run's manifest row: ``status`` ``'ok'`` with the labels, file, size and sha256,
-        or ``'failed'`` with ``error``, the one-line reason.
+        or ``'failed'`` with ``error``, the one-line reason. A disk error (the log could not
+        be created or written to its end: ENOSPC, EIO, a read-only or vanished directory)
+        starts ``error`` with :data:`DISK_ERROR` and sets ``disk_error`` True (taken out by
+        :func:`run_dataset`, which stops the data set); the unfinished log is removed (the
+        run is recorded again by the next ``study dataset``).
     """
-    from .record import record_log
+    from .record import LogWriteError, error_reason, record_log
     row = {'id': run['id'], 'status': 'failed', 'error': None}
     final = os.path.join(out_dir, 'runs', run['id'] + '.mcap')
     part = final + '.part'
@@ -292,15 +304,29 @@ def record_run(run, out_dir):
                             noise_std=run['noise_std'], tick_period=run['tick_period'],
                             overwrite=True, progress=False)
         os.replace(part, final)
-    except Exception as exc:   # any failure is this run's, never the data set's
+        size, digest = os.path.getsize(final), _file_sha256(final)
+    except OSError as exc:   # the disk's failure, not the run's: the data set stops
+        if isinstance(exc, LogWriteError):
+            what = f'{exc.path}: {exc.reason}'
+        else:   # LogOpenError names its file; the rename or the checksum may not
+            reason = error_reason(exc)
+            what = reason if part in reason or final in reason else f'{part}: {reason}'
+        try:
+            if os.path.lexists(part):
+                os.remove(part)
+                what += '; its unfinished log was removed'
+        except OSError as removing:
+            what += f'; its unfinished log is left ({error_reason(removing)})'
+        row.update(error=f'{DISK_ERROR}{what}'[:500], disk_error=True)
+        return row
+    except Exception as exc:   # any other failure is this run's, never the data set's
         lines = str(exc).strip().splitlines()
         row['error'] = f'{type(exc).__name__}: ' + ('; '.join(lines)[:500] if lines else '')
         with contextlib.suppress(OSError):
             os.remove(part)
         return row
     row.update({k: result[k] for k in LABELS})
-    row.update(status='ok', file=os.path.relpath(final, out_dir), bytes=os.path.getsize(final),
-               sha256=_file_sha256(final))
+    row.update(status='ok', file=os.path.relpath(final, out_dir), bytes=size, sha256=digest)
     return row
 
 
@@ -338,10 +364,18 @@ def _manifest_rows(plan, rows):
 
 
 def _write_atomic(path, text):
+    """Write ``path`` whole or not at all (on disk before it replaces the old one)."""
     tmp = path + '.tmp'
-    with open(tmp, 'w', encoding='utf-8', newline='') as f:
-        f.write(text)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, 'w', encoding='utf-8', newline='') as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:   # a full disk, say: no half-written .tmp left behind
+        with contextlib.suppress(OSError):
+            os.remove(tmp)
+        raise
 
 
 def write_manifest(out_dir, plan, rows, spec_path, gathered_from=None):
@@ -390,7 +424,9 @@ def _finished(out_dir, plan, retry_failed):
                 keep[run['id']] = {k: v for k, v in row.items()
                                    if k in ('id', 'status', 'error', 'file', 'bytes', 'sha256',
                                             *LABELS)}
-        elif row.get('status') == 'failed' and not retry_failed:
+        elif row.get('status') == 'failed' and not retry_failed \
+                and not str(row.get('error') or '').startswith(DISK_ERROR):
+            # a run the disk failed is recorded again: it was not the run's failure
             keep[run['id']] = {'id': run['id'], 'status': 'failed', 'error': row.get('error')}
     return keep
 
@@ -429,6 +465,15 @@ def run_dataset(spec_path, out_dir, *, executor='process', workers=None, dask_ad
                 retry_failed=False, progress=None):
     """Record every run of a spec that is not finished yet, and write the manifest.
 
+    A run that fails on its own (a bad override, a worker that died) is listed with its
+    reason and the others go on. A disk error (a run's log or the manifest not written:
+    ENOSPC, EIO, a read-only or vanished directory) stops the data set, as it would fail
+    every later run too: no new run starts, the runs in progress finish, the failed run is
+    listed with ``error`` starting :data:`DISK_ERROR` (its unfinished log removed) and
+    ``stopped`` says why. SIGINT, SIGTERM, SIGHUP stop the workers at once (their logs
+    removed) and raise :class:`.dataset_pool.Interrupted`; SIGKILL takes them with it. The
+    manifest lists every run finished before; the same command records the rest.
+
     Parameters
     ----------
     spec_path : str
@@ -436,50 +481,120 @@ def run_dataset(spec_path, out_dir, *, executor='process', workers=None, dask_ad
     out_dir : str
         The data set directory (made if missing; shared by every worker).
     executor : {'process', 'serial', 'dask'}
-        Where runs go (see :mod:`.runner`).
+        Where runs go (see :mod:`.runner`; ``process`` here is :func:`.dataset_pool.
+        process_pool`, whose workers end with this process).
     workers : int, optional
         Worker processes (or local Dask workers).
     dask_address : str, optional
         A running Dask scheduler (``tcp://host:8786``).
     retry_failed : bool
-        Run again the runs the manifest records as failed.
+        Run again the runs the manifest records as failed (runs failed by a disk error
+        always run again).
     progress : bool, optional
         Progress line on stderr; default when stderr is a terminal.
 
     Returns
     -------
     dict
-        ``planned``, ``skipped``, ``recorded``, ``failed`` (run counts), ``manifest`` (path)
-        and ``rows`` (every manifest row, in plan order).
-    """
-    import concurrent.futures as cf
+        ``planned``, ``skipped``, ``recorded`` (runs finished now, ok or failed), ``failed``,
+        ``not_started`` (run counts), ``manifest`` (path), ``stopped`` (None, or the
+        one-line reason the data set stopped early) and ``rows`` (every manifest row, in plan
+        order).
 
-    from .runner import make_executor
+    Raises
+    ------
+    DatasetError
+        A bad spec.
+    SceneError
+        The ROS message definitions are not found (nothing started).
+    LogOpenError
+        ``out_dir`` or its manifest cannot be written (an ``OSError``; nothing started).
+    Interrupted
+        SIGINT, SIGTERM or SIGHUP (a ``BaseException``); its ``detail`` says what the
+        manifest holds.
+    """
+    from .dataset_pool import catch_signals, run_all
+    from .record import check_definitions, open_error
     plan = load_spec(spec_path)
-    os.makedirs(os.path.join(out_dir, 'runs'), exist_ok=True)
+    manifest = os.path.join(out_dir, 'manifest.json')
+    check_definitions(os.path.join(out_dir, 'runs'))
     rows = _finished(out_dir, plan, retry_failed)
     todo = [run for run in plan if run['id'] not in rows]
+    try:
+        os.makedirs(os.path.join(out_dir, 'runs'), exist_ok=True)
+        write_manifest(out_dir, plan, rows, spec_path)
+    except OSError as exc:   # a read-only or full directory: nothing started
+        raise open_error(exc, manifest if os.path.isdir(os.path.join(out_dir, 'runs'))
+                         else os.path.join(out_dir, 'runs')) from None
     bar = DatasetProgress(len(plan), len(rows), enabled=progress)
-    write_manifest(out_dir, plan, rows, spec_path)
+    state = _DatasetState(out_dir, plan, rows, spec_path, bar)
     if todo:
-        with make_executor(executor, workers, dask_address, n_tasks=len(todo)) as pool:
-            futures = {pool.submit(record_run, run, os.path.abspath(out_dir)): run
-                       for run in todo}
-            for future in cf.as_completed(futures):
-                run = futures[future]
-                try:
-                    row = future.result()
-                except Exception as exc:   # a worker that died: this run failed
-                    row = {'id': run['id'], 'status': 'failed',
-                           'error': f'{type(exc).__name__}: {exc}'.splitlines()[0]}
-                rows[run['id']] = row
-                write_manifest(out_dir, plan, rows, spec_path)
-                bar.update(row['status'] == 'ok')
+        with catch_signals():
+            run_all(record_run, os.path.abspath(out_dir), todo, state, executor=executor,
+                    workers=workers, dask_address=dask_address)
     entries = _manifest_rows(plan, rows)
-    return {'planned': len(plan), 'skipped': len(plan) - len(todo), 'recorded': len(todo),
-            'failed': sum(r['status'] != 'ok' for r in entries),
-            'manifest': os.path.join(out_dir, 'manifest.json'), 'rows': entries}
+    stopped = None
+    if state.stopped is not None:
+        where = (f"run {state.stopped['id']}: {state.stopped['error'][len(DISK_ERROR):]}"
+                 if 'id' in state.stopped else state.stopped['error'])
+        kept = (f'{manifest} lists the {len(entries)} runs finished' if state.saved
+                else f'{manifest} could not be updated ({state.manifest_error}); it lists '
+                     'the runs finished before')
+        stopped = (f'data set stopped by a disk error in {where}; {kept}; '
+                   f'{state.not_started} of {len(plan)} runs not started: free space (or fix '
+                   'the disk) and run the same command again to record the rest')
+    return {'planned': len(plan), 'skipped': len(plan) - len(todo),
+            'recorded': state.finished, 'not_started': state.not_started,
+            'failed': sum(r['status'] != 'ok' for r in entries), 'stopped': stopped,
+            'manifest': manifest, 'rows': entries}
 
 
-__all__ = ['DatasetError', 'DatasetProgress', 'LABELS', 'load_spec', 'record_run',
+class _DatasetState:
+    """The rows of a data set as runs finish (the manifest rewritten after each), and what
+    stopped it; :func:`.dataset_pool.run_all` reports to it."""
+
+    def __init__(self, out_dir, plan, rows, spec_path, bar):
+        self.out_dir, self.plan, self.rows, self.spec_path, self.bar = (out_dir, plan, rows,
+                                                                         spec_path, bar)
+        self.finished = self.not_started = 0
+        self.stopped = None          # the row (or {'error': ...}) that stopped the data set
+        self.saved = True            # the last manifest write succeeded
+        self.manifest_error = None
+
+    def add(self, run, row):
+        disk = row.pop('disk_error', False)
+        self.rows[run['id']] = row
+        self.finished += 1
+        self.save()
+        self.bar.update(row['status'] == 'ok')
+        if disk and self.stopped is None:
+            self.stopped = row
+
+    def save(self):
+        from .record import error_reason
+        try:
+            write_manifest(self.out_dir, self.plan, self.rows, self.spec_path)
+            self.saved = True
+        except OSError as exc:   # the data set cannot be listed: stop it
+            self.saved = False
+            self.manifest_error = error_reason(exc)
+            if self.stopped is None:
+                self.stopped = {'error': f"writing {os.path.join(self.out_dir, 'manifest.json')}"
+                                         f': {self.manifest_error}'}
+
+    def discard(self, run):
+        """Remove the unfinished log of a run stopped by a signal (recorded again later)."""
+        with contextlib.suppress(OSError):
+            os.remove(os.path.join(self.out_dir, 'runs', run['id'] + '.mcap.part'))
+
+    def interrupted(self, signum, in_progress):
+        """The :class:`.dataset_pool.Interrupted` to raise: what the manifest holds."""
+        from .dataset_pool import Interrupted
+        return Interrupted(signum, (
+            f"{os.path.join(self.out_dir, 'manifest.json')} lists {len(self.rows)} of "
+            f'{len(self.plan)} runs; the {in_progress} in progress were stopped and their logs '
+            'removed; run the same command again to record the rest'))
+
+
+__all__ = ['DISK_ERROR', 'DatasetError', 'DatasetProgress', 'LABELS', 'load_spec', 'record_run',
            'run_dataset', 'write_manifest']

@@ -64,23 +64,42 @@ def _plan_entry(row):
     return entry
 
 
+class _TargetError(Exception):
+    """Writing the merged data set failed (its disk, not the part's log)."""
+
+
 def _copy_verified(source, target, sha256, block=1 << 20):
     """Copy ``source`` to ``target`` through ``target.part``, hashing what is read; rename
-    only when the digest is ``sha256``. Returns None, or the reason nothing was copied."""
+    only when the digest is ``sha256``. Returns None, or the reason nothing was copied (the
+    source's fault); a write error on the target raises :class:`.record.LogWriteError`
+    (the ``.part`` removed)."""
+    from .record import LogWriteError, error_reason
     digest = hashlib.sha256()
     part = target + '.part'
+
+    def out(call, *args):   # an error here is the target disk's
+        try:
+            return call(*args)
+        except OSError as exc:
+            raise _TargetError(exc) from None
     try:
-        with open(source, 'rb') as src, open(part, 'wb') as dst:
+        with open(source, 'rb') as src, out(open, part, 'wb') as dst:
             for chunk in iter(lambda: src.read(block), b''):
                 digest.update(chunk)
-                dst.write(chunk)
+                out(dst.write, chunk)
+            out(dst.flush)
+            out(os.fsync, dst.fileno())
         if digest.hexdigest() != sha256:
             os.remove(part)
             return f'sha256 {digest.hexdigest()[:12]}... is not the manifest\'s {sha256[:12]}...'
-        os.replace(part, target)
-    except OSError as exc:
+        out(os.replace, part, target)
+    except (OSError, _TargetError) as exc:
         with contextlib.suppress(OSError):
             os.remove(part)
+        if isinstance(exc, _TargetError):
+            reason = error_reason(exc.args[0])
+            raise LogWriteError(f'{part}: write failed: {reason} (removed)', part,
+                                reason) from None
         return f'{type(exc).__name__}: {exc.strerror or exc}'
     return None
 
@@ -109,6 +128,10 @@ def gather_datasets(parts, out_dir):
     ------
     DatasetError
         A part without a readable manifest (before anything is written).
+    LogWriteError
+        A disk error writing ``out_dir`` (a log's copy, or the manifest): gathering stops;
+        the logs copied before stay (checked, under their names) and the same command
+        goes on from them.
     """
     read = [(part, *_read_part(part)) for part in parts]   # every part checked first
     os.makedirs(os.path.join(out_dir, 'runs'), exist_ok=True)
@@ -153,7 +176,13 @@ def gather_datasets(parts, out_dir):
     spec = specs.pop() if len(specs) == 1 else None   # the parts' spec, when one
     spec = spec if isinstance(spec, str) else None
     gathered_from = [os.path.abspath(part) for part in parts]
-    write_manifest(out_dir, plan, rows, spec, gathered_from=gathered_from)
+    try:
+        write_manifest(out_dir, plan, rows, spec, gathered_from=gathered_from)
+    except OSError as exc:
+        from .record import LogWriteError, error_reason
+        path = os.path.join(out_dir, 'manifest.json')
+        raise LogWriteError(f'{path}: write failed: {error_reason(exc)}', path,
+                            error_reason(exc)) from None
     entries = _manifest_rows(plan, rows)
     result.update(gathered_from=gathered_from, runs=entries,
                   ok=sum(r['status'] == 'ok' for r in entries),

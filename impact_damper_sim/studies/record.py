@@ -28,6 +28,7 @@ the ``rosbag2`` metadata record differs. Nothing here imports ROS.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 
@@ -114,6 +115,162 @@ class RecordResult(dict):
     """What :func:`record_log` wrote and saw (a dict; keys documented there)."""
 
 
+#: Exit status of ``study record`` and ``study dataset`` when a log was not written to its
+#: end (a disk error while writing: ENOSPC, EIO, a read-only file system, the file or its
+#: directory removed); 2 when it could not even be created (nothing written), as for bad input
+EXIT_WRITE_FAILED = 4
+
+
+class LogOpenError(OSError):
+    """A log could not be created (missing or read-only directory, a directory as the path,
+    another writer holding it): nothing was written. ``str()`` is one line naming the file."""
+
+    def __init__(self, message, path=None, errno_=None):
+        super().__init__(message)
+        self.path, self.errno_ = path, errno_
+
+    def __str__(self):
+        return self.args[0]
+
+
+class LogWriteError(OSError):
+    """A log was not written to its end (a disk error, or the file lost while written).
+
+    ``str()`` is one line: the file, the error and what is on disk (the messages that reached
+    an unfinished file, and ``study recover`` to keep them; or that nothing is left).
+
+    Attributes
+    ----------
+    path : str
+        The log.
+    reason : str
+        The error, one line (``No space left on device``).
+    result : RecordResult or None
+        What the run did up to the error (``finished`` False, ``write_error`` this text).
+    recoverable : bool
+        An unfinished regular file with data is there: ``study recover`` can read it.
+    """
+
+    def __init__(self, message, path=None, reason=None, result=None, recoverable=False):
+        super().__init__(message)
+        self.path, self.reason, self.result = path, reason, result
+        self.recoverable = recoverable
+
+    def __str__(self):
+        return self.args[0]
+
+
+def error_reason(exc):
+    """One line of an ``OSError`` without the ``[Errno N]`` prefix and the quoted path.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The error (an ``OSError``'s ``strerror`` when its text is Python's default form).
+
+    Returns
+    -------
+    str
+    """
+    text = str(exc).strip()
+    if isinstance(exc, OSError) and exc.strerror and text.startswith('[Errno'):
+        text = exc.strerror
+    lines = text.splitlines()
+    return '; '.join(line.strip() for line in lines) if lines else type(exc).__name__
+
+
+def open_error(exc, path):
+    """A :class:`LogOpenError` of an ``OSError`` from creating ``path`` (one line, naming it).
+
+    Parameters
+    ----------
+    exc : OSError
+        The writer's error (its own one-line text when it names the file).
+    path : str or os.PathLike
+        The log.
+
+    Returns
+    -------
+    LogOpenError
+    """
+    path = os.fspath(path)
+    reason = error_reason(exc)
+    message = reason if path in reason else f'cannot create {path}: {reason}'
+    return LogOpenError(message, path, getattr(exc, 'errno', None))
+
+
+def check_definitions(out):
+    """Refuse to record when the ROS message definitions cannot be found, before ``out`` is
+    created (each topic's schema is read from the ament index; it was a traceback after an
+    empty file was made).
+
+    Parameters
+    ----------
+    out : str or os.PathLike
+        The log that would be written, named in the message.
+
+    Raises
+    ------
+    SceneError
+        One line: nothing written, and the ``AMENT_PREFIX_PATH`` to set.
+    """
+    from ..recording.definitions import AmentIndexError, check_ament_index
+    from ..scene.schema import SceneError
+    try:
+        check_ament_index()
+    except AmentIndexError as exc:
+        raise SceneError(f'cannot record to {os.fspath(out)} (nothing written): '
+                         f'{error_reason(exc)}') from None
+
+
+def write_failure(path, error, stats, complete=None):
+    """Say in one line why a log is not finished and what of it is on disk.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The log.
+    error : BaseException or None
+        The writer's error (None: the file vanished without one).
+    stats : dict
+        The writer's ``stats()``: ``messages_written`` (messages accepted before the error)
+        and ``file_bytes`` (bytes that reached the file).
+    complete : int, optional
+        Messages known to be in complete chunks in the file (messages); None when unknown
+        (then "up to" the accepted ones).
+
+    Returns
+    -------
+    tuple of (str, str, bool)
+        The line, the reason alone, and whether ``study recover`` can read the file.
+    """
+    path = os.fspath(path)
+    n, size = stats.get('messages_written', 0), stats.get('file_bytes', 0)
+    if not os.path.exists(path):   # writes to a deleted file succeed: only now is it seen
+        reason = 'the file no longer exists (deleted, or its directory removed, while it was '\
+                 'written)'
+        return (f'{path}: {reason}: nothing of it is on disk ({n:,} messages lost)', reason,
+                False)
+    reason = 'write failed: ' + (error_reason(error) if error is not None
+                                 else 'the log was not finished')
+    if size == 0:
+        return f'{path}: {reason}; nothing reached the file', reason, False
+    if not os.path.isfile(path):   # a device or a FIFO: nothing to read back
+        return (f'{path}: {reason}; up to {n:,} messages were sent to it before the error',
+                reason, False)
+    unfinished = f'{path}: {reason}; the log is unfinished (no summary)'
+    if complete == 0:
+        return (f'{unfinished} and holds no complete chunk: the {n:,} messages written before '
+                'the error are lost (nothing to recover)', reason, False)
+    if complete is None:
+        return (f'{unfinished}: up to {n:,} messages ({size / 1e6:.2f} MB) reached it before '
+                f'the error; `study recover {path} OUT.mcap` keeps those in its complete '
+                'chunks', reason, True)
+    return (f'{unfinished}: {complete:,} message{"s" if complete != 1 else ""} in complete '
+            f'chunks ({size / 1e6:.2f} MB in the file) reached it before the error; `study '
+            f'recover {path} OUT.mcap` makes a finished copy of them', reason, True)
+
+
 def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noise_std=0.0,
                overwrite=False, progress=None, sample_rate=None, imu_rate=None,
                tick_period=TICK_PERIOD, state_period=STATE_PERIOD, overwrite_option='--overwrite',
@@ -162,7 +319,8 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         ``impacts``, ``impacts_per_s``, ``stuck_fraction`` (time-weighted mean over the
         impactors, dimensionless; None without impactors), ``peak_g`` and ``rms_g`` (of the
         acceleration components over every accelerometer, g), ``commands`` (schedule keys
-        applied), ``diverged`` (bool) and ``failure`` (why the simulation stopped, or None).
+        applied), ``diverged`` (bool), ``failure`` (why the simulation stopped, or None),
+        ``finished`` (True: the log is closed with its summary) and ``write_error`` (None).
 
     Raises
     ------
@@ -171,6 +329,16 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         cannot take, or a ``tick_period`` out of :data:`TICK_PERIOD_RANGE`.
     FileExistsError
         ``out`` exists and ``overwrite`` is false.
+    SceneError
+        Also: the ROS message definitions are not found (``AMENT_PREFIX_PATH``), checked
+        before ``out`` is created.
+    LogOpenError
+        ``out`` cannot be created (an ``OSError``; nothing written): one line naming it.
+    LogWriteError
+        A disk error while writing (ENOSPC, EIO, ...) or the file lost: the run stops at
+        the error, the file is closed as it is (recoverable with ``study recover`` when
+        data reached it), and the error's one line says what is on disk; its ``result``
+        holds the run up to there (``finished`` False, ``write_error`` the line).
     """
     from ..live.realtime import CommandError, LiveSimulation
     from ..live.schedule import Schedule
@@ -200,11 +368,18 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
                   'schedule': schedule.source if schedule is not None else '',
                   'real_time_factor': 0.0, 'recorded_by': 'study record',
                   'duration': duration}
-    writer = Rosbag2McapWriter(out, overwrite=overwrite, chunk_size=RECORD_CHUNK_SIZE,
-                               flush_period=math.inf, fsync_period=None,
-                               overwrite_option=overwrite_option)
+    check_definitions(out)
+    try:
+        writer = Rosbag2McapWriter(out, overwrite=overwrite, chunk_size=RECORD_CHUNK_SIZE,
+                                   flush_period=math.inf, fsync_period=None,
+                                   overwrite_option=overwrite_option)
+    except FileExistsError:
+        raise
+    except OSError as exc:   # missing or read-only directory, a directory, another writer
+        raise open_error(exc, out) from None
     wall0 = time.perf_counter()
     bar = _Progress(duration, stream, progress)
+    reached = _Reached(writer)
     summary = _Summary(live, scene_model)
     applied = 0
     try:
@@ -216,11 +391,13 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         for i, s in enumerate(streams):
             if i != messages.parameter_events:
                 writer.add_topic(s.topic, s.type_name, s.qos)
+        reached.bytes = writer.file_bytes   # the opening records hold no message
 
         def write(stream_index, data, ns=None):
             s = streams[stream_index]
             ns = int(round(live.t * 1e9)) if ns is None else ns
             writer.write(s.topic, s.type_name, s.qos, data, ns, ns)
+            reached.note()
 
         def parameter(name, value):
             if name == 'speed_rate_limit':
@@ -239,7 +416,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         total = int(round(duration * live.sample_rate))
         done = 0
         next_state = state_period
-        while done < total:
+        while done < total and writer.error is None:   # a disk error ends the run
             n = min(chunk, total - done)
             if schedule is not None and not schedule.done:
                 for entry in schedule.due(live.t, live.sample_rate):
@@ -250,6 +427,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
                                             else messages.unbalance_command]
                                 writer.write(s.topic, FLOAT64, s.qos, float64_cdr(value),
                                              *[int(round(live.t * 1e9))] * 2)
+                                reached.note()
                                 (live.command_speed if key == 'speed'
                                  else live.command_unbalance)(value)
                             else:
@@ -280,13 +458,38 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         bar.end()
     wall = time.perf_counter() - wall0
     stats = writer.stats()
-    out_summary = summary.result(live.t)
-    return RecordResult(
+    # finished: closed with its summary, no error, and still there (a file deleted while
+    # written takes every write without an error)
+    finished = (writer.error is None and getattr(writer, 'finished', True)
+                and os.path.exists(out))
+    result = RecordResult(
         path=str(out), sim_time_s=live.t, wall_s=wall,
         real_time_factor=live.t / wall if wall > 0 else math.inf,
         messages=stats['messages_written'], bytes=stats['file_bytes'],
         commands=applied, diverged=live.failure is not None, failure=live.failure,
-        **out_summary)
+        finished=bool(finished), write_error=None, **summary.result(live.t))
+    if not finished:
+        line, reason, recoverable = write_failure(out, writer.error, stats,
+                                                  complete=reached.messages)
+        result['write_error'] = line
+        raise LogWriteError(line, os.fspath(out), reason, result, recoverable)
+    return result
+
+
+class _Reached:
+    """Messages known to be in complete chunks on disk: all of them each time the file grew
+    after a message without an error (a chunk, with every message written so far, reached
+    the file; the opening records, written before the first message, do not count)."""
+
+    def __init__(self, writer):
+        self.writer = writer
+        self.messages = 0
+        self.bytes = writer.file_bytes
+
+    def note(self):
+        writer = self.writer
+        if writer.file_bytes != self.bytes and writer.error is None:
+            self.messages, self.bytes = writer.messages_written, writer.file_bytes
 
 
 class _Summary:
@@ -358,5 +561,8 @@ class _Progress:
             self.stream.flush()
 
 
-__all__ = ['RecordResult', 'STATE_PERIOD', 'TICK_PERIOD', 'TICK_PERIOD_RANGE',
-           'check_tick_period', 'parse_tick_period', 'record_log', 'tick_period_range_text']
+__all__ = ['EXIT_WRITE_FAILED', 'LogOpenError', 'LogWriteError', 'RecordResult',
+           'STATE_PERIOD', 'TICK_PERIOD', 'TICK_PERIOD_RANGE', 'check_definitions',
+           'check_tick_period',
+           'error_reason', 'open_error', 'parse_tick_period', 'record_log',
+           'tick_period_range_text', 'write_failure']
