@@ -8,9 +8,15 @@ parameters). It is separate from :mod:`.vibration_node` because recording is an 
 side channel of publishing: the node runs the same without it. A mixin of
 :class:`~impact_damper_sim.ros.vibration_node.VibrationNode` only: it keeps ``recorder`` and
 ``record_error`` on the node and uses its lock, outlets and command subscriptions.
+
+A disk error (a full disk, an I/O error, the file or its directory removed) is logged once
+at ERROR when it happens (from the writer thread) and the node goes on; stopping never says
+"recorded N messages" of a file that is not a finished log: it says what is on disk and how
+to recover it, and ``~/record false`` answers failure with that line.
 """
 from __future__ import annotations
 
+import os
 import time
 
 from ..recording.node_topics import RECORD_CHUNK_SIZE
@@ -20,6 +26,10 @@ from . import interface as itf
 class RecordingMixin:
     """Record what :class:`~impact_damper_sim.ros.vibration_node.VibrationNode` publishes and
     receives (a mixin of that node)."""
+
+    #: The one line of the last recording that did not end as a finished log (str or None).
+    record_failure = None
+    _record_error_logged = False   # this recording's disk error is in the log at ERROR
 
     # -- recording ------------------------------------------------------------------------
     def start_recording(self, path, overwrite=False):
@@ -40,40 +50,76 @@ class RecordingMixin:
         from ..recording import AsyncRecorder
         with self._lock:
             if self.recorder is not None:
-                return f'already recording to {self.recorder.path}'
+                error = self.recorder.error
+                return (f'already recording to {self.recorder.path}' if error is None else
+                        f'already recording to {self.recorder.path}, stopped by a disk error '
+                        f'({error}); ~/record false ends it')
+            made = []   # the recorder, for the error callback (it may come before it exists)
+            self.record_error = self.record_failure = None
+            self._record_error_logged = False
+
+            def on_error(exc):
+                self._on_disk_error(exc, path, made[0] if made else None)
             try:
                 # rosbag2's chunk size: the summary keeps one index per chunk in memory until
                 # the file closes (64 KiB chunks grew RSS ~0.8 MB/min); a chunk is still
                 # closed at least every flush period, which bounds what a crash loses
-                rec = AsyncRecorder(path, overwrite=overwrite, on_error=self._on_disk_error,
+                rec = AsyncRecorder(path, overwrite=overwrite, on_error=on_error,
                                     chunk_size=RECORD_CHUNK_SIZE,
                                     overwrite_option='record_overwrite:=true')
             except (OSError, ValueError) as exc:
                 return str(exc)
+            made.append(rec)
             rec.add_metadata('impact_damper_sim', self._run_metadata())
             for out in self.outlets:
                 rec.add_topic(out.topic, out.type_name, out.qos)
             for sub in self._command_subs:
                 rec.add_topic(sub.topic_name, 'std_msgs/msg/Float64', itf.COMMAND_QOS)
             self.recorder = rec
-            self.record_error = None
             self._publish_state()   # the latched state opens the log
         self.get_logger().info(f'recording to {path}')
         return None
 
     def stop_recording(self):
-        """Finish the record file (summary and rosbag2 metadata); no-op when not recording."""
+        """Finish the record file (summary and rosbag2 metadata); no-op when not recording.
+
+        A file that is not a finished log (a disk error, the file or its directory removed)
+        is never reported as recorded: one WARN line (ERROR if the error was not logged when
+        it happened) says what is on disk and how to recover it, and :attr:`record_failure`
+        keeps that line for ``~/record false``.
+
+        Returns
+        -------
+        AsyncRecorder or None
+            The recorder that was stopped.
+        """
+        from ..studies.record import write_failure
         with self._lock:
             rec, self.recorder = self.recorder, None
-        if rec is not None:
-            rec.close()
-            self._log('info', f'recorded {rec.stats()["messages_written"]} messages to '
-                              f'{rec.path}')
+        if rec is None:
+            return None
+        stats = rec.close()
+        error = rec.error
+        # a finished log: closed with its summary, no error, still there (an older writer
+        # took the writes to a deleted file without an error)
+        finished = (error is None and getattr(rec, 'finished', True)
+                    and os.path.exists(rec.path))
+        if finished:
+            self.record_failure = None
+            self._log('info', f'recorded {stats["messages_written"]} messages to {rec.path}')
+            return rec
+        line, _, _ = write_failure(rec.path, error, stats)
+        self.record_failure = line
+        self.record_error = self.record_error or line
+        self._log('warning' if self._record_error_logged else 'error',
+                  f'recording ended unfinished: {line}')
+        self._record_error_logged = True
         return rec
 
     def on_record_request(self, request, response):
         """``~/record`` (std_srvs/SetBool): true starts recording to the ``record`` parameter's
-        path (or a new timestamped file), false stops."""
+        path (or a new timestamped file), false stops (failure, with what is on disk, when
+        the file is not a finished log)."""
         if request.data:
             if self._params['record']:
                 path, overwrite = self._params['record'], self._params['record_overwrite']
@@ -84,11 +130,10 @@ class RecordingMixin:
             response.message = error or str(path)
         else:
             rec = self.stop_recording()
-            error = rec.error if rec is not None else None
-            response.success = rec is not None and error is None
+            response.success = rec is not None and self.record_failure is None
             response.message = ('not recording' if rec is None else
-                                f'{rec.path}: recording stopped by a disk error: {error}'
-                                if error is not None else str(rec.path))
+                                f'recording stopped by a disk error: {self.record_failure}'
+                                if self.record_failure else str(rec.path))
         return response
 
     def _record(self, topic, type_name, qos, data, ns=None):
@@ -100,8 +145,26 @@ class RecordingMixin:
                 ns = int(round(self.live.t * 1e9))
             rec.write(topic, type_name, qos, data, ns, ns)
 
-    def _on_disk_error(self, exc):
-        self.record_error = str(exc)   # reported in /diagnostics; the simulation goes on
+    def _on_disk_error(self, exc, path=None, rec=None):
+        """The recorder's first disk error (called once per recording, from its writer
+        thread, or from the caller's while the file is opened): logged at ERROR now, reported
+        in /diagnostics; the simulation goes on."""
+        from ..studies.record import error_reason
+        self.record_error = str(exc)
+        path = path if path is not None else getattr(rec, 'path', '?')
+        if not os.path.exists(path):
+            what = ('the file no longer exists (deleted, or its directory removed, while it '
+                    'was written): what was recorded is lost')
+        else:
+            n = rec.stats()['messages_written'] if rec is not None else 0
+            what = (f'{error_reason(exc)}; {n:,} messages were written before the error and '
+                    'nothing is recorded from now on')
+            if os.path.isfile(path):   # not /dev/full, a FIFO: there is a file to read back
+                what += ('; the file stays unfinished (no summary): after ~/record false (or '
+                         f'shutdown), `study recover {path} OUT.mcap` keeps what reached the '
+                         'disk')
+        self._record_error_logged = True
+        self._log('error', f'recording to {path} failed: {what}; the simulation goes on')
 
     def _run_metadata(self):
         from ..recording.node_messages import run_metadata
