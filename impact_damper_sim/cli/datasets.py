@@ -24,10 +24,11 @@ runs are labelled, not failed), 1 when some failed (each with its reason in the 
 set (one line on stderr; the run failed in the manifest, ``disk error: ...``), 128 + the
 signal number (130, 143, 129) when SIGINT, SIGTERM or SIGHUP stopped it (its workers killed,
 one line on stderr). No worker outlives the command, SIGKILL included
-(:mod:`..studies.dataset_pool`). ``dataset --gather`` (:func:`..studies.dataset_gather.gather_datasets`): 0 when
-every finished run was gathered, 1 when a log did not match its sha256 (or was missing) or two
-parts hold the same run with other bytes, 2 for a part without a readable manifest (nothing
-written). Importing this module is cheap: the engine is imported when a command runs.
+(:mod:`..studies.dataset_pool`).
+``dataset --gather`` (:func:`..studies.dataset_gather.gather_datasets`): 0 when every
+finished run was gathered, 1 when a log did not match its sha256 (or was missing) or two parts
+hold the same run with other bytes, 2 for a part without a readable manifest (nothing
+written), 4 when a disk error in ``--out`` stopped it (one line). Importing this module is cheap: the engine is imported when a command runs.
 """
 from __future__ import annotations
 
