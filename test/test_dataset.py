@@ -149,6 +149,44 @@ def test_an_interrupted_data_set_continues_where_it_stopped(tmp_path):
     assert (result['skipped'], result['recorded']) == (2, 2)
 
 
+def test_a_run_a_disk_error_failed_is_recorded_again_without_retry_failed(tmp_path,
+                                                                          monkeypatch):
+    """A disk error is the disk's failure, not the run's: it stops the data set, and the
+    next run of the command records that run again; a run that failed on its own stays
+    failed (unless --retry-failed)."""
+    import impact_damper_sim.studies.record as record
+    spec = _write(tmp_path, SPEC)
+    out = tmp_path / 'data'
+    real = record.record_log
+    calls = []
+
+    def full_disk(scene, out_path, *args, **kwargs):   # the third run hits a full disk
+        calls.append(out_path)
+        if len(calls) == 3:
+            with open(out_path, 'wb') as f:
+                f.write(b'partial')
+            raise record.LogWriteError(f'{out_path}: write failed: No space left on device',
+                                       out_path, 'write failed: No space left on device')
+        return real(scene, out_path, *args, **kwargs)
+
+    monkeypatch.setattr(record, 'record_log', full_disk)
+    result = run_dataset(str(spec), str(out), executor='serial')
+    assert result['stopped'] and 'No space left on device' in result['stopped']
+    assert (result['recorded'], result['not_started']) == (3, 3)   # stopped at the error
+    doc, rows = _manifest(out)
+    failed = [r for r in doc['runs'] if r['status'] == 'failed']
+    assert len(failed) == 1 and failed[0]['error'].startswith('disk error: ')
+    assert 'unfinished log was removed' in failed[0]['error']
+    assert not list((out / 'runs').glob('*.part'))
+    assert 'disk_error' not in doc['runs'][0] and rows[2]['status'] == 'failed'
+    monkeypatch.setattr(record, 'record_log', real)   # space made
+    result = run_dataset(str(spec), str(out), executor='serial')
+    assert result['stopped'] is None
+    assert (result['skipped'], result['recorded'], result['failed']) == (2, 4, 2)
+    doc, _ = _manifest(out)
+    assert not any(str(r['error']).startswith('disk error') for r in doc['runs'])
+
+
 def test_a_seeded_sample_draws_the_same_runs_every_time(tmp_path):
     text = ('scene: sdof\nduration: 0.1\nsample:\n  n: 5\n  seed: 3\n  keys:\n'
             '    impactors.0.clearance: {low: 1.5, high: 4, unit: mm}\n'
