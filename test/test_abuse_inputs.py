@@ -232,7 +232,8 @@ def _poll(condition, timeout=20.0, every=None):
 def test_two_nodes_with_one_fully_qualified_name_each_warn_once(ros_context):
     """Two nodes named /vibration_node: /clock ran backwards 385 times in 6 s and neither
     warned. Each now warns once, from its diagnostics timer, naming the name and what goes
-    wrong; a node of another fully qualified name in the graph is no clash."""
+    wrong, and its /diagnostics status is WARN while the clash lasts; a node of another fully
+    qualified name in the graph is no clash."""
     rclpy = pytest.importorskip('rclpy')
     from rclpy.node import Node
     other = rclpy.Context()   # a second participant on the test's own domain
@@ -264,6 +265,10 @@ def test_two_nodes_with_one_fully_qualified_name_each_warn_once(ros_context):
             text = warned(lines)[0]
             assert '/vibration_node' in text and '/clock' in text, text
             assert 'parameters' in text and '__node:=' in text, text
+        for node in (a, b):   # and /diagnostics says it, for an aggregator or a dashboard
+            d = node.last_diagnostics
+            assert d['level'] == 1 and 'another node has this fully qualified name' in \
+                d['message'], d['message']
     finally:
         for node in reversed(nodes):
             node.destroy_node()

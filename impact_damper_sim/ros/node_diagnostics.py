@@ -88,7 +88,7 @@ class DiagnosticsMixin:
         else:
             if rtf > 0 and achieved < rtf * (1.0 - self.RTF_TOLERANCE):
                 level = DiagnosticStatus.WARN
-                messages.append(f'behind real time: achieved {achieved:.3f} of {rtf:g} '
+                messages.append(f'behind real time: achieved {achieved:.3g} of {rtf:g} '
                                 f'(tolerance {100 * self.RTF_TOLERANCE:g} %)')
                 # our throttle: rclpy's inspects the caller's frame on every call (2-6 ms)
                 self._log('warning', messages[-1], 5.0, 'behind')
@@ -104,6 +104,11 @@ class DiagnosticsMixin:
             if st.growing >= 5:
                 level = max(level, DiagnosticStatus.WARN)
                 messages.append('response growing for 5 periods')
+            clash = getattr(self, '_name_clash', None)
+            if clash is not None and clash.clashing:   # an aggregator sees two of us as one
+                level = max(level, DiagnosticStatus.WARN)
+                messages.append('another node has this fully qualified name '
+                                f'({self.get_fully_qualified_name()}): /clock runs backwards')
         status.level = level
         status.message = '; '.join(messages) or 'ok'
         speed, _, x = live.rotor_state()

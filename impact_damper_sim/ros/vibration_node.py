@@ -218,9 +218,9 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         self.create_service(SetBool, '~/record', self.on_record_request)
         self._tick_period = p['tick_period']
         # the graph is read with the diagnostics: often enough, and off the stepping thread
-        clash = NameClash(self, lambda text: self._log('warning', text))
-        self._diag_timer = self.create_timer(p['diagnostics_period'],
-                                             lambda: (self.publish_diagnostics(), clash()))
+        self._name_clash = NameClash(self, lambda text: self._log('warning', text))
+        self._diag_timer = self.create_timer(
+            p['diagnostics_period'], lambda: (self._name_clash(), self.publish_diagnostics()))
         self._state_timer = self.create_timer(p['state_period'], self.publish_state)
         # samples per stepped chunk, and how far (wall s) stepping runs ahead of publishing
         self._chunk = max(1, int(round(p['tick_period'] * self.live.sample_rate)))
