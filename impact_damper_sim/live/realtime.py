@@ -170,6 +170,13 @@ class LiveSimulation:
         self.steps = 0
 
     @property
+    def imu_noise_variance(self):
+        """float: Variance of the noise in each decimated (per-sample Imu) acceleration
+        ((m/s^2)^2): the full-rate noise's ``noise_std^2`` times the share of a white signal's
+        variance the decimation filter keeps (``sum(taps^2)``), not ``noise_std^2``."""
+        return self.noise_std ** 2 * self._decimator.white_noise_gain
+
+    @property
     def imu_delay(self):
         """float: Delay of the decimation filter (s): a per-sample reading is complete this
         long after the time it stands for (0 without decimation)."""

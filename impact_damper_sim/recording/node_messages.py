@@ -207,7 +207,7 @@ class NodeMessages:
     Parameters
     ----------
     live : LiveSimulation
-        The simulation (read: ``accelerometers``, ``imu_delay``, ``noise_std``, ``t``,
+        The simulation (read: ``accelerometers``, ``imu_delay``, ``imu_noise_variance``, ``t``,
         ``has_rotor``, ``rotor_state()``, ``profile``, ``impactor_states()``,
         ``dampers_enabled``).
     scene : SceneModel
@@ -258,7 +258,7 @@ class NodeMessages:
         self.speed_command = add(nt.SPEED_COMMAND, nt.COMMAND_QOS)
         self.unbalance_command = add(nt.UNBALANCE_COMMAND, nt.COMMAND_QOS)
         self.parameter_events = add(nt.PARAMETER_EVENTS, nt.PARAMETER_EVENTS_QOS)
-        self.set_noise_variance(live.noise_std ** 2)
+        self.set_noise_variance(live.imu_noise_variance)
         # per modal-model impactor (a zero-mass scene entry has none), matched by name
         spec_of = {spec['name']: spec for spec in scene.scene['impactors']}
         specs = [spec_of[imp.name] for imp in scene.impactors]

@@ -325,7 +325,7 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         if 'noise_std' in changes or 'noise_seed' in changes:
             self.live.set_noise(changes.get('noise_std', self.live.noise_std),
                                 changes.get('noise_seed'))
-            self._messages.set_noise_variance(self.live.noise_std ** 2)
+            self._messages.set_noise_variance(self.live.imu_noise_variance)
         if 'dampers_enabled' in changes:
             self.live.set_dampers_enabled(changes['dampers_enabled'])
             self._publish_state()
