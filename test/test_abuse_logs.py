@@ -286,6 +286,30 @@ def test_a_writer_in_another_process_is_named_and_its_log_kept(tmp_path, overwri
     assert len(_messages(path)) == 50
 
 
+@pytest.mark.parametrize('overwrite', [False, True])
+def test_study_record_names_the_writer_of_a_log_in_use(tmp_path, capsys, overwrite):
+    """``study record --out`` a log another process is writing: one line naming that writer,
+    with or without --overwrite (it said "exists; pass --overwrite", which then failed), and
+    the other writer's log is kept whole."""
+    path = tmp_path / 'same.mcap'
+    child = _holder(path)
+    try:
+        rc = study_main(['record', 'sdof', '--duration', '0.05', '--out', str(path)]
+                        + (['--overwrite'] if overwrite else []))
+        err = capsys.readouterr().err.strip().splitlines()
+        assert rc == 2 and len(err) == 1, err
+        assert err[0].startswith(f'study: error: {path} is being written by process '
+                                 f'{child.pid} (') and err[0].endswith('; not writing it'), err
+        assert 'pass --overwrite' not in err[0]
+        child.stdin.write('close\n')
+        child.stdin.flush()
+        assert child.stdout.readline().strip() == 'closed'
+    finally:
+        child.stdin.close()
+        child.wait(timeout=30)
+    assert len(_messages(path)) == 50
+
+
 def test_a_killed_holder_leaves_no_stale_lock(tmp_path):
     """SIGKILL the holder: its lock goes with it (kernel-held), so the crashed log can be
     replaced, and no lock file is left beside it."""

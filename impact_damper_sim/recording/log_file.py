@@ -141,7 +141,7 @@ def open_log(path, overwrite, overwrite_option):
         if os.path.isdir(path):
             raise log_error(errno.EISDIR, f'cannot create {path}: '
                             f'{os.strerror(errno.EISDIR)}', path) from None
-        holder = _holder_of_existing(path)
+        holder = holder_of(path)
         if holder is not None:
             raise _locked(path, holder) from None
         raise _FileExistsError(errno.EEXIST, f'{path} exists; not overwriting it (set '
@@ -190,8 +190,19 @@ def _locked(path, holder):
                            f'it', path)
 
 
-def _holder_of_existing(path):
-    """The writer holding an existing regular file, or None if it is not locked."""
+def holder_of(path):
+    """The writer holding an existing regular file (``process 1234 (command line)``), or None
+    if it is not locked, not a regular file or does not exist.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A log file.
+
+    Returns
+    -------
+    str or None
+    """
     try:
         if not stat.S_ISREG(os.stat(path).st_mode):
             return None

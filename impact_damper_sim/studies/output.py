@@ -36,9 +36,15 @@ def refuse_existing(paths, overwrite):
     Raises
     ------
     OutputExists
-        Naming the existing files.
+        Naming the existing files; or, ``--overwrite`` or not, a log another writer is
+        writing now, naming that writer (``--overwrite`` would not help).
     """
+    from ..recording.log_file import holder_of
     existing = [p for p in paths if p and os.path.exists(p)]
+    for path in existing:
+        holder = holder_of(path)
+        if holder is not None:
+            raise OutputExists(f'{path} is being written by {holder}; not writing it')
     if existing and not overwrite:
         raise OutputExists(f"{', '.join(existing)} exist{'s' if len(existing) == 1 else ''}; "
                            'pass --overwrite to replace '
