@@ -31,6 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..dampers.law import law_mobility, IMPACT_LAWS
+from ..modal.basis import lanczos_start
 from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples, STICK_RULES
 from .kernels import newmark as kernels
@@ -66,7 +67,7 @@ def _omega_max(M, C, K, sparse):
     K_sym = 0.5 * (K + K.T)
     if sparse:
         w2 = spla.eigsh(sp.csc_matrix(K_sym), k=1, M=sp.csc_matrix(M), which='LA',
-                        return_eigenvectors=False)[0]
+                        v0=lanczos_start(n), return_eigenvectors=False)[0]   # same bits
     else:
         w2 = sla.eigh(K_sym, M, eigvals_only=True, subset_by_index=[n - 1, n - 1])[0]
     return float(np.sqrt(max(w2, 0.0)))

@@ -10,6 +10,11 @@ kept as small dense modal couplings: the skew-symmetric (cross-coupled) stiffnes
 Modes are mass-normalized (``Phi^T M Phi = I``): modal mass is 1 and the modal coordinate
 ``q`` has units m sqrt(kg).
 
+The basis is a function of the matrices alone, so that a scene built twice gives the same
+bits: the Lanczos start vector is fixed (``eigsh`` otherwise draws it from OS entropy), a
+degenerate eigenspace gets a canonical basis (an eigensolver returns any rotation of it,
+set by rounding and the start vector), and each mode's largest entry is positive.
+
 The condensation is exact for ``K``. It is exact for ``C`` only when no dashpot touches a
 massless DOF; otherwise ``[I; T]^T C [I; T]`` is the usual quasi-static approximation, and a
 complete modal model no longer reproduces the physical harmonic response exactly.
@@ -32,6 +37,14 @@ DENSE_LIMIT = 2000
 RIGID_RTOL = 1e-10
 #: Relative size of off-diagonal terms below which a modal matrix counts as diagonal.
 DIAGONAL_RTOL = 1e-14
+#: Eigenvalues closer than this (relative) span one degenerate eigenspace (an isotropic
+#: rotor's y and z modes), whose basis :func:`_canonical_basis` fixes.
+DEGENERATE_RTOL = 1e-10
+#: DOF amplitudes within this (relative) of the largest tie in :func:`_canonical_basis`;
+#: the lowest DOF index wins, so rounding does not pick the DOF.
+_TIE_RTOL = 1e-8
+#: Seed of the Lanczos start vector (:func:`lanczos_start`).
+_LANCZOS_SEED = 0
 _METHODS = ('auto', 'dense', 'sparse')
 
 
@@ -243,7 +256,8 @@ def modal_reduction(system, *, n_modes=None, f_max=None, zeta=0.0, zeta_override
                          f'{np.sqrt(max(first, 0.0)) / (2 * np.pi):.6g} Hz')
     omega = np.sqrt(lam)
     reason = _reason(omega, n_modes, f_max, n_master)
-    return _make_basis(system, cond, omega, _fix_signs(phi), zeta, zeta_overrides, reason)
+    phi = _fix_signs(_canonical_basis(lam, phi))
+    return _make_basis(system, cond, omega, phi, zeta, zeta_overrides, reason)
 
 
 def harmonic_response(basis, force_rows, output_rows, Omega):
@@ -366,7 +380,8 @@ def _solve_sparse(K, M, n_modes, f_max, scale):
     while True:
         if k >= n - 1:
             return _solve_dense(K, M, n_modes, f_max, scale)
-        vals, vecs = spla.eigsh(Ks, k=k, M=Ms, sigma=sigma, which='LM')
+        vals, vecs = spla.eigsh(Ks, k=k, M=Ms, sigma=sigma, which='LM',
+                                v0=lanczos_start(n))
         order = np.argsort(vals)
         vals, vecs = vals[order], vecs[:, order]
         if n_modes is not None or vals[-1] > (2 * np.pi * f_max) ** 2:
@@ -387,6 +402,60 @@ def _eigen_scale(K, M):
     with np.errstate(divide='ignore', invalid='ignore'):
         ratios = np.where(d_m > 0, np.abs(np.diag(K)) / np.where(d_m > 0, d_m, 1.0), 0.0)
     return float(max(ratios.max(initial=0.0), np.finfo(float).tiny))
+
+
+def lanczos_start(n):
+    """Return the fixed start vector of every ``eigsh`` call, shape (n,).
+
+    Without one, ``eigsh`` draws a random start (SciPy >= 1.15 from OS entropy, older
+    ARPACK from a seed that advances with every call in the process), and the modes it
+    returns change in their last bits from run to run, or by a rotation in a degenerate
+    eigenspace. Pseudo-random, not constant: a constant vector has no component along the
+    antisymmetric modes of a symmetric structure, which Lanczos would then find late.
+    """
+    return np.random.default_rng(_LANCZOS_SEED).uniform(-1.0, 1.0, int(n))
+
+
+def _canonical_basis(lam, phi):
+    """Give each degenerate eigenspace a basis fixed by the space, not by the solver.
+
+    Eigenvalues within :data:`DEGENERATE_RTOL` of their neighbour form a cluster; an
+    eigensolver returns any M-orthonormal basis of its span (a rotation set by rounding or
+    the Lanczos start vector; for an isotropic rotor the y and z modes tilted by a random
+    angle). The canonical basis is a pivoted Gram-Schmidt on the DOF amplitudes: the first
+    mode is the unit vector of the span with the largest amplitude at the DOF the span moves
+    most, the next is orthogonal to it with the largest amplitude at the DOF the remainder
+    moves most, and so on (near ties, :data:`_TIE_RTOL`, go to the lowest DOF index). It
+    depends on the span only, so it is the same for any basis the solver returned. Clusters
+    of one mode are returned bit for bit; ``lam`` is ascending.
+    """
+    phi = np.array(phi, dtype=float)
+    n = lam.size
+    first = 0
+    while first < n:
+        last = first + 1
+        while last < n and lam[last] - lam[last - 1] <= DEGENERATE_RTOL * abs(lam[last]):
+            last += 1
+        if last - first > 1:
+            phi[:, first:last] = _canonical_span(phi[:, first:last])
+        first = last
+    return phi
+
+
+def _canonical_span(phi):
+    """Canonical orthonormal basis of the span of ``phi``'s columns (see above)."""
+    a = phi.T.copy()        # (m, n_dof): column j holds every mode's amplitude at DOF j
+    m = a.shape[0]
+    q = np.zeros((m, m))
+    for k in range(m):
+        norms = np.sqrt(np.einsum('ij,ij->j', a, a))
+        j = int(np.flatnonzero(norms >= (1.0 - _TIE_RTOL) * norms.max())[0])
+        v = a[:, j].copy()
+        for _ in range(2):  # twice is enough (Kahan): orthogonal to rounding
+            v -= q[:, :k] @ (q[:, :k].T @ v)
+        q[:, k] = v / np.linalg.norm(v)
+        a -= np.outer(q[:, k], q[:, k] @ a)
+    return phi @ q
 
 
 def _fix_signs(phi):
@@ -471,4 +540,5 @@ def _check_overrides(overrides, n):
     return checked
 
 
-__all__ = ['ModalBasis', 'modal_reduction', 'harmonic_response', 'full_harmonic_response']
+__all__ = ['ModalBasis', 'modal_reduction', 'harmonic_response', 'full_harmonic_response',
+           'lanczos_start']
