@@ -16,6 +16,8 @@ import re
 
 import pytest
 
+from node_helpers import FakeClock, make_node
+from node_helpers import wake as _wake
 from node_refusal import node_refusal
 
 from impact_damper_sim.integrate.divergence import MAX_IMPACTORS
@@ -134,37 +136,7 @@ def test_the_node_refuses_10000_impactors_in_one_line_with_exit_2(tmp_path):
     assert 'Traceback' not in stderr
 
 
-# --- the node: helpers as in test_vibration_node.py -------------------------------------------
-
-class FakeClock:
-    """Wall clock the test advances by hand (s)."""
-
-    def __init__(self):
-        self.now = 1000.0
-
-    def __call__(self):
-        return self.now
-
-
-def make_node(ctx, scene='sdof', overrides=(), clock=None, name='vibration_node', **params):
-    from rclpy.parameter import Parameter
-
-    from impact_damper_sim.ros.vibration_node import VibrationNode
-    overrides_param = [Parameter('overrides', value=list(overrides))] if overrides else []
-    return VibrationNode(
-        name, context=ctx, start_stepping=False, clock=clock or FakeClock(),
-        parameter_overrides=[Parameter('scene', value=scene), *overrides_param,
-                             *[Parameter(k, value=v) for k, v in params.items()]])
-
-
-def _wake(node):
-    """One wake-up of the stepping thread: its cycles until one asks to sleep (s)."""
-    for _ in range(100):
-        delay = node._cycle()
-        if delay > 0:
-            return delay
-    raise AssertionError('the stepping thread never sleeps')
-
+# --- the node ---------------------------------------------------------------------------------
 
 @pytest.mark.ros
 @pytest.mark.parametrize('rtf, seconds', [(1e-3, 30), (1e-6, 20)])

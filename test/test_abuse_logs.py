@@ -267,6 +267,17 @@ def _holder(path):
     return child
 
 
+def _close(child):
+    """Let the holder close its log (a finished file) and exit."""
+    try:
+        child.stdin.write('close\n')
+        child.stdin.flush()
+        assert child.stdout.readline().strip() == 'closed'
+    finally:
+        child.stdin.close()
+        child.wait(timeout=30)
+
+
 @pytest.mark.parametrize('overwrite', [False, True])
 def test_a_writer_in_another_process_is_named_and_its_log_kept(tmp_path, overwrite):
     path = tmp_path / 'same.mcap'
@@ -277,12 +288,8 @@ def test_a_writer_in_another_process_is_named_and_its_log_kept(tmp_path, overwri
         text = _one_line(caught.value)
         assert f'is being written by process {child.pid} (' in text, text
         assert str(path) in text and f'holder.py {path.name})' in text, text
-        child.stdin.write('close\n')
-        child.stdin.flush()
-        assert child.stdout.readline().strip() == 'closed'
     finally:
-        child.stdin.close()
-        child.wait(timeout=30)
+        _close(child)
     assert len(_messages(path)) == 50
 
 
@@ -301,12 +308,8 @@ def test_study_record_names_the_writer_of_a_log_in_use(tmp_path, capsys, overwri
         assert err[0].startswith(f'study: error: {path} is being written by process '
                                  f'{child.pid} (') and err[0].endswith('; not writing it'), err
         assert 'pass --overwrite' not in err[0]
-        child.stdin.write('close\n')
-        child.stdin.flush()
-        assert child.stdout.readline().strip() == 'closed'
     finally:
-        child.stdin.close()
-        child.wait(timeout=30)
+        _close(child)
     assert len(_messages(path)) == 50
 
 

@@ -12,6 +12,7 @@ import sys
 import time
 
 import pytest
+from node_helpers import call_service
 
 
 # --- GetParameters with an unset parameter ------------------------------------------------
@@ -36,13 +37,8 @@ def _ask(ros_context, node, service, *names_lists):
         peer.destroy_node()
 
 
-def _call(node, client, request, executor, timeout=10.0):
-    future = client.call_async(request)
-    end = time.monotonic() + timeout
-    while not future.done() and time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.05)
-    assert future.done(), 'no answer from the parameter service'
-    return future.result()
+def _call(node, client, request, executor):
+    return call_service(executor, client, request)
 
 
 @pytest.mark.ros

@@ -39,6 +39,7 @@ import numpy as np
 import pytest
 
 import fuzz_support as fz
+from node_helpers import FakeClock, make_node
 
 rclpy = pytest.importorskip('rclpy')
 
@@ -77,24 +78,6 @@ def scale(request):
 
 def _rng(name, scale):
     return random.Random(f'{SEED}/{name}/{scale}')
-
-
-class FakeClock:
-    """Wall clock the test advances by hand (s)."""
-
-    def __init__(self):
-        self.now = 1000.0
-
-    def __call__(self):
-        return self.now
-
-
-def make_node(ctx, scene='sdof', overrides=(), **params):
-    extra = [Parameter('overrides', value=list(overrides))] if overrides else []
-    return VibrationNode(
-        context=ctx, start_stepping=False, clock=FakeClock(),
-        parameter_overrides=[Parameter('scene', value=scene), *extra,
-                             *[Parameter(k, value=v) for k, v in params.items()]])
 
 
 def _service(node, name):

@@ -27,28 +27,13 @@ from impact_damper_sim.ros import interface as itf  # noqa: E402
 from impact_damper_sim.ros import vibration_node, wire  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode, main  # noqa: E402
 from impact_damper_sim.scene.schema import SceneError  # noqa: E402
+from node_helpers import FakeClock, make_node  # noqa: E402
+from node_helpers import call_service as _call  # noqa: E402
+from node_helpers import wake as _wake  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 LINEAR_HPOTP = ['impactors=[]']   # the HPOTP casing without impactors: a linear scene
-
-
-class FakeClock:
-    """Wall clock the test advances by hand (s)."""
-
-    def __init__(self):
-        self.now = 1000.0
-
-    def __call__(self):
-        return self.now
-
-
-def make_node(ctx, scene='sdof', overrides=(), clock=None, **params):
-    overrides_param = [Parameter('overrides', value=list(overrides))] if overrides else []
-    return VibrationNode(
-        context=ctx, start_stepping=False, clock=clock or FakeClock(),
-        parameter_overrides=[Parameter('scene', value=scene), *overrides_param,
-                             *[Parameter(k, value=v) for k, v in params.items()]])
 
 
 def run_for(node, seconds):
@@ -644,15 +629,6 @@ def test_imu_packer_bytes_round_trip(ros_context):
             assert deserialize_message(serialize_message(msg), Imu) == msg
 
 
-def _wake(node):
-    """One wake-up of the stepping thread: its cycles until one asks to sleep (s)."""
-    for _ in range(100):
-        delay = node._cycle()
-        if delay > 0:
-            return delay
-    raise AssertionError('the stepping thread never sleeps')
-
-
 def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
     """The stepping thread's wake-ups, driven on a fake clock: on time each sends at most 2
     samples of a 2 kHz accelerometer; after a 20 ms stall the backlog leaves at most
@@ -902,16 +878,6 @@ def test_runtime_parameter_checks_are_strict(ros_context):
         assert node.pacer.real_time_factor == 1000.0
     finally:
         node.destroy_node()
-
-
-def _call(ex, client, request, timeout=5.0):
-    assert client.wait_for_service(timeout_sec=timeout)
-    future = client.call_async(request)
-    end = time.monotonic() + timeout
-    while not future.done() and time.monotonic() < end:
-        ex.spin_once(timeout_sec=0.01)
-    assert future.done(), 'no answer'
-    return future.result()
 
 
 def test_fuzzed_service_requests_never_stop_the_node(ros_context, tmp_path):
