@@ -1,0 +1,610 @@
+"""One triaxial accelerometer's measurement chain, streamed chunk by chunk (issue 36).
+
+:class:`SensorChannel` turns the model's mean acceleration per integrator step (m/s^2, model
+frame, at the step rate ``fs = 1/dt``) into what a real channel publishes at the output rate
+``fs / decimation``, in this order (each stage off when its spec entry is None)::
+
+    step rate:   mounting M = S (I + T) R^T  ->  resonance  ->  IEPE high-pass
+                 -> + sensor noise and bias  ->  anti-alias low-pass (4th-order Butterworth)
+    output rate: pick every decimation-th step -> + live white noise -> range clip
+                 -> + ADC noise, ADC clip, round to the ADC grid
+
+and, beside it, the ground truth: the model acceleration through the same low-pass and pick and
+no other stage (delayed as the samples are when the resonance needs a look-ahead). With every
+stage off (``spec=None``, the *ideal* channel) the samples are the ground truth plus the live
+white noise, bit for bit what ``LiveSimulation.step`` computed before (``StreamingLowpass``
+then the pick). The state of every stage is kept between calls, so any split of a run into
+chunks gives the same bytes as one call.
+
+The ADC's grid step is ``LSB = 2 full_scale / 2^bits / sensitivity`` (m/s^2) and its codes
+run from ``-2^(bits-1)`` to ``2^(bits-1) - 1`` (two's complement): it reads
+``-full_scale/sensitivity`` to ``full_scale/sensitivity - LSB``, and a value more than half an
+LSB beyond either end is clipped (and counted), so every unclipped value is within ``LSB/2``
+of its published sample. The range clips the output-rate samples, after the anti-alias filter:
+a real sensor's amplifier clips before the DAQ's filter, whose ringing can then overshoot the
+range a little; here no published sample passes it, and the count is of published values.
+
+Conventions (the stage's own docstrings say more):
+
+* **mounting**: ``R = Rz(yaw) Ry(pitch) Rx(roll)`` holds the sensor's axes in the model frame,
+  a tilted sensor reads ``R.T a``; the transverse sensitivity ``T`` is defined in
+  :func:`.channel_design.transverse_matrix`; ``S = diag(1 + sensitivity_error)``.
+* **resonance**: the least-squares digital fit of ``H(s) = wn^2/(s^2 + wn/Q s + wn^2)`` over
+  ``0 .. min(0.4 fs, 0.5 fn)``, within 0.1 % and 0.1 deg and 10 % of the lift itself; a
+  resonance above the band needs a look-ahead of a few steps, paid as latency of the whole
+  channel, ground truth included (:attr:`SensorChannel.delay_steps`, 4 steps at fn 30 kHz,
+  Q 30 and a 20 kHz step; why in :func:`.channel_design.design_resonance`).
+* **noise density** (one-sided, ``(m/s^2)/sqrt(Hz)``, as datasheets give it): white noise of
+  ``sigma = density sqrt(fs / 2)`` per step, so a Welch (one-sided) PSD of the noise is
+  ``density^2``. PX4 and Kalibr write ``sigma = n / sqrt(dt) = n sqrt(fs)`` with ``n`` the
+  density of a continuous white noise whose two-sided PSD is ``n^2`` (``E[w(t) w(t+s)] =
+  n^2 delta(s)``); that is our density ``/ sqrt(2)``: a datasheet's one-sided figure put into
+  their formula gives sqrt(2) (3 dB) more noise than the datasheet states.
+* **bias**: turn-on (a constant per axis, N(0, turn_on) drawn once from the seed);
+  Gauss-Markov in Gazebo's convention (driving strength sigma, steady spread
+  ``sigma sqrt(tau/2)``, started from its steady distribution); random walk (Allan deviation
+  ``rw sqrt(tau/3)``), started at 0. All three are in the sensor frame, added after the
+  high-pass (a MEMS part has no high-pass; an IEPE part's bias is usually left off).
+* **seeds**: every random stream comes from ``SeedSequence([seed, crc32(name)])`` spawned into
+  one child per stage, in a fixed order, so switching one stage on or off moves no other
+  stage's numbers, and two channels of one seed but different names are independent. The live
+  white noise is the exception: :meth:`SensorChannel.set_white_noise` with a seed restarts it
+  as ``default_rng(seed)``, today's node noise (``noise_std``/``noise_seed``); until then it
+  draws from its own child.
+
+Everything is SI; no ROS.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import zlib
+
+import numpy as np
+
+from .channel_design import design_resonance, highpass_sos, mounting_matrix
+from .filters import butter_lowpass_sos
+
+#: Order of the anti-alias Butterworth (as ``StreamingLowpass``'s default, which it replaces).
+LOWPASS_ORDER = 4
+#: Keys of the resolved spec, all present in the scene loader's output (None = off).
+SPEC_KEYS = ('preset', 'sensitivity', 'sensitivity_error', 'orientation', 'transverse',
+             'resonance', 'highpass', 'noise_density', 'bias', 'range', 'adc')
+#: Random streams, one SeedSequence child each, in this fixed order (append, never reorder).
+STREAMS = ('sensor_noise', 'turn_on', 'gauss_markov', 'random_walk', 'adc_noise', 'white_noise')
+
+
+@dataclasses.dataclass
+class ChannelOutput:
+    """What :meth:`SensorChannel.process` returns for one chunk.
+
+    Attributes
+    ----------
+    samples : ndarray, shape (k, 3)
+        Published acceleration (m/s^2, sensor frame), output rate.
+    truth : ndarray, shape (k, 3)
+        Model acceleration (m/s^2, model frame) through the same low-pass, pick and delay and
+        no other stage.
+    clipped : int
+        Sample values (one per axis) this chunk clipped at the range or the ADC's full scale.
+    """
+
+    samples: np.ndarray
+    truth: np.ndarray
+    clipped: int
+
+
+class SensorChannel:
+    """One triaxial accelerometer's measurement chain, ROS-free, streamed chunk by chunk.
+
+    Parameters
+    ----------
+    spec : dict or None
+        The resolved sensor spec (SI; every key of :data:`SPEC_KEYS`, None = stage off), or
+        None for the ideal channel. Keys: ``preset`` (str), ``sensitivity`` (V/(m/s^2)),
+        ``sensitivity_error`` (3 x dimensionless), ``orientation`` ([roll, pitch, yaw] rad),
+        ``transverse`` ({fraction: dimensionless, angle: rad}), ``resonance`` ({frequency: Hz,
+        q: dimensionless}), ``highpass`` ({corner: Hz}), ``noise_density``
+        ((m/s^2)/sqrt(Hz), one-sided), ``bias`` ({turn_on: m/s^2, gauss_markov: {sigma:
+        (m/s^2)/sqrt(s), tau: s}, random_walk: (m/s^2)/sqrt(s)}, each may be None),
+        ``range`` (m/s^2, peak), ``adc`` ({bits: int, full_scale: V peak, noise: V rms};
+        needs ``sensitivity``).
+    step_rate_hz : float
+        Integrator step rate ``1/dt`` (Hz), the rate of :meth:`process`'s input.
+    decimation : int
+        Steps per output sample (dimensionless), >= 1.
+    lowpass_hz : float
+        Anti-alias cutoff (Hz), below ``step_rate_hz / 2``.
+    seed : int
+        Seed of the stage streams (dimensionless, >= 0).
+    name : str
+        Accelerometer name: in error messages, labels and the seed.
+
+    Raises
+    ------
+    ValueError
+        A bad rate, cutoff or spec value; the message names the key.
+    """
+
+    def __init__(self, spec, *, step_rate_hz, decimation, lowpass_hz, seed=0, name=''):
+        self.name = str(name)
+        self.step_rate_hz = float(step_rate_hz)
+        self.decimation = int(decimation)
+        self.lowpass_hz = float(lowpass_hz)
+        self.seed = int(seed)
+        fs = self.step_rate_hz
+        if not (math.isfinite(fs) and fs > 0):
+            raise ValueError(self._msg(f'step rate must be finite and > 0 Hz, got {fs!r}'))
+        if self.decimation < 1 or self.decimation != decimation:
+            raise ValueError(self._msg(f'decimation must be a whole number >= 1, '
+                                       f'got {decimation!r}'))
+        if not 0.0 < self.lowpass_hz < 0.5 * fs:
+            raise ValueError(self._msg(f'low-pass cutoff {self.lowpass_hz:g} Hz must lie in '
+                                       f'(0, {0.5 * fs:g}) Hz, the Nyquist frequency of the '
+                                       f'step rate'))
+        if self.seed < 0:
+            raise ValueError(self._msg(f'seed must be >= 0, got {seed!r}'))
+        self.spec = _resolved(spec, self._msg)
+        s = self.spec
+        self._lp_sos = butter_lowpass_sos(LOWPASS_ORDER, self.lowpass_hz, fs)
+        self._pick = slice(self.decimation - 1, None, self.decimation)
+        children = np.random.SeedSequence([self.seed, zlib.crc32(self.name.encode())]).spawn(
+            len(STREAMS))
+        rng = {k: np.random.default_rng(c) for k, c in zip(STREAMS, children)}
+        # 1. mounting
+        self.mounting = mounting_matrix(s['orientation'], s['transverse'],
+                                        s['sensitivity_error'])
+        # 2. resonance: FIR part here, its denominator (if any) in the sos below
+        self.resonance = None
+        pre = []
+        self.delay_steps = 0
+        if s['resonance'] is not None:
+            self.resonance = design_resonance(s['resonance']['frequency'],
+                                              s['resonance']['q'], fs)
+            if not self.resonance.identity:
+                self.delay_steps = self.resonance.delay
+                if len(self.resonance.a) > 1:
+                    pre.append(np.concatenate([[1.0, 0.0, 0.0], self.resonance.a]))
+        self._fir = (self.resonance.b if self.resonance is not None and not
+                     self.resonance.identity and len(self.resonance.b) > 1 else None)
+        # 3. high-pass
+        if s['highpass'] is not None:
+            pre.append(highpass_sos(s['highpass']['corner'], fs)[0])
+        self._pre_sos = np.array(pre) if pre else None
+        # 4. noise and bias (sensor frame, step rate)
+        density = s['noise_density']
+        self.noise_std_per_step = 0.0 if density is None else density * math.sqrt(0.5 * fs)
+        self._rng_noise = rng['sensor_noise']
+        bias = s['bias'] or {}
+        self.turn_on_bias = None
+        if bias.get('turn_on') is not None:
+            self.turn_on_bias = rng['turn_on'].normal(0.0, bias['turn_on'], 3)
+        self._gm = self._rw = None
+        gm = bias.get('gauss_markov')
+        if gm is not None:
+            phi = math.exp(-1.0 / (fs * gm['tau']))
+            drive = gm['sigma'] * math.sqrt(0.5 * gm['tau'] * -math.expm1(-2.0 / (fs * gm['tau'])))
+            steady = gm['sigma'] * math.sqrt(0.5 * gm['tau'])
+            zi = np.zeros((1, 2, 3))
+            zi[0, 0] = phi * rng['gauss_markov'].normal(0.0, steady, 3)   # b[-1] ~ steady
+            self._gm = (np.array([[1.0, 0.0, 0.0, 1.0, -phi, 0.0]]), zi, drive,
+                        rng['gauss_markov'])
+        if bias.get('random_walk') is not None:
+            self._rw = (np.array([[1.0, 0.0, 0.0, 1.0, -1.0, 0.0]]), np.zeros((1, 2, 3)),
+                        bias['random_walk'] / math.sqrt(fs), rng['random_walk'])
+        # 6. output rate: range and ADC
+        self.range = s['range']
+        self._adc = None
+        if s['adc'] is not None:
+            adc, sens = s['adc'], s['sensitivity']
+            lsb = 2.0 * adc['full_scale'] / 2.0 ** adc['bits'] / sens
+            half = 2.0 ** (adc['bits'] - 1)
+            self._adc = (lsb, -half, half - 1.0, adc['noise'] / sens, rng['adc_noise'])
+        self.white_noise_std = 0.0
+        self.white_noise_seed = None
+        self._rng_white = rng['white_noise']
+        self._step_ideal = (self.mounting is None and self._fir is None
+                            and self._pre_sos is None and not self._has_sensor_noise)
+        # state
+        self._zi_lp = np.zeros((self._lp_sos.shape[0], 2, 3 if self._step_ideal else 6))
+        self._zi_pre = (None if self._pre_sos is None
+                        else np.zeros((self._pre_sos.shape[0], 2, 3)))
+        n_hist = 0 if self._fir is None else len(self._fir) - 1
+        self._fir_hist = np.zeros((n_hist, 3))
+        self._truth_hist = np.zeros((self.delay_steps, 3))
+        self._lp_energy = None
+        self._sosfilt = None
+
+    def _load_kernel(self):
+        # imported on first use, as StreamingLowpass does: importing this module loads no Numba
+        from ..integrate.kernels.filters import sosfilt
+        self._sosfilt = sosfilt
+        return sosfilt
+
+    # -- properties ----------------------------------------------------------------------
+    @property
+    def output_rate_hz(self):
+        """float: Output sample rate ``step_rate_hz / decimation`` (Hz)."""
+        return self.step_rate_hz / self.decimation
+
+    @property
+    def ideal(self):
+        """bool: No stage changes the numbers: samples = the ground truth (+ white noise)."""
+        return (self._step_ideal and self.delay_steps == 0 and self.range is None
+                and self._adc is None)
+
+    @property
+    def delay_s(self):
+        """float: Latency of the resonance section (s), samples and truth alike; 0 without."""
+        return self.delay_steps / self.step_rate_hz
+
+    @property
+    def lsb(self):
+        """float or None: The ADC grid's step in acceleration (m/s^2); None without an ADC."""
+        return None if self._adc is None else self._adc[0]
+
+    @property
+    def _has_sensor_noise(self):
+        return (self.noise_std_per_step > 0 or self.turn_on_bias is not None
+                or self._gm is not None or self._rw is not None)
+
+    def _msg(self, text):
+        return f'accelerometer {self.name!r}: {text}' if self.name else text
+
+    # -- set-up --------------------------------------------------------------------------
+    def set_white_noise(self, std, seed=None):
+        """Set the live white noise added to each output sample; optionally restart it.
+
+        Parameters
+        ----------
+        std : float
+            Standard deviation per output sample and axis (m/s^2), finite, >= 0.
+        seed : int, optional
+            Restart this stream (only this one) as ``numpy.random.default_rng(seed)``
+            (dimensionless); None keeps its position.
+
+        Raises
+        ------
+        ValueError
+            A negative or non-finite ``std``; nothing changes.
+        """
+        std = float(std)
+        if not (math.isfinite(std) and std >= 0):
+            raise ValueError(self._msg(f"parameter 'noise_std': must be finite and >= 0 "
+                                       f'm/s^2, got {std}'))
+        self.white_noise_std = std
+        if seed is not None:
+            self.white_noise_seed = int(seed)
+            self._rng_white = np.random.default_rng(int(seed))
+
+    # -- streaming -----------------------------------------------------------------------
+    def process(self, mean_acc):
+        """Run the next chunk through the chain.
+
+        Parameters
+        ----------
+        mean_acc : array_like, shape (k * decimation, 3)
+            Mean acceleration over each integrator step (m/s^2, model frame).
+
+        Returns
+        -------
+        ChannelOutput
+            ``k`` output samples (sensor frame), the ground truth (model frame), the clip
+            count; every value in m/s^2. Both are :attr:`delay_steps` behind the input when
+            the resonance section needs a look-ahead (0 otherwise).
+        """
+        sosfilt = self._sosfilt or self._load_kernel()
+        a = np.ascontiguousarray(mean_acc, dtype=float)
+        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] % self.decimation:
+            raise ValueError(self._msg(f'expected shape (k * {self.decimation}, 3), '
+                                       f'got {a.shape}'))
+        # no early return for k = 0: that call compiles the kernel where the node warms up
+        if self._step_ideal:
+            y = np.empty_like(a)
+            sosfilt(self._lp_sos, a, self._zi_lp, y)
+            truth = y[self._pick]
+            samples = truth.copy()
+        else:
+            x = np.empty((a.shape[0], 6))
+            x[:, :3] = self._delayed_truth(a)
+            x[:, 3:] = self._step_chain(a, sosfilt)
+            y = np.empty_like(x)
+            sosfilt(self._lp_sos, x, self._zi_lp, y)
+            picked = y[self._pick]
+            truth, samples = picked[:, :3].copy(), picked[:, 3:].copy()
+        if self.white_noise_std > 0:
+            samples += self._rng_white.normal(0.0, self.white_noise_std, samples.shape)
+        clipped = self._limit(samples, self._adc is not None and self._adc[3] > 0)
+        return ChannelOutput(samples, truth, clipped)
+
+    def _delayed_truth(self, a):
+        if not self.delay_steps:
+            return a
+        buf = np.concatenate([self._truth_hist, a])
+        self._truth_hist = buf[len(buf) - self.delay_steps:].copy()
+        return buf[:len(a)]
+
+    def _step_chain(self, a, sosfilt):
+        """Stages 1-4 at the step rate: (n, 3) model frame -> (n, 3) sensor, before the LP."""
+        x = a if self.mounting is None else a @ self.mounting.T
+        if self._fir is not None:
+            b = self._fir
+            m = len(b) - 1
+            buf = np.concatenate([self._fir_hist, x])
+            self._fir_hist = buf[len(buf) - m:].copy()
+            n = len(x)
+            out = b[0] * buf[m:]
+            for i in range(1, m + 1):     # one vector op per tap, the same order every chunk
+                out += b[i] * buf[m - i:m - i + n]
+            x = out
+        if self._pre_sos is not None:
+            y = np.empty_like(x)
+            sosfilt(self._pre_sos, np.ascontiguousarray(x), self._zi_pre, y)
+            x = y
+        elif x is a:
+            x = a.copy()
+        n = len(x)
+        if self.noise_std_per_step > 0:
+            x += self._rng_noise.normal(0.0, self.noise_std_per_step, (n, 3))
+        if self.turn_on_bias is not None:
+            x += self.turn_on_bias
+        for proc in (self._gm, self._rw):
+            if proc is not None:
+                sos, zi, drive, rng = proc
+                w = rng.normal(0.0, drive, (n, 3))
+                b = np.empty_like(w)
+                sosfilt(sos, w, zi, b)
+                x += b
+        return x
+
+    def _limit(self, x, adc_noise):
+        """Range clip and ADC (noise, clip, grid) in place; the number of clipped values."""
+        over = None
+        if self.range is not None:
+            r = self.range
+            over = np.abs(x) > r
+            np.minimum(x, r, out=x)   # ufuncs, not np.clip: a third of its call overhead
+            np.maximum(x, -r, out=x)
+        if self._adc is not None:
+            lsb, lo, hi, noise, rng = self._adc
+            if adc_noise:
+                x += rng.normal(0.0, noise, x.shape)
+            codes = np.rint(x / lsb)
+            # the ADC's codes run -2^(b-1) .. 2^(b-1) - 1: a value past half an LSB beyond
+            # the end codes is clipped (so every unclipped value is within LSB/2 of its code)
+            beyond = codes < lo
+            beyond |= codes > hi
+            over = beyond if over is None else over | beyond
+            np.minimum(codes, hi, out=codes)
+            np.maximum(codes, lo, out=codes)
+            np.multiply(codes, lsb, out=x)
+        return 0 if over is None else int(np.count_nonzero(over))
+
+    def process_decimated(self, imu):
+        """Range clip and re-quantize samples decimated from this channel's output.
+
+        ``LiveSimulation`` decimates the output-rate samples through its FIR
+        (``StreamingDecimator``) into the per-sample Imu stream; its averages leave the range
+        and the ADC grid, so they are clipped and rounded to the grid again (no ADC noise:
+        the decimation is digital).
+
+        Parameters
+        ----------
+        imu : array_like, shape (j, 3)
+            Decimated samples (m/s^2, sensor frame).
+
+        Returns
+        -------
+        imu_out : ndarray, shape (j, 3)
+            In range and on the grid (m/s^2).
+        clipped : int
+            Values clipped here (counted apart from :meth:`process`'s).
+        """
+        x = np.array(imu, dtype=float)
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise ValueError(self._msg(f'expected shape (j, 3), got {x.shape}'))
+        return x, self._limit(x, False)
+
+    # -- noise bookkeeping ---------------------------------------------------------------
+    def _lp_impulse(self):
+        """Impulse response of the anti-alias low-pass at the step rate, to its last 1e-18."""
+        if self._lp_energy is None:
+            sosfilt = self._sosfilt or self._load_kernel()
+            n = int(64 * self.step_rate_hz / self.lowpass_hz) + 64
+            while True:
+                x = np.zeros((n, 1))
+                x[0] = 1.0
+                h = np.empty_like(x)
+                sosfilt(self._lp_sos, x, np.zeros((self._lp_sos.shape[0], 2, 1)), h)
+                h = h[:, 0]
+                if np.sum(h[-n // 4:] ** 2) < 1e-18 * np.sum(h ** 2):
+                    break
+                n *= 2
+            self._lp_energy = h
+        return self._lp_energy
+
+    def _output_white_variance(self):
+        lsb_var = 0.0 if self._adc is None else self._adc[0] ** 2 / 12.0
+        adc_var = 0.0 if self._adc is None else self._adc[3] ** 2
+        return self.white_noise_std ** 2 + adc_var + lsb_var
+
+    def output_noise_variance(self):
+        """Variance of the white noise in each output sample, per axis ((m/s^2)^2).
+
+        The sensor noise (``noise_density``) through the low-pass (its impulse response's
+        energy at the step rate), the live white noise, the ADC noise and the quantization
+        (``LSB^2 / 12``). Not the biases (turn-on, Gauss-Markov, random walk: not white) and
+        not clipping.
+
+        Returns
+        -------
+        float
+        """
+        sensor = 0.0
+        if self.noise_std_per_step > 0:
+            sensor = self.noise_std_per_step ** 2 * float(np.sum(self._lp_impulse() ** 2))
+        return sensor + self._output_white_variance()
+
+    def decimated_noise_variance(self, taps):
+        """:meth:`output_noise_variance` for a sample of an FIR decimator of this output.
+
+        The sensor noise is coloured by the low-pass before the pick: its share is exact,
+        ``noise_std_per_step^2 sum(g^2)`` with ``g`` the low-pass impulse response (step rate)
+        convolved with the taps spread ``decimation`` steps apart; the output-rate white
+        terms keep ``sum(taps^2)``; :meth:`process_decimated`'s rounding adds ``LSB^2/12``.
+
+        Parameters
+        ----------
+        taps : array_like, shape (n,)
+            The decimator's FIR taps at the output rate (dimensionless).
+
+        Returns
+        -------
+        float
+            (m/s^2)^2 per axis.
+        """
+        taps = np.asarray(taps, dtype=float).ravel()
+        var = self._output_white_variance() * float(np.sum(taps ** 2))
+        if self._adc is not None:
+            var += self._adc[0] ** 2 / 12.0
+        if self.noise_std_per_step > 0:
+            spread = np.zeros((len(taps) - 1) * self.decimation + 1)
+            spread[::self.decimation] = taps
+            g = np.convolve(self._lp_impulse(), spread)
+            var += self.noise_std_per_step ** 2 * float(np.sum(g ** 2))
+        return var
+
+    # -- labels --------------------------------------------------------------------------
+    def labels(self):
+        """Every stage's values (SI, JSON-able) for a log's metadata.
+
+        Returns
+        -------
+        dict
+            The spec as given (None = off) plus what the channel derived: the mounting matrix,
+            the resonance section and its latency, the per-step noise, the drawn turn-on bias,
+            the ADC's LSB, the white noise, the rates and the output noise variance.
+        """
+        s = self.spec
+        res = None
+        if self.resonance is not None:
+            d = self.resonance
+            res = {**s['resonance'], 'delay_steps': int(d.delay), 'band_hz': float(d.band_hz),
+                   'gain_error': float(d.gain_error),
+                   'phase_error_deg': float(d.phase_error_deg),
+                   'b': [float(v) for v in d.b], 'a': [float(v) for v in d.a]}
+        adc = None
+        if s['adc'] is not None:
+            adc = {**s['adc'], 'lsb': float(self._adc[0])}
+        bias = None
+        if s['bias'] is not None:
+            bias = {**s['bias'], 'turn_on_values': (None if self.turn_on_bias is None else
+                                                    [float(v) for v in self.turn_on_bias])}
+        return _jsonable({
+            'name': self.name, 'preset': s['preset'], 'seed': self.seed,
+            'ideal': self.ideal,
+            'step_rate_hz': self.step_rate_hz, 'decimation': self.decimation,
+            'output_rate_hz': self.output_rate_hz,
+            'lowpass': {'cutoff_hz': self.lowpass_hz, 'order': LOWPASS_ORDER,
+                        'kind': 'butterworth'},
+            'sensitivity': s['sensitivity'], 'sensitivity_error': s['sensitivity_error'],
+            'orientation': s['orientation'], 'transverse': s['transverse'],
+            'mounting_matrix': None if self.mounting is None else self.mounting.tolist(),
+            'resonance': res, 'highpass': s['highpass'],
+            'noise_density': s['noise_density'], 'noise_std_per_step': self.noise_std_per_step,
+            'bias': bias, 'range': s['range'], 'adc': adc,
+            'white_noise': {'std': self.white_noise_std, 'seed': self.white_noise_seed},
+            'delay_steps': self.delay_steps, 'delay_s': self.delay_s,
+            'output_noise_variance': self.output_noise_variance(),
+        })
+
+
+def _jsonable(v):
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v)
+    return v
+
+
+def _resolved(spec, msg):
+    """The spec with every key (None = off), checked for the values the chain relies on."""
+    if spec is None:
+        return {k: None for k in SPEC_KEYS}
+    unknown = sorted(set(spec) - set(SPEC_KEYS))
+    if unknown:
+        raise ValueError(msg(f"unknown spec key(s) {', '.join(map(repr, unknown))}; "
+                             f"known: {', '.join(SPEC_KEYS)}"))
+    s = {k: spec.get(k) for k in SPEC_KEYS}
+
+    def positive(key, value, zero_ok=False):
+        v = float(value)
+        if not (math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
+            raise ValueError(msg(f"spec key {key!r}: must be finite and "
+                                 f"{'>=' if zero_ok else '>'} 0, got {value!r}"))
+        return v
+
+    if s['sensitivity'] is not None:
+        s['sensitivity'] = positive('sensitivity', s['sensitivity'])
+    for key in ('sensitivity_error', 'orientation'):
+        if s[key] is not None:
+            v = [float(x) for x in s[key]]
+            if len(v) != 3 or not all(map(math.isfinite, v)):
+                raise ValueError(msg(f'spec key {key!r}: must be 3 finite numbers, '
+                                     f'got {s[key]!r}'))
+            if key == 'sensitivity_error' and min(v) <= -1:
+                raise ValueError(msg(f"spec key 'sensitivity_error': must be > -1 per axis, "
+                                     f'got {v}'))
+            s[key] = v
+    if s['transverse'] is not None:
+        t = s['transverse']
+        s['transverse'] = {'fraction': positive('transverse.fraction', t['fraction'], True),
+                           'angle': float(t['angle'])}
+    if s['resonance'] is not None:
+        s['resonance'] = {'frequency': float(s['resonance']['frequency']),
+                          'q': float(s['resonance']['q'])}
+    if s['highpass'] is not None:
+        s['highpass'] = {'corner': float(s['highpass']['corner'])}
+    if s['noise_density'] is not None:
+        s['noise_density'] = positive('noise_density', s['noise_density'], True)
+    if s['bias'] is not None:
+        b = dict(s['bias'])
+        out = {'turn_on': None, 'gauss_markov': None, 'random_walk': None}
+        extra = sorted(set(b) - set(out))
+        if extra:
+            raise ValueError(msg(f"unknown spec key(s) {', '.join(f'bias.{k}' for k in extra)}"
+                                 f'; known: bias.turn_on, bias.gauss_markov, bias.random_walk'))
+        if b.get('turn_on') is not None:
+            out['turn_on'] = positive('bias.turn_on', b['turn_on'], True)
+        if b.get('gauss_markov') is not None:
+            gm = b['gauss_markov']
+            out['gauss_markov'] = {
+                'sigma': positive('bias.gauss_markov.sigma', gm['sigma'], True),
+                'tau': positive('bias.gauss_markov.tau', gm['tau'])}
+        if b.get('random_walk') is not None:
+            out['random_walk'] = positive('bias.random_walk', b['random_walk'], True)
+        s['bias'] = out
+    if s['range'] is not None:
+        s['range'] = positive('range', s['range'])
+    if s['adc'] is not None:
+        if s['sensitivity'] is None:
+            raise ValueError(msg("spec key 'adc' needs 'sensitivity' (V per m/s^2) to map "
+                                 'volts to acceleration; none given'))
+        adc = s['adc']
+        bits = adc['bits']
+        if int(bits) != bits or not 1 <= int(bits) <= 32:
+            raise ValueError(msg(f"spec key 'adc.bits': must be a whole number in [1, 32], "
+                                 f'got {bits!r}'))
+        s['adc'] = {'bits': int(bits), 'full_scale': positive('adc.full_scale',
+                                                               adc['full_scale']),
+                    'noise': positive('adc.noise', adc['noise'], True)}
+    return s
+
+
+__all__ = ['ChannelOutput', 'LOWPASS_ORDER', 'SPEC_KEYS', 'STREAMS', 'SensorChannel']
