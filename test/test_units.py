@@ -38,6 +38,18 @@ def rel(a, b):
     ('in^4', 'second_moment', IN ** 4),
     ('g', 'acceleration', G0),
     ('lbf*s^2/in', 'mass', LBF / IN),
+    ('mg', 'acceleration', G0 / 1000),
+    ('ug', 'acceleration', G0 / 10 ** 6),
+    ('mg', 'mass', Fraction(1, 10 ** 6)),
+    ('uV', 'voltage', Fraction(1, 10 ** 6)),
+    ('mV/g', 'sensitivity', Fraction(1, 1000) / G0),
+    ('V/g', 'sensitivity', 1 / G0),
+    ('mV/(m/s^2)', 'sensitivity', Fraction(1, 1000)),
+    ('ug/sqrt(Hz)', 'acceleration_density', G0 / 10 ** 6),
+    ('g/sqrt(Hz)', 'acceleration_density', G0),
+    ('ug/sqrt(h)', 'acceleration_per_sqrt_time', G0 / 10 ** 6 / 60),
+    ('mg/sqrt(s)', 'acceleration_per_sqrt_time', G0 / 1000),
+    ('m/s^3/sqrt(Hz)', 'acceleration_per_sqrt_time', Fraction(1)),
 ])
 def test_factor_is_correctly_rounded_exact_value(unit, dimension, exact):
     factor = unit_factor(unit, dimension)
@@ -116,6 +128,20 @@ def test_si_unit_first_with_factor_one_and_spellings_canonical():
     ('200 GPa', 'modulus', 200e9),
     ('100 Hz', 'frequency', 100.0),
     ('60 cpm', 'frequency', 1.0),
+    ('100 mV/g', 'sensitivity', 0.1 / 9.80665),
+    ('100 mV / g', 'sensitivity', 0.1 / 9.80665),
+    ('10 mV/(m/s²)', 'sensitivity', 0.01),
+    ('1.5 ug/sqrt(Hz)', 'acceleration_density', 1.5e-6 * 9.80665),
+    ('1.5 µg/√Hz', 'acceleration_density', 1.5e-6 * 9.80665),
+    ('1.5 ug/rtHz', 'acceleration_density', 1.5e-6 * 9.80665),
+    ('1.5 ug/rt(Hz)', 'acceleration_density', 1.5e-6 * 9.80665),
+    ('1.5 ug / sqrt Hz', 'acceleration_density', 1.5e-6 * 9.80665),
+    ('4e-3 (m/s^2)/sqrt(Hz)', 'acceleration_density', 4e-3),
+    ('4e-3 (m/s²)/√Hz', 'acceleration_density', 4e-3),
+    ('3e-3 m/s^2/sqrt(s)', 'acceleration_per_sqrt_time', 3e-3),
+    ('3e-3 (m/s^2)/√s', 'acceleration_per_sqrt_time', 3e-3),
+    ('50 uV', 'voltage', 5e-5),
+    ('25 mg', 'acceleration', 0.025 * 9.80665),
 ])
 def test_accepted_forms(value, dimension, expected):
     assert parse_quantity(value, dimension) == pytest.approx(expected, rel=1e-15)
@@ -174,6 +200,18 @@ def test_rad_per_s_is_not_a_frequency():
     with pytest.raises(UnitError, match=r"'rad/s' is not a frequency \(it is an angular_speed\); "
                                         r'use one of Hz, kHz, cpm'):
         parse_quantity('3 rad/s', 'frequency', key='f')
+
+
+def test_milli_g_is_an_acceleration_and_a_milligram_a_mass():
+    assert parse_quantity('5 mg', 'acceleration') == pytest.approx(5e-3 * 9.80665, rel=1e-15)
+    assert parse_quantity('5 mg', 'mass') == pytest.approx(5e-6, rel=1e-15)
+
+
+def test_a_density_is_not_a_random_walk():
+    with pytest.raises(UnitError, match=r"'n': unit 'ug/rtHz' is not an "
+                                        r'acceleration_per_sqrt_time \(it is an '
+                                        r'acceleration_density\); use one of m/s\^2/sqrt\(s\)'):
+        parse_quantity('1 ug/rtHz', 'acceleration_per_sqrt_time', key='n')
 
 
 def test_ambiguous_unit_named_with_both_dimensions():

@@ -26,6 +26,15 @@ A unit string is normalised before lookup: surrounding and operator-adjacent bla
 ``·``, ``×``, a blank or a hyphen between two unit names mean ``*`` (``'lbf s/in'``,
 ``'lbf-s/in'``), ``**`` and superscripts mean ``^`` (``'in²'`` = ``'in^2'``); ``µ`` and
 ``μ`` may stand for ``u``. Case matters (``mm`` is not ``Mm``).
+
+The accelerometer channel (:mod:`.channel_spec`) adds the electrical and noise dimensions:
+``voltage`` (V, mV, uV), ``sensitivity`` (V/(m/s^2), mV/(m/s^2), V/g, mV/g: g is g0 here),
+``acceleration_density`` (a noise density, (m/s^2)/sqrt(Hz), g, mg or ug over sqrt(Hz)) and
+``acceleration_per_sqrt_time`` (a bias random walk or Gauss-Markov driving strength,
+(m/s^2)/sqrt(s) = m/s^3/sqrt(Hz), Kalibr's spelling; g, mg, ug over sqrt(s) or sqrt(h)).
+``mg`` and ``ug`` are milli- and micro-g0 for an acceleration (``mg`` is the milligram for a
+mass). A square root is written ``sqrt(Hz)``; ``√Hz``, ``rtHz``, ``rt(Hz)`` and ``sqrt Hz``
+mean the same, and a parenthesised numerator may stand first (``(m/s^2)/sqrt(Hz)``).
 """
 from __future__ import annotations
 
@@ -53,6 +62,8 @@ _KIP = 1000 * _LBF
 _PSI = _LBF / _IN ** 2
 _MIN = 60
 _HOUR = 3600
+_MILLI = Fraction(1, 1000)
+_MICRO = Fraction(1, 10 ** 6)
 _PI = math.pi                      # irrational factors are plain float products
 
 G0 = float(_G0)
@@ -97,7 +108,7 @@ UNITS: dict[str, dict[str, float]] = {
         ('in^4', _IN ** 4),
     ),
     'mass': _table(
-        ('kg', 1), ('g', Fraction(1, 1000)), ('lb', _LB), ('lbm', _LB), ('oz', _OZ),
+        ('kg', 1), ('g', _MILLI), ('mg', _MICRO), ('lb', _LB), ('lbm', _LB), ('oz', _OZ),
         ('lbf*s^2/in', _LBF / _IN),   # the "slinch" of US rotordynamics codes
     ),
     'mass_moment': _table(     # mass moment of inertia
@@ -126,8 +137,22 @@ UNITS: dict[str, dict[str, float]] = {
         ('m/s', 1), ('mm/s', Fraction(1, 1000)), ('in/s', _IN), ('ft/s', _FT),
     ),
     'acceleration': _table(
-        ('m/s^2', 1), ('mm/s^2', Fraction(1, 1000)), ('g', _G0), ('in/s^2', _IN),
-        ('ft/s^2', _FT),
+        ('m/s^2', 1), ('mm/s^2', _MILLI), ('g', _G0), ('mg', _MILLI * _G0),
+        ('ug', _MICRO * _G0), ('in/s^2', _IN), ('ft/s^2', _FT),
+    ),
+    # The accelerometer channel (see the module notes). g is standard gravity throughout.
+    'voltage': _table(('V', 1), ('mV', _MILLI), ('uV', _MICRO)),
+    'sensitivity': _table(     # accelerometer output voltage per acceleration
+        ('V/(m/s^2)', 1), ('mV/(m/s^2)', _MILLI), ('V/g', 1 / _G0), ('mV/g', _MILLI / _G0),
+    ),
+    'acceleration_density': _table(    # amplitude spectral density of acceleration noise
+        ('m/s^2/sqrt(Hz)', 1), ('g/sqrt(Hz)', _G0), ('mg/sqrt(Hz)', _MILLI * _G0),
+        ('ug/sqrt(Hz)', _MICRO * _G0),
+    ),
+    'acceleration_per_sqrt_time': _table(   # bias random walk, Gauss-Markov driving strength
+        ('m/s^2/sqrt(s)', 1), ('m/s^3/sqrt(Hz)', 1), ('g/sqrt(s)', _G0),
+        ('mg/sqrt(s)', _MILLI * _G0), ('ug/sqrt(s)', _MICRO * _G0),
+        ('mg/sqrt(h)', _MILLI * _G0 / 60), ('ug/sqrt(h)', _MICRO * _G0 / 60),
     ),
     'force': _table(('N', 1), ('kN', 1000), ('lbf', _LBF), ('kip', _KIP)),
     'moment': _table(
@@ -156,6 +181,7 @@ SI_UNIT = {dim: next(iter(table)) for dim, table in UNITS.items()}
 _NUMBER = r'[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?'
 _QUANTITY_RE = re.compile(rf'^\s*({_NUMBER})\s*(.*?)\s*$')
 _NONFINITE_RE = re.compile(r'^\s*[-+]?\.?(nan|inf|infinity)\b', re.IGNORECASE)
+_ROOT_RE = re.compile(r'/\s*(?:√|rt|sqrt)\s*(?:\(\s*(Hz|s|h)\s*\)|(Hz|s|h)\b)')
 _SUPERSCRIPTS = str.maketrans({'²': '^2', '³': '^3', '⁴': '^4', 'µ': 'u', 'μ': 'u',
                                '·': '*', '×': '*'})
 
@@ -229,7 +255,11 @@ def normalize_unit(unit):
         Canonical spelling, e.g. ``'lbf*s/in'``, ``'in^2'``.
     """
     text = unit.strip().translate(_SUPERSCRIPTS).replace('**', '^')
+    # square roots of a time or frequency unit: '√Hz', 'rtHz', 'rt(Hz)', 'sqrt Hz' -> 'sqrt(Hz)'
+    text = _ROOT_RE.sub(lambda m: f'/sqrt({m.group(1) or m.group(2)})', text)
     text = re.sub(r'\s*([*/^])\s*', r'\1', text)
+    # '(m/s^2)/sqrt(Hz)' = 'm/s^2/sqrt(Hz)': a leading parenthesised numerator
+    text = re.sub(r'^\(([^()]*)\)(?=/)', r'\1', text)
     # A blank or hyphen between two unit names is a product: 'lbf s/in', 'lbf-s/in'.
     text = re.sub(r'(?<=[A-Za-z0-9])(?:\s+|-)(?=[A-Za-z])', '*', text)
     return text
