@@ -22,6 +22,7 @@ import functools
 import numpy as np
 
 from .catalog import validated
+from .channel_spec import accelerometer_problems
 from .modes import MIN_SAMPLES_PER_REVOLUTION, _build_basis, excitation_frequencies
 from .schema import SceneError
 from .spec import STUCK_MODELS
@@ -123,6 +124,8 @@ class SceneModel:
                             'dof' if imp['kind'] == 'sdof' else 'plane')
                   for d in ([imp['dof']] if imp['kind'] == 'sdof' else imp['plane']))
             for i, imp in enumerate(scene['impactors']))
+        for path, message in accelerometer_problems(scene):   # one channel per node
+            errors.add(path, message)
         errors.raise_if_any(source)
         self.speed_profile, self.unbalance = self._make_rotor()
         self.forcing = self._make_forcing()

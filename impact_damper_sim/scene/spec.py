@@ -15,8 +15,9 @@ Layout
     giving one to the other kind is an error.
 ``modal``
     Mode selection and per-mode "tare" damping.
-``sensors``, ``forcing``, ``impactors``
-    What is read, what drives the structure and the impact dampers.
+``sensors``, ``channel``, ``forcing``, ``impactors``
+    What is read and through which accelerometer channel (:mod:`.channel_spec`), what drives
+    the structure and the impact dampers.
 ``rotor``
     Optional: the rotor speed profile and its unbalance, whose forces enter as extra force
     inputs (uy, uz) at each unbalance node.
@@ -38,6 +39,7 @@ from ..dampers.law import IMPACT_LAWS
 from ..integrate.events import STICK_RULES
 from ..integrate.simulation import METHODS
 from .units import UNITS
+from .channel_spec import CHANNEL, SENSOR_CHANNEL
 from .containers import ListOf, MapOf, Optional, Section, Vector
 from .schema import Boolean, Choice, Integer, Quantity, String
 
@@ -360,6 +362,7 @@ _SENSOR = Section({
                         doc='cutoff of the anti-alias low-pass filter of the accelerometer '
                             'output: a 4th-order Butterworth on the mean acceleration per '
                             'sample period, below the Nyquist frequency; none = no filter'),
+    'channel': SENSOR_CHANNEL,
 })
 
 
@@ -585,6 +588,7 @@ SCHEMA = Section({
     'structure': _STRUCTURE,
     'modal': _MODAL,
     'sensors': ListOf(_SENSOR, default=[], doc='displacement outputs'),
+    'channel': CHANNEL,
     'forcing': ListOf(_FORCE, default=[], doc='harmonic forces'),
     'impactors': ListOf(_IMPACTOR, default=[], doc='impact dampers; none = linear structure'),
     'rotor': Optional(_ROTOR, doc='rotor speed and unbalance; none = no rotor (no unbalance '
