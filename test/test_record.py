@@ -105,7 +105,7 @@ def test_every_problem_of_a_schedule_names_its_key(tmp_path):
     assert lines[3].startswith("key 'schedule[1]': an entry needs at least one of speed_rate")
     assert lines[4] == "key 'schedule[2].dampers': expected true or false, got int 3"
     assert lines[5] == ("key 'schedule[2].noise_std': unit 'm' is not an acceleration (it "
-                        'is a length); use one of m/s^2, mm/s^2, g, in/s^2, ft/s^2')
+                        'is a length); use one of m/s^2, mm/s^2, g, mg, ug, in/s^2, ft/s^2')
     assert lines[6] == "key 'schedule[2].noise_seed': -2 is out of range [0, 2147483647]"
 
 
@@ -180,11 +180,17 @@ def test_the_schedule_is_applied_and_logged_as_commands_and_parameter_changes(re
     (t0, v0), (t1, v1) = ramp[0], ramp[-1]
     assert (v1.x - v0.x) / (t1 - t0) == pytest.approx(20000 * RPM, rel=1e-9)
     assert all(v.z == 2.5 for t, v in speed if t > 0.2)   # the unbalance multiplier
-    # the noise variance is in every Imu from the start (what the 2 -> 1 kHz decimation
-    # keeps of the 2 kHz noise: sum(taps^2) = 0.4404); the dampers stop hitting at 0.6 s
+    # the noise variance is in every Imu from the start: the channel's (its sensor and DAQ
+    # noise, and the 0.05 g, through the 2 -> 1 kHz decimation, which keeps sum(taps^2) =
+    # 0.4404 of a white noise); the dampers stop hitting at 0.6 s
+    from impact_damper_sim.live.realtime import LiveSimulation
+    from impact_damper_sim.live.streams import live_scene
+    model, target = live_scene('hpotp')
+    variance = LiveSimulation(model, initial_target=target,
+                              noise_std=0.05 * G0).imu_noise_variances()[0]
+    assert variance == pytest.approx((0.05 * G0) ** 2 * 0.4404, rel=0.02)   # the 0.05 g rules
     imu = [m[4] for m in msgs if m[0] == '/accel/hpotp_casing_bottom']
-    assert all(msg.linear_acceleration_covariance[0] == pytest.approx(
-        (0.05 * G0) ** 2 * 0.4404, rel=1e-4) for msg in imu)
+    assert all(msg.linear_acceleration_covariance[0] == variance for msg in imu)
     impacts = [(m[1] * 1e-9, m[4].width) for m in msgs if m[0] == '/impacts']
     assert sum(w for t, w in impacts if t <= 0.6 + 1e-9) > 100
     assert sum(w for t, w in impacts if t > 0.6 + 1e-9) == 0

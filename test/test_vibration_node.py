@@ -63,10 +63,11 @@ def test_speed_command_applied_within_the_rate_limit(ros_context):
 
 
 def test_unbalance_command_scales_a_linear_scene_exactly(ros_context):
-    """Response is linear in the unbalance: X = 2.5 gives 2.5 x the X = 1 accelerations."""
+    """Response is linear in the unbalance: X = 2.5 gives 2.5 x the X = 1 accelerations
+    (the model's: the ideal channel, no sensor noise or ADC grid)."""
     outputs = []
     for x in (1.0, 2.5):
-        node = make_node(ros_context, 'hpotp', LINEAR_HPOTP)
+        node = make_node(ros_context, 'hpotp', LINEAR_HPOTP + ['channel=ideal'])
         try:
             node.on_unbalance_command(Float64(data=x))
             batch = node.live.step(2000)   # 1 s at 2 kHz, through the ramp's start

@@ -474,7 +474,10 @@ def run(scene):
     dict
         The ``study simulate --json`` data (see the README). Accelerations are the mean
         acceleration per sample period (impacts included) passed through the sensor's
-        ``lowpass`` (4th-order Butterworth, :mod:`impact_damper_sim.live.filters`) if it has one.
+        ``lowpass`` (4th-order Butterworth, :mod:`impact_damper_sim.live.filters`) if it has one:
+        the model's signal. The scene's accelerometer ``channel`` (sensor and DAQ,
+        :mod:`impact_damper_sim.live.channel`) is what the node and ``study record`` publish; it
+        is not applied here, so design studies and the paper comparisons see the structure.
 
     Raises
     ------
@@ -541,7 +544,8 @@ def _print_summary(r):
           f"{r['n_modes']} mode(s); steady state over the last {_g(r['window_s'])} s")
     if r['sensors']:
         print('\naccelerations are mean accelerations per sample period (impacts included), '
-              "through the sensor's low-pass where it has one")
+              "through the sensor's low-pass where it has one: the model's signal (the scene's "
+              "accelerometer channel applies to the node and study record)")
         rows = [(name, _g(s['peak_displacement_m']), _g(s['rms_displacement_m']),
                  _g(s['steady_amplitude_m']), _g(s['peak_acceleration_m_s2']),
                  _g(s['peak_acceleration_g']), _g(s['rms_acceleration_m_s2']),

@@ -61,6 +61,12 @@ class Batch:
         decimated signal, a filter delay behind ``t`` (see :class:`StreamingDecimator`).
     imu_linear_acceleration, imu_angular_velocity : ndarray, shape (j, n_acc, 3)
         The decimated readings (m/s^2, rad/s).
+    truth : ndarray, shape (k, n_acc, 3)
+        Ground truth at the output samples: the model's acceleration (model frame) through
+        the anti-alias low-pass and no other stage of the channel (m/s^2).
+    clipped, imu_clipped : ndarray of int, shape (n_acc,)
+        Values clipped by the measuring range or the ADC in this chunk, per accelerometer:
+        of ``linear_acceleration`` and of ``imu_linear_acceleration`` (values, 3 per sample).
     """
 
     t: np.ndarray
@@ -71,6 +77,9 @@ class Batch:
     imu_t: np.ndarray = None
     imu_linear_acceleration: np.ndarray = None
     imu_angular_velocity: np.ndarray = None
+    truth: np.ndarray = None
+    clipped: np.ndarray = None
+    imu_clipped: np.ndarray = None
 
 
 
@@ -98,9 +107,11 @@ class LiveSimulation:
     max_unbalance : float
         Largest accepted unbalance multiplier (dimensionless).
     noise_std : float
-        Standard deviation of white noise added to each acceleration sample (m/s^2).
+        Standard deviation of white noise added to each acceleration sample (m/s^2), in the
+        channel before its range and ADC.
     seed : int
-        Seed of the noise generator (dimensionless).
+        Seed of the noise generator and of every random stage of the channels
+        (dimensionless).
     dampers_enabled : bool
         Whether the impact dampers act.
     method : str, optional
@@ -113,7 +124,7 @@ class LiveSimulation:
     def __init__(self, scene_model, *, sample_rate=None, imu_rate=None, initial_target=None,
                  max_speed=None, max_unbalance=100.0, noise_std=0.0, seed=0,
                  dampers_enabled=True, method=None, ledger=False):
-        from .filters import StreamingDecimator, StreamingLowpass
+        from .filters import StreamingDecimator
         sample_rate = (default_sample_rate(scene_model) if sample_rate is None
                        else float(sample_rate))
         if not (math.isfinite(sample_rate) and sample_rate > 0):
@@ -138,8 +149,7 @@ class LiveSimulation:
         self.sim = scene_model.make_simulation(method=method, dt=self.dt,
                                                outputs=(names, rows), ledger=ledger)
         n_acc = len(self.accelerometers)
-        self._filters = [StreamingLowpass(a.lowpass_hz, 1.0 / self.dt, 3)
-                         for a in self.accelerometers]
+        self.channels = self._channels(seed)
         imu_rate = default_imu_rate(sample_rate) if imu_rate is None else float(imu_rate)
         factor = sample_rate / imu_rate if math.isfinite(imu_rate) and imu_rate > 0 else 0.0
         if not (factor >= 1 - 1e-9 and abs(factor - round(factor)) < 1e-6 * factor):
@@ -163,18 +173,46 @@ class LiveSimulation:
         else:
             self.max_speed = 0.0
         self.noise_std = 0.0
+        self.noise_seed = int(seed)
         self.set_noise(noise_std, seed)
         self.sim.set_impacts_enabled(dampers_enabled)
         self._stuck = self._stuck_flags()
         self.failure = None
         self.steps = 0
 
-    @property
-    def imu_noise_variance(self):
-        """float: Variance of the noise in each decimated (per-sample Imu) acceleration
-        ((m/s^2)^2): the full-rate noise's ``noise_std^2`` times the share of a white signal's
-        variance the decimation filter keeps (``sum(taps^2)``), not ``noise_std^2``."""
-        return self.noise_std ** 2 * self._decimator.white_noise_gain
+    def imu_noise_variances(self):
+        """Variance of the white noise in each decimated (per-sample Imu) acceleration, per
+        accelerometer ((m/s^2)^2 per axis): the channel's sensor noise (coloured by the
+        anti-alias filter), the live ``noise_std`` noise, ADC noise and quantization, through
+        the decimation filter (which keeps ``sum(taps^2)`` of a white signal's variance, not
+        all of it). Biases are not in it (they are not white).
+
+        Returns
+        -------
+        list of float
+        """
+        return [ch.decimated_noise_variance(self._decimator.taps) for ch in self.channels]
+
+    def _channels(self, seed):
+        """One measurement chain per accelerometer, from the scene's resolved channels."""
+        from ..scene.channel_spec import channel_of, resonance_problem
+        from .channel import SensorChannel
+        out = []
+        for acc in self.accelerometers:
+            spec = channel_of(self.scene, acc.node)
+            # a default cutoff is known only now (from the sample rate)
+            problem = resonance_problem(spec, acc.lowpass_hz, f'accelerometer {acc.name!r}')
+            if problem:
+                raise SceneError(f"scene key 'channel.resonance.frequency': {problem}",
+                                 self.scene.source)
+            try:
+                out.append(SensorChannel(spec, step_rate_hz=1.0 / self.dt,
+                                         decimation=self.decimation,
+                                         lowpass_hz=acc.lowpass_hz, seed=seed,
+                                         name=acc.name))
+            except ValueError as exc:
+                raise SceneError(f"scene key 'channel': {exc}", self.scene.source) from None
+        return out
 
     @property
     def imu_delay(self):
@@ -268,14 +306,21 @@ class LiveSimulation:
                                              self.max_unbalance, '')
 
     def set_noise(self, std, seed=None):
-        """Set the accelerometer noise (m/s^2 standard deviation) and optionally reseed it."""
+        """Set the accelerometer noise (m/s^2 standard deviation) and optionally reseed it.
+
+        A seed restarts the white noise of every accelerometer; the first one's is
+        ``default_rng(seed)``, the others' are drawn from ``seed`` and their index, so that no
+        two accelerometers carry the same noise.
+        """
         std = float(std)
         if not (math.isfinite(std) and std >= 0):
             raise CommandError(f"parameter 'noise_std': must be finite and >= 0 m/s^2, "
                                f'got {std}')
         self.noise_std = std
-        if seed is not None:
-            self._rng = np.random.default_rng(int(seed))
+        for k, channel in enumerate(self.channels):
+            own = None if seed is None else int(seed) if k == 0 else int(
+                np.random.SeedSequence([int(seed), k]).generate_state(1)[0])
+            channel.set_white_noise(std, own)
 
     def set_dampers_enabled(self, enabled):
         """Switch the impact dampers on or off (see ``Simulation.set_impacts_enabled``)."""
@@ -355,13 +400,13 @@ class LiveSimulation:
         pick = slice(self.decimation - 1, None, self.decimation)
         lin = np.empty((int(n_samples), n_acc, 3))
         ang = np.empty((int(n_samples), n_acc, 3))
-        for a, filt in enumerate(self._filters):
+        truth = np.empty((int(n_samples), n_acc, 3))
+        clipped = np.zeros(n_acc, dtype=np.int64)
+        for a, channel in enumerate(self.channels):
             # mean acceleration over each step, translations only (rotations give rates)
-            mean_acc = np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt
-            lin[:, a, :] = filt.apply(mean_acc)[pick]
+            out = channel.process(np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt)
+            lin[:, a, :], truth[:, a, :], clipped[a] = out.samples, out.truth, out.clipped
             ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
-        if self.noise_std > 0:
-            lin += self._rng.normal(0.0, self.noise_std, lin.shape)
         t = samples.t[pick]
         if self._t_first is None and t.size:
             self._t_first = float(t[0])
@@ -369,13 +414,18 @@ class LiveSimulation:
         index, dec = self._decimator.apply(
             np.concatenate([lin, ang], axis=2).reshape(t.size, 6 * n_acc))
         dec = dec.reshape(index.size, n_acc, 6)
+        imu_lin = np.empty((index.size, n_acc, 3))
+        imu_clipped = np.zeros(n_acc, dtype=np.int64)
+        for a, channel in enumerate(self.channels):   # the Imu is on the ADC's grid too
+            imu_lin[:, a, :], imu_clipped[a] = channel.process_decimated(dec[:, a, :3])
         imu_t = (self._t_first or 0.0) + index / self.sample_rate
         events = self.sim.take_events()
         stuck = self._stuck_flags()
         changed = stuck != self._stuck
         self._stuck = stuck
         self.steps += n_steps
-        return Batch(t, lin, ang, events, changed, imu_t, dec[:, :, :3], dec[:, :, 3:])
+        return Batch(t, lin, ang, events, changed, imu_t, imu_lin, dec[:, :, 3:], truth,
+                     clipped, imu_clipped)
 
     def linear_growth_rate(self):
         """Largest real part of the free structure's eigenvalues now (1/s); > 0 = unstable.

@@ -207,7 +207,7 @@ class NodeMessages:
     Parameters
     ----------
     live : LiveSimulation
-        The simulation (read: ``accelerometers``, ``imu_delay``, ``imu_noise_variance``, ``t``,
+        The simulation (read: ``accelerometers``, ``imu_delay``, ``imu_noise_variances()``, ``t``,
         ``has_rotor``, ``rotor_state()``, ``profile``, ``impactor_states()``,
         ``dampers_enabled``).
     scene : SceneModel
@@ -258,7 +258,7 @@ class NodeMessages:
         self.speed_command = add(nt.SPEED_COMMAND, nt.COMMAND_QOS)
         self.unbalance_command = add(nt.UNBALANCE_COMMAND, nt.COMMAND_QOS)
         self.parameter_events = add(nt.PARAMETER_EVENTS, nt.PARAMETER_EVENTS_QOS)
-        self.set_noise_variance(live.imu_noise_variance)
+        self.set_noise_variances(live.imu_noise_variances())
         # per modal-model impactor (a zero-mass scene entry has none), matched by name
         spec_of = {spec['name']: spec for spec in scene.scene['impactors']}
         specs = [spec_of[imp.name] for imp in scene.impactors]
@@ -287,10 +287,12 @@ class NodeMessages:
                 return acc.frame_id
         return f'{self.scene.name}_node{node}'
 
-    def set_noise_variance(self, variance):
-        """Write ``variance`` ((m/s^2)^2) into the Imu covariance from now on."""
+    def set_noise_variances(self, variances):
+        """Write each accelerometer's noise variance ((m/s^2)^2, one per accelerometer, as
+        :meth:`LiveSimulation.imu_noise_variances` gives them) into its Imu covariance from
+        now on."""
         self._imu_encoders = [ImuEncoder(acc.frame_id, variance)
-                              for acc in self.live.accelerometers]
+                              for acc, variance in zip(self.live.accelerometers, variances)]
 
     # -- what a chunk produces -------------------------------------------------------------
     def batch_items(self, batch):

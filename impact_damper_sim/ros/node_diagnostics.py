@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from . import interface as itf
@@ -79,6 +80,7 @@ class DiagnosticsMixin:
         level, messages = DiagnosticStatus.OK, []
         rtf = self.pacer.real_time_factor
         stalled = self._stalled(wall)
+        clipped = st.clipped + np.zeros(len(live.accelerometers), np.int64)   # per accelerometer
         if live.failure is not None:
             level = DiagnosticStatus.ERROR
             messages.append(f'stopped: {live.failure}')
@@ -104,6 +106,11 @@ class DiagnosticsMixin:
             if st.growing >= 5:
                 level = max(level, DiagnosticStatus.WARN)
                 messages.append('response growing for 5 periods')
+            over = [f'{acc.name} {int(n)}' for acc, n in zip(live.accelerometers, clipped) if n]
+            if over:   # a DAQ reports overrange: the signal beyond the range is lost
+                level = max(level, DiagnosticStatus.WARN)
+                messages.append(f"clipped by the sensor's range or ADC: {', '.join(over)} "
+                                'values')
             clash = getattr(self, '_name_clash', None)
             if clash is not None and clash.clashing:   # an aggregator sees two of us as one
                 level = max(level, DiagnosticStatus.WARN)
@@ -126,6 +133,10 @@ class DiagnosticsMixin:
             'rotor_speed_rad_s': speed, 'unbalance_multiplier': x,
             'linear_growth_rate_1_s': self._growth_rate,
         }
+        totals = self.stats_total['clipped'] + np.zeros(len(live.accelerometers), np.int64)
+        for acc, n, total in zip(live.accelerometers, clipped, totals):
+            values[f'clipped_values_{acc.name}'] = int(n)            # in this period
+            values[f'clipped_values_total_{acc.name}'] = int(total)  # since start
         rec = self.recorder
         if rec is not None:
             if rec.error is not None and not self.record_error:
@@ -156,6 +167,7 @@ class _Stats:
 
     def __init__(self, wall, cpu, sim, delivered, steps0=0, growing=0, last_peak=0.0):
         self.wall, self.cpu, self.sim, self.steps0 = wall, cpu, sim, steps0
+        self.clipped = 0   # values clipped: 0, or an array per accelerometer once one clips
         self.delivered = delivered
         self.samples = self.impacts = self.commands = self.overruns = 0
         self.stuck_time = self.peak = self.lag = 0.0

@@ -91,6 +91,9 @@ class PublishingMixin:
         impacts = int(np.count_nonzero(ev['kind'] == _IMPACT))
         self.stats.impacts += impacts
         self.stats_total['impacts'] += impacts
+        if batch.clipped is not None and batch.clipped.any():   # the DAQ's overrange count
+            self.stats.clipped = self.stats.clipped + batch.clipped
+            self.stats_total['clipped'] = self.stats_total['clipped'] + batch.clipped
         stuck = sum(self.live._stuck)
         self.stats.stuck_time += stuck * k * self._period
         if batch.states_changed:

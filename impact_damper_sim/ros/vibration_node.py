@@ -163,7 +163,8 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
                            clock=self._wall)
         self.stats = _Stats(self._wall(), time.process_time(), self.live.t, self.live.t)
         self.rejected = 0
-        self.stats_total = {'samples': 0, 'impacts': 0}   # since start, per accelerometer
+        # since start (clipped: values, per accelerometer once one clips)
+        self.stats_total = {'samples': 0, 'impacts': 0, 'clipped': 0}
         self._growth_rate = self.live.linear_growth_rate()
         self._failure_logged = False
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -325,7 +326,7 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         if 'noise_std' in changes or 'noise_seed' in changes:
             self.live.set_noise(changes.get('noise_std', self.live.noise_std),
                                 changes.get('noise_seed'))
-            self._messages.set_noise_variance(self.live.imu_noise_variance)
+            self._messages.set_noise_variances(self.live.imu_noise_variances())
         if 'dampers_enabled' in changes:
             self.live.set_dampers_enabled(changes['dampers_enabled'])
             self._publish_state()

@@ -408,7 +408,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
             else:   # noise_std, noise_seed
                 live.set_noise(value if name == 'noise_std' else live.noise_std,
                                value if name == 'noise_seed' else None)
-                messages.set_noise_variance(live.imu_noise_variance)
+                messages.set_noise_variances(live.imu_noise_variances())
             write(messages.parameter_events, messages.parameter_event([(name, value)]))
 
         write(messages.state, messages.state_message())   # the latched state opens the log
