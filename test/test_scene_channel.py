@@ -190,11 +190,31 @@ def test_a_stage_key_overrides_the_preset_and_null_switches_one_off():
     assert _nested_equal(c, expected)
 
 
-def test_a_stage_is_replaced_whole():
+def test_a_stage_is_overridden_key_by_key():
+    """A dotted override changes one key of a preset's stage and keeps the rest (it replaced
+    the whole stage: 'channel.resonance.frequency=40 kHz' was refused for a missing q, and
+    'bias.turn_on' dropped mems_16g's Gauss-Markov bias); null switches a part off; a
+    highpass given replaces the preset's (one of corner and time_constant)."""
+    preset = preset_channel('mems_16g')
     c = channel({'preset': 'mems_16g', 'bias': {'turn_on': '5 mg'}})
     assert c['bias'] == {'turn_on': pytest.approx(f(Fraction('0.005') * G0), rel=1e-15),
-                         'gauss_markov': None, 'random_walk': None}
-    assert channel({'preset': 'mems_16g', 'bias': {}})['bias'] is None   # an empty bias
+                         'gauss_markov': preset['bias']['gauss_markov'], 'random_walk': None}
+    c = channel({'preset': 'mems_16g', 'bias': {'gauss_markov': {'tau': '100 s'}}})
+    assert c['bias']['gauss_markov'] == {'sigma': preset['bias']['gauss_markov']['sigma'],
+                                         'tau': 100.0}
+    assert channel({'preset': 'mems_16g', 'bias': {'gauss_markov': None}})['bias'] == {
+        'turn_on': preset['bias']['turn_on'], 'gauss_markov': None, 'random_walk': None}
+    assert channel({'preset': 'mems_16g', 'bias': {'turn_on': None, 'gauss_markov': None}}
+                   )['bias'] is None   # nothing left of it
+    c = channel({'preset': 'iepe_100mv_50g', 'resonance': {'frequency': '40 kHz'}})
+    assert c['resonance'] == {'frequency': 40000.0, 'q': 25.0}
+    c = channel({'preset': 'iepe_100mv_50g', 'highpass': {'time_constant': '1 s'}})
+    assert c['highpass'] == {'corner': pytest.approx(1 / (2 * math.pi), rel=1e-15)}
+    scene = load('hpotp', overrides=['channel.resonance.frequency=40 kHz',
+                                     'channel.adc.noise=10 uV'])
+    assert scene.scene['channel']['resonance'] == {'frequency': 40000.0, 'q': 25.0}
+    assert scene.scene['channel']['adc'] == dict(preset_channel('iepe_10mv_500g')['adc'],
+                                                 noise=pytest.approx(1e-5, rel=1e-15))
 
 
 def test_channel_ideal_override_switches_a_shipped_preset_off():

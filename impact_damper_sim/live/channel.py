@@ -22,7 +22,9 @@ run from ``-2^(bits-1)`` to ``2^(bits-1) - 1`` (two's complement): it reads
 LSB beyond either end is clipped (and counted), so every unclipped value is within ``LSB/2``
 of its published sample. The range clips the output-rate samples, after the anti-alias filter:
 a real sensor's amplifier clips before the DAQ's filter, whose ringing can then overshoot the
-range a little; here no published sample passes it, and the count is of published values.
+range a little; here the sensor's output never passes it (the count is of published values),
+and only the DAQ noise added after it can put a published value beyond it (by a few of its
+standard deviations).
 
 Conventions (the stage's own docstrings say more):
 

@@ -17,8 +17,11 @@ Keys
     whole accelerometer. None (absent or null) = the top-level ``channel``.
 
 A channel is a preset name (``channel: iepe_100mv_50g``) or a mapping: ``preset`` (default
-``ideal``) plus any stage key, which *replaces* that stage of the preset (a whole stage, not
-one key inside it), or is ``null`` to switch the preset's stage off::
+``ideal``) plus any stage key, which overrides that stage of the preset key by key (the keys
+of the stage it does not give keep the preset's values, so ``--set
+channel.resonance.frequency=40 kHz`` keeps the preset's ``q``; a ``highpass`` given replaces
+the preset's whole, being one of ``corner`` or ``time_constant``), or is ``null`` to switch
+the preset's stage off (a key inside a stage set to ``null`` switches that part off)::
 
     channel:
       preset: iepe_100mv_50g
@@ -271,6 +274,17 @@ def _finish(stage, value):
     return value
 
 
+def _over(preset_value, given):
+    """A stage mapping ``given`` over the preset's, key by key (nested mappings too); a
+    non-mapping on either side is ``given`` as it is."""
+    if not isinstance(preset_value, dict) or not isinstance(given, dict):
+        return given
+    out = dict(preset_value)
+    for key, value in given.items():
+        out[key] = None if value is None else _over(preset_value.get(key), value)
+    return out
+
+
 def _resolve(raw, path, errors, presets):
     """Resolve a channel mapping against ``presets`` (name -> resolved); _INVALID on errors."""
     before = len(errors)
@@ -291,7 +305,10 @@ def _resolve(raw, path, errors, presets):
             out[stage] = None   # 'stage: null' switches the preset's stage off
         else:
             at = len(errors)
-            value = _STAGE_FIELDS[stage].resolve(True, raw[stage], _join(path, stage), errors)
+            given = raw[stage]
+            if name is not None and stage != 'highpass':   # highpass: one of two keys
+                given = _over(PRESETS.get(name, {}).get(stage), given)
+            value = _STAGE_FIELDS[stage].resolve(True, given, _join(path, stage), errors)
             out[stage] = _finish(stage, value) if len(errors) == at else _INVALID
     if len(errors) > before:
         return _INVALID
@@ -401,8 +418,9 @@ class Channel(Field):
 #: ``channel``: every accelerometer of the scene.
 CHANNEL = Channel('ideal', doc='the accelerometer channel (sensor and DAQ) of every '
                                'accelerometer: a preset, or a mapping of preset and stage '
-                               'keys; a stage key replaces the preset\'s stage, null switches '
-                               'it off (docs/scenes.md, "Accelerometer channel")')
+                               'keys; a stage key overrides the preset\'s stage key by key, '
+                               'null switches it off (docs/scenes.md, "Accelerometer '
+                               'channel")')
 #: ``sensors[].channel``: the accelerometer at that sensor's node.
 SENSOR_CHANNEL = Channel(None, rows=False,
                          doc='the channel of the accelerometer at this sensor\'s node, with '
