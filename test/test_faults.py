@@ -200,25 +200,6 @@ def test_gain_is_exact_before_clipping():
     assert np.array_equal(bits(y[IN]), bits(x[IN] * 5.0))
 
 
-class HookedChannel(SensorChannel):
-    """A SensorChannel with the hook the injector needs (see faults.py): a callable applied
-    to the output-rate samples after the white noise, before the range and ADC."""
-
-    before_limit = None
-
-    def process(self, mean_acc, before_limit=None):
-        self.before_limit = before_limit
-        try:
-            return super().process(mean_acc)
-        finally:
-            self.before_limit = None
-
-    def _limit(self, x, adc_noise):
-        if self.before_limit is not None:
-            self.before_limit(x)
-        return super()._limit(x, adc_noise)
-
-
 def test_a_gain_drives_the_channel_into_clipping_through_the_hook():
     """x5 on a +-50 g, 100 mV/g, 24-bit channel: in the window the samples are the channel's
     limit of 5 x the fault-free ones; the clip count is the values 5x puts beyond the range;
@@ -228,7 +209,7 @@ def test_a_gain_drives_the_channel_into_clipping_through_the_hook():
                 adc={'bits': 24, 'full_scale': 5.0, 'noise': 0.0})
 
     def make():
-        return HookedChannel(spec, step_rate_hz=FS, decimation=1, lowpass_hz=400.0,
+        return SensorChannel(spec, step_rate_hz=FS, decimation=1, lowpass_hz=400.0,
                              name='casing')
 
     acc = np.zeros((1000, 3))

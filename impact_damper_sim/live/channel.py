@@ -280,13 +280,18 @@ class SensorChannel:
             self._rng_white = np.random.default_rng(int(seed))
 
     # -- streaming -----------------------------------------------------------------------
-    def process(self, mean_acc):
+    def process(self, mean_acc, before_limit=None):
         """Run the next chunk through the chain.
 
         Parameters
         ----------
         mean_acc : array_like, shape (k * decimation, 3)
             Mean acceleration over each integrator step (m/s^2, model frame).
+        before_limit : callable, optional
+            Called with the ``(k, 3)`` output-rate samples (m/s^2, sensor frame) after the
+            live white noise and before the range and ADC, to change them in place: a
+            sensor fault (:meth:`.faults.FaultInjector.hook`) then reaches the clipping,
+            the clip count and the ADC grid as the real one would.
 
         Returns
         -------
@@ -316,6 +321,8 @@ class SensorChannel:
             truth, samples = picked[:, :3].copy(), picked[:, 3:].copy()
         if self.white_noise_std > 0:
             samples += self._rng_white.normal(0.0, self.white_noise_std, samples.shape)
+        if before_limit is not None:
+            before_limit(samples)
         clipped = self._limit(samples, self._adc is not None and self._adc[3] > 0)
         return ChannelOutput(samples, truth, clipped)
 
