@@ -330,3 +330,36 @@ def test_a_part_without_a_readable_manifest_is_refused(tmp_path, capsys):
     assert main(['dataset', str(tmp_path / 'a.yaml'), '--gather', str(a),
                  '--out', str(out)]) == 2
     assert 'SPEC.yaml cannot be given with --gather' in capsys.readouterr().err
+
+
+def test_the_manifest_names_each_runs_channel_preset_and_truth_is_a_run_input(tmp_path):
+    """A grid over the scene's ``channel``: the manifest gives each run's preset, the log's
+    metadata holds its labels; ``truth: true`` writes the ground truth into every log, is a
+    manifest column and part of the run id (a spec without it keeps its ids)."""
+    import yaml
+
+    from test_tach_truth import _log
+    text = 'scene: sdof\nduration: 50 ms\ngrid:\n  channel: [ideal, iepe_100mv_50g]\n'
+    spec = _write(tmp_path, text + 'truth: true\n')
+    plan = load_spec(spec)
+    without = load_spec(_write(tmp_path, text, 'without.yaml'))
+    explicit = load_spec(_write(tmp_path, text + 'truth: false\n', 'false.yaml'))
+    assert [r['truth'] for r in plan] == [True, True]
+    assert [r['truth'] for r in without] == [False, False]
+    assert [r['id'] for r in explicit] == [r['id'] for r in without]
+    assert not {r['id'] for r in plan} & {r['id'] for r in without}
+    with pytest.raises(DatasetError, match=r"key 'truth': expected true or false, got 2"):
+        load_spec(_write(tmp_path, text + 'truth: 2\n', 'bad.yaml'))
+    out = tmp_path / 'data'
+    assert run_dataset(str(spec), str(out), executor='serial')['failed'] == 0
+    doc, rows = _manifest(out)
+    assert [r['channel_preset'] for r in rows] == ['ideal', 'iepe_100mv_50g']
+    assert [r['channel_preset'] for r in doc['runs']] == ['ideal', 'iepe_100mv_50g']
+    assert [r['truth'] for r in rows] == ['True', 'True']
+    for run in doc['runs']:
+        topics, meta = _log(out / run['file'])
+        labels = yaml.safe_load(meta['labels'])
+        (name, accelerometer), = labels['accelerometers'].items()
+        assert accelerometer['channel']['preset'] == run['channel_preset']
+        assert len(topics[f'/accel/{name}/truth']) == len(topics[f'/accel/{name}/batch']) == 5
+        assert labels['seed'] == run['seed'] == 0

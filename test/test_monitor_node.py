@@ -568,3 +568,22 @@ def test_a_topic_of_another_type_is_not_adopted(setup):
     names = {s.name for array in sim.arrays for s in array.status}
     assert not any('fake' in name for name in names), names
     assert fake.get_subscription_count() == 0 and fake_batch.get_subscription_count() == 0
+
+
+def test_truth_and_tachometer_topics_are_not_accelerometers(setup):
+    """``accel/<name>/truth`` (PointCloud2, the node's ground truth) and ``rotor/tach`` and
+    ``rotor/keyphasor`` (PointCloud2) are in the graph: the monitor watches the accelerometer
+    ``a`` only, and subscribes to none of them."""
+    monitor, sim, executor = setup({}, batch=('a',))
+    extra = [sim.node.create_publisher(PointCloud2, topic, interface.BATCH_QOS)
+             for topic in (interface.accel_truth_topic('a'), interface.ROTOR_TACH,
+                           interface.ROTOR_KEYPHASOR)]
+    names = {monitor.resolve_topic_name(p.topic_name) for p in extra}
+    spin_until(executor, lambda: names <= {t for t, _ in monitor.get_topic_names_and_types()})
+    monitor.discover()
+    deadline = time.monotonic() + 0.5
+    while time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.01)
+    assert 'a' in monitor.sensors
+    assert not [s for s in monitor.sensors if 'truth' in s or 'tach' in s], monitor.sensors
+    assert all(p.get_subscription_count() == 0 for p in extra)

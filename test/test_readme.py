@@ -69,8 +69,9 @@ def test_topic_table_names_every_topic():
     from impact_damper_sim.ros import interface as itf
     text = README.read_text()
     for topic in (itf.IMPACTS, itf.IMPACTOR_STATE, itf.ROTOR_SPEED, itf.ROTOR_JOINT_STATES,
-                  itf.SPEED_COMMAND,
-                  itf.UNBALANCE_COMMAND, itf.CLOCK, itf.DIAGNOSTICS, 'accel/<accelerometer>'):
+                  itf.ROTOR_TACH, itf.ROTOR_KEYPHASOR, itf.SPEED_COMMAND,
+                  itf.UNBALANCE_COMMAND, itf.CLOCK, itf.DIAGNOSTICS, 'accel/<accelerometer>',
+                  itf.accel_truth_topic('<accelerometer>')):
         assert f'| `{topic}`' in text, topic
 
 

@@ -209,6 +209,8 @@ def test_the_log_has_the_nodes_topics_types_and_qos(recorded):
               '/impactor_state': ('sensor_msgs/msg/JointState', itf.LATCHED_QOS),
               '/rotor/speed': ('geometry_msgs/msg/Vector3Stamped', itf.COMMAND_QOS),
               '/rotor/joint_states': ('sensor_msgs/msg/JointState', itf.COMMAND_QOS),
+              '/rotor/tach': ('sensor_msgs/msg/PointCloud2', itf.BATCH_QOS),
+              '/rotor/keyphasor': ('sensor_msgs/msg/PointCloud2', itf.EVENT_QOS),
               '/clock': ('rosgraph_msgs/msg/Clock', itf.CLOCK_QOS),
               '/rotor/speed_command': ('std_msgs/msg/Float64', itf.COMMAND_QOS),
               '/rotor/unbalance_command': ('std_msgs/msg/Float64', itf.COMMAND_QOS),

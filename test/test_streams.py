@@ -13,6 +13,8 @@ from impact_damper_sim.live.realtime import LiveSimulation
 from impact_damper_sim.live.streams import accelerometers, default_imu_rate, live_scene
 from impact_damper_sim.recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP,
                                                  IMPACT_FIELDS, IMPACT_POINT_STEP,
+                                                 KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP,
+                                                 TACH_FIELDS, TACH_POINT_STEP,
                                                  BatchEncoder, rows_of, sample_times_ns)
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.schema import SceneError
@@ -189,13 +191,16 @@ def _batch(fields, step, n, seed):
     rows = np.zeros(n, BatchEncoder('', fields, step).dtype)
     rng = np.random.default_rng(seed)
     for name in rows.dtype.names:
-        rows[name] = rng.integers(0, 7, n) if name == 'impactor' else rng.normal(size=n)
+        rows[name] = (rng.integers(0, 7, n) if name in ('impactor', 'revolution')
+                      else rng.normal(size=n))
     rows['t'] = np.arange(n) / 20000.0
     return rows
 
 
 @pytest.mark.parametrize('fields, step', [(ACCEL_FIELDS, ACCEL_POINT_STEP),
-                                          (IMPACT_FIELDS, IMPACT_POINT_STEP)])
+                                          (IMPACT_FIELDS, IMPACT_POINT_STEP),
+                                          (TACH_FIELDS, TACH_POINT_STEP),
+                                          (KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP)])
 @pytest.mark.parametrize('frame', ['', 'a', 'abc', 'hpotp_casing_bottom'])
 @pytest.mark.parametrize('n', [0, 1, 200])
 def test_batch_bytes_read_back_with_rclpy(fields, step, frame, n):
@@ -222,14 +227,17 @@ def test_batch_bytes_read_back_with_rclpy(fields, step, frame, n):
                                   12_345_678_901 + np.rint(rows['t'] * 1e9).astype(np.int64))
 
 
-def test_equal_batches_are_equal_bytes():
-    """No uninitialised padding: the impact layout has a gap after ``impactor``."""
-    rows = _batch(IMPACT_FIELDS, IMPACT_POINT_STEP, 50, 2)
+@pytest.mark.parametrize('fields, step', [(IMPACT_FIELDS, IMPACT_POINT_STEP),
+                                          (KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP)])
+def test_equal_batches_are_equal_bytes(fields, step):
+    """No uninitialised padding: the impact and keyphasor layouts have a gap after their
+    uint32 field."""
+    rows = _batch(fields, step, 50, 2)
     messy = np.empty(50, rows.dtype)   # garbage in the gaps
     messy.view(np.uint8)[:] = 0xAB
     for name in rows.dtype.names:
         messy[name] = rows[name]
-    enc = BatchEncoder('f', IMPACT_FIELDS, IMPACT_POINT_STEP)
+    enc = BatchEncoder('f', fields, step)
     assert enc.encode(5, messy) == enc.encode(5, rows)
 
 
@@ -248,7 +256,11 @@ def test_batches_read_with_rosbags_and_mcap_ros2(tmp_path):
     written = []
     with Rosbag2McapWriter(path) as writer:
         for topic, fields, step in [('/accel/a/batch', ACCEL_FIELDS, ACCEL_POINT_STEP),
-                                    ('/impacts', IMPACT_FIELDS, IMPACT_POINT_STEP)]:
+                                    ('/accel/a/truth', ACCEL_FIELDS, ACCEL_POINT_STEP),
+                                    ('/impacts', IMPACT_FIELDS, IMPACT_POINT_STEP),
+                                    ('/rotor/tach', TACH_FIELDS, TACH_POINT_STEP),
+                                    ('/rotor/keyphasor', KEYPHASOR_FIELDS,
+                                     KEYPHASOR_POINT_STEP)]:
             writer.add_topic(topic, 'sensor_msgs/msg/PointCloud2')
             enc = BatchEncoder('frame', fields, step)
             for k in range(5):

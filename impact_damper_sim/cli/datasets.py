@@ -3,8 +3,8 @@
 ::
 
     study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
-                 [--noise-std A] [--tick-period T] [--set KEY=VALUE ...] [--overwrite]
-                 [--progress] [--json]
+                 [--noise-std A] [--tick-period T] [--truth] [--set KEY=VALUE ...]
+                 [--overwrite] [--progress] [--json]
     study dataset SPEC.yaml --out DIR [--executor process|serial|dask] [--workers N]
                   [--dask-address ADDR] [--retry-failed] [--progress] [--json]
     study dataset --gather DIR [DIR ...] --out OUT [--json]
@@ -78,6 +78,9 @@ def add_record_parser(sub, scene_args):
                         'messages and times. '
                         "Default 10 ms, the node's default; 100 ms writes HPOTP logs about "
                         '1.5 x faster')
+    p.add_argument('--truth', action='store_true',
+                   help="also write each accelerometer's ground truth accel/<name>/truth: the "
+                        "model's acceleration before the channel (the node's publish_truth)")
     p.add_argument('--overwrite', action='store_true', help='replace --out if it exists')
     p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
                    help='progress line on stderr (default: when stderr is a terminal)')
@@ -90,7 +93,7 @@ def run_record(args):
     ----------
     args : argparse.Namespace
         ``scene``, ``overrides``, ``json``, ``duration``, ``out``, ``schedule``, ``seed``,
-        ``noise_std``, ``tick_period``, ``overwrite``, ``progress``.
+        ``noise_std``, ``tick_period``, ``truth``, ``overwrite``, ``progress``.
 
     Returns
     -------
@@ -122,7 +125,7 @@ def run_record(args):
         result = record_log(args.scene, args.out, duration, schedule=args.schedule,
                             overrides=args.overrides, seed=args.seed, noise_std=noise_std,
                             tick_period=tick_period, overwrite=args.overwrite,
-                            progress=args.progress)
+                            progress=args.progress, truth=args.truth)
     except FileExistsError as exc:   # created between the check and the open
         raise SceneError(str(exc)) from None
     except LogOpenError as exc:   # nothing written: like bad input

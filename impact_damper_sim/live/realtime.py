@@ -7,7 +7,9 @@ tested here with plain NumPy. Everything is SI.
   node publishes: per accelerometer, the node's acceleration on three axes (m/s^2, mean over
   each integrator step, through the anti-alias low-pass, decimated to the output rate, plus
   optional noise) and angular velocity (rad/s); impact events; impactor states; the applied
-  rotor speed and unbalance multiplier. Speed and unbalance commands are validated here.
+  rotor speed and unbalance multiplier; the tachometer (the rotor angle the unbalance force
+  uses, at every output sample, and the once-per-revolution keyphasor times). Speed and
+  unbalance commands are validated here.
 * :class:`Pacer` maps wall time to sim time for a real-time factor, and tells how far behind
   the simulation is.
 
@@ -28,6 +30,11 @@ from .streams import accelerometers, default_imu_rate, default_sample_rate
 
 _TRANSLATIONS = ('ux', 'uy', 'uz')
 _ROTATIONS = ('rx', 'ry', 'rz')
+_TWO_PI = 2.0 * math.pi
+
+#: One keyphasor event: the time (s) the rotor angle reached 2 pi ``revolution`` (the shaft's
+#: zero mark passing the probe; revolution 1 first) and the speed then (rad/s).
+KEYPHASOR_DTYPE = np.dtype([('t', '<f8'), ('revolution', '<i8'), ('speed', '<f8')])
 
 
 #: Growth rates below this fraction of the largest eigenvalue modulus are rounding, not
@@ -67,6 +74,13 @@ class Batch:
     clipped, imu_clipped : ndarray of int, shape (n_acc,)
         Values clipped by the measuring range or the ADC in this chunk, per accelerometer:
         of ``linear_acceleration`` and of ``imu_linear_acceleration`` (values, 3 per sample).
+    shaft_angle, shaft_speed : ndarray, shape (k,), or None
+        The tachometer at ``t``: the rotor angle ``phi(t)`` the unbalance force uses,
+        unwrapped (rad, 0 at t = 0, never decreasing), and the speed (rad/s); None without a
+        rotor.
+    keyphasor : ndarray of KEYPHASOR_DTYPE, or None
+        The times in this chunk's interval (end of the previous chunk, ``t[-1]``] at which
+        ``phi`` reached a whole number of turns; None without a rotor.
     """
 
     t: np.ndarray
@@ -80,6 +94,9 @@ class Batch:
     truth: np.ndarray = None
     clipped: np.ndarray = None
     imu_clipped: np.ndarray = None
+    shaft_angle: np.ndarray = None
+    shaft_speed: np.ndarray = None
+    keyphasor: np.ndarray = None
 
 
 
@@ -179,6 +196,10 @@ class LiveSimulation:
         self._stuck = self._stuck_flags()
         self.failure = None
         self.steps = 0
+        # the time (s) and rotor angle (rad) at the end of the last chunk
+        self._t_end = float(self.sim.t)
+        self._phi_end = (float(self.profile.angle(np.asarray(self._t_end)))
+                         if self.profile is not None else 0.0)
 
     def imu_noise_variances(self):
         """Variance of the white noise in each decimated (per-sample Imu) acceleration, per
@@ -424,8 +445,35 @@ class LiveSimulation:
         changed = stuck != self._stuck
         self._stuck = stuck
         self.steps += n_steps
+        angle, speed, keyphasor = self._tachometer(t)
         return Batch(t, lin, ang, events, changed, imu_t, imu_lin, dec[:, :, 3:], truth,
-                     clipped, imu_clipped)
+                     clipped, imu_clipped, angle, speed, keyphasor)
+
+    def _tachometer(self, t):
+        """The rotor angle and speed at the output times ``t`` (s) of the chunk just stepped,
+        and its keyphasor events; (None, None, None) without a rotor.
+
+        Read from the speed profile before any later command rewrites its future, so the
+        angle is the ``phi(t)`` that :class:`~impact_damper_sim.scene.excitation.
+        UnbalanceForce` evaluated at the same times. A turn k is in the chunk when
+        ``2 pi k`` is above the angle at the previous chunk's end and not above the angle at
+        this one's: each turn in exactly one chunk.
+        """
+        if self.profile is None:
+            return None, None, None
+        if not t.size:
+            return np.empty(0), np.empty(0), np.empty(0, KEYPHASOR_DTYPE)
+        angle, speed, _ = self.profile.state(t)
+        angle, speed = np.atleast_1d(angle), np.atleast_1d(speed)
+        first, last = _turns(self._phi_end) + 1, _turns(float(angle[-1]))
+        revolution = np.arange(first, last + 1, dtype=np.int64)
+        keyphasor = np.empty(revolution.size, KEYPHASOR_DTYPE)
+        if revolution.size:
+            at = np.clip(self.profile.time_at_angle(_TWO_PI * revolution), self._t_end, t[-1])
+            keyphasor['t'], keyphasor['revolution'] = at, revolution
+            keyphasor['speed'] = np.atleast_1d(self.profile.speed(at))
+        self._phi_end, self._t_end = float(angle[-1]), float(t[-1])
+        return angle, speed, keyphasor
 
     def linear_growth_rate(self):
         """Largest real part of the free structure's eigenvalues now (1/s); > 0 = unstable.
@@ -444,6 +492,17 @@ class LiveSimulation:
         lam = eigvals(A)
         rate = float(np.max(lam.real))
         return rate if rate > GROWTH_RATE_NOISE * float(np.max(np.abs(lam))) else 0.0
+
+
+def _turns(angle):
+    """The largest whole number of turns k with ``2 pi k <= angle`` (angle in rad, >= 0),
+    compared as the float products the keyphasor uses."""
+    k = math.floor(angle / _TWO_PI)
+    while _TWO_PI * k > angle:
+        k -= 1
+    while _TWO_PI * (k + 1) <= angle:
+        k += 1
+    return k
 
 
 def _checked(value, name, low, high, unit):
@@ -532,4 +591,4 @@ class Pacer:
         return target, lag
 
 
-__all__ = ['Batch', 'CommandError', 'LiveSimulation', 'Pacer']
+__all__ = ['Batch', 'CommandError', 'KEYPHASOR_DTYPE', 'LiveSimulation', 'Pacer']

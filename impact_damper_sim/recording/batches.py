@@ -14,6 +14,24 @@ Layouts (every field little-endian, count 1; ``header.stamp`` the start of the b
     (m/s^2): linear acceleration; ``wx wy wz`` float64 (rad/s): angular velocity.
     ``header.stamp`` is the first sample's time, ``header.frame_id`` the accelerometer frame.
 
+``accel/<accelerometer>/truth`` (:data:`ACCEL_FIELDS`, the same 56 bytes a sample)
+    The ground truth of the same samples: ``ax ay az`` the model's acceleration (m/s^2, the
+    model's axes at the node) through the anti-alias low-pass only (no other stage of the
+    channel); ``t`` and ``wx wy wz`` as in the batch. Off unless asked for.
+
+``rotor/tach`` (:data:`TACH_FIELDS`, 24 bytes a sample)
+    ``t`` float64 (s): the sample's time minus ``header.stamp`` (the same times as the
+    accelerometer batches); ``angle`` float64 (rad): the shaft angle ``phi(t)`` the unbalance
+    force uses, unwrapped (0 at sim time 0, never decreasing; ``angle mod 2 pi`` is
+    ``rotor/joint_states``' position); ``speed`` float64 (rad/s). ``header.stamp`` the first
+    sample's time, ``header.frame_id`` empty (a shaft angle has no frame).
+
+``rotor/keyphasor`` (:data:`KEYPHASOR_FIELDS`, 24 bytes an event)
+    ``t`` float64 (s): the time ``phi`` reached ``2 pi revolution`` minus ``header.stamp``;
+    ``revolution`` uint32: that whole number of turns (1 first); ``speed`` float64 (rad/s)
+    then. ``header.stamp`` the start of the interval the batch covers (one per stepped chunk,
+    empty when no turn was completed), as for ``impacts``.
+
 ``impacts`` (:data:`IMPACT_FIELDS`, 64 bytes an impact)
     ``t`` float64 (s): the impact time minus ``header.stamp``; ``impactor`` uint32: index of
     the impactor in the scene (the order of ``impactor_state``); ``jx jy jz`` float64 (N s):
@@ -47,6 +65,12 @@ IMPACT_FIELDS = (('t', 0, FLOAT64), ('impactor', 8, UINT32), ('jx', 16, FLOAT64)
                  ('jy', 24, FLOAT64), ('jz', 32, FLOAT64), ('v_approach', 40, FLOAT64),
                  ('v_separation', 48, FLOAT64), ('energy', 56, FLOAT64))
 IMPACT_POINT_STEP = 64
+#: Fields of the tachometer: one row per full-rate sample.
+TACH_FIELDS = (('t', 0, FLOAT64), ('angle', 8, FLOAT64), ('speed', 16, FLOAT64))
+TACH_POINT_STEP = 24
+#: Fields of the keyphasor: one row per revolution (4 bytes of padding after ``revolution``).
+KEYPHASOR_FIELDS = (('t', 0, FLOAT64), ('revolution', 8, UINT32), ('speed', 16, FLOAT64))
+KEYPHASOR_POINT_STEP = 24
 
 #: The suffix of an accelerometer's batch topic (``accel/<name>`` + this).
 BATCH_SUFFIX = '/batch'
@@ -74,6 +98,8 @@ def dtype_of(fields, point_step):
 
 ACCEL_DTYPE = dtype_of(ACCEL_FIELDS, ACCEL_POINT_STEP)
 IMPACT_DTYPE = dtype_of(IMPACT_FIELDS, IMPACT_POINT_STEP)
+TACH_DTYPE = dtype_of(TACH_FIELDS, TACH_POINT_STEP)
+KEYPHASOR_DTYPE = dtype_of(KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP)
 
 
 class CdrWriter:
@@ -140,7 +166,8 @@ class BatchEncoder:
     frame_id : str
         ``header.frame_id``.
     fields : sequence of (str, int, int)
-        The layout (:data:`ACCEL_FIELDS` or :data:`IMPACT_FIELDS`).
+        The layout (:data:`ACCEL_FIELDS`, :data:`IMPACT_FIELDS`, :data:`TACH_FIELDS` or
+        :data:`KEYPHASOR_FIELDS`).
     point_step : int
         Row size (bytes).
     """
@@ -252,5 +279,6 @@ def sample_times_ns(msg, rows=None):
 
 
 __all__ = ['ACCEL_DTYPE', 'ACCEL_FIELDS', 'ACCEL_POINT_STEP', 'BATCH_SUFFIX', 'BatchEncoder',
-           'IMPACT_DTYPE', 'IMPACT_FIELDS', 'IMPACT_POINT_STEP', 'POINTCLOUD2', 'dtype_of',
-           'rows_of', 'sample_times_ns']
+           'IMPACT_DTYPE', 'IMPACT_FIELDS', 'IMPACT_POINT_STEP', 'KEYPHASOR_DTYPE',
+           'KEYPHASOR_FIELDS', 'KEYPHASOR_POINT_STEP', 'POINTCLOUD2', 'TACH_DTYPE',
+           'TACH_FIELDS', 'TACH_POINT_STEP', 'dtype_of', 'rows_of', 'sample_times_ns']

@@ -2,9 +2,9 @@
 
 :class:`NodeMessages` turns what :class:`~impact_damper_sim.live.realtime.LiveSimulation`
 steps into serialized messages, each with its sim time (ns) and the stream it belongs to:
-per-sample ``sensor_msgs/Imu`` (one NumPy pass per chunk), full-rate and impact batches
-(``sensor_msgs/PointCloud2``, :mod:`.batches`), ``/clock``, ``rotor/speed``,
-``rotor/joint_states`` and ``impactor_state``; and the records of commands
+per-sample ``sensor_msgs/Imu`` (one NumPy pass per chunk), full-rate, ground-truth, tachometer,
+keyphasor and impact batches (``sensor_msgs/PointCloud2``, :mod:`.batches`), ``/clock``,
+``rotor/speed``, ``rotor/joint_states`` and ``impactor_state``; and the records of commands
 (``std_msgs/Float64``) and accepted parameter changes (``rcl_interfaces/ParameterEvent``).
 ``vibration_node`` publishes these bytes and records them; ``study record`` writes them to
 a log at the speed of the engine. The packing therefore exists once, and the two logs carry
@@ -26,6 +26,7 @@ import numpy as np
 
 from . import node_topics as nt
 from .batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS, IMPACT_POINT_STEP,
+                      KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP, TACH_FIELDS, TACH_POINT_STEP,
                       BatchEncoder, CdrWriter)
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
@@ -218,42 +219,59 @@ class NodeMessages:
         Fully qualified node name, for ``/parameter_events``.
     publish_clock : bool
         Whether ``/clock`` is one of the streams.
+    truth : bool
+        Whether each accelerometer's ground truth ``accel/<name>/truth`` is one of the
+        streams (the node's ``publish_truth``, ``study record --truth``).
 
     Attributes
     ----------
     streams : list of Stream
         Every topic, indexed by the stream numbers below and in the items.
-    imu, batch : list of int
-        Per accelerometer, the stream of its ``accel/<name>`` and ``accel/<name>/batch``.
-    impacts, state, speed, joint, clock, speed_command, unbalance_command, parameter_events
-        Stream numbers (``clock`` None without ``/clock``).
+    imu, batch, truth : list of int
+        Per accelerometer, the stream of its ``accel/<name>``, ``accel/<name>/batch`` and
+        ``accel/<name>/truth`` (``truth`` empty when off).
+    impacts, state, speed, joint, tach, keyphasor, clock, speed_command, unbalance_command,
+    parameter_events
+        Stream numbers (``clock`` None without ``/clock``; ``tach`` and ``keyphasor`` None
+        without a rotor).
     """
 
     def __init__(self, live, scene, *, namespace='/', node_name='/vibration_node',
-                 publish_clock=True):
+                 publish_clock=True, truth=False):
         self.live = live
         self.scene = scene
         self.node_name = node_name
         self.streams = []
 
-        def add(topic, qos):
-            type_name = nt.TYPES[nt.ACCEL_PREFIX if topic.startswith(nt.ACCEL_PREFIX)
-                                 and not topic.endswith(nt.BATCH_SUFFIX) else
-                                 nt.BATCH_SUFFIX if topic.endswith(nt.BATCH_SUFFIX) else topic]
+        def add(topic, qos, type_name=None):
+            if type_name is None:
+                type_name = nt.TYPES[nt.ACCEL_PREFIX if topic.startswith(nt.ACCEL_PREFIX)
+                                     and not topic.endswith(nt.BATCH_SUFFIX) else
+                                     nt.BATCH_SUFFIX if topic.endswith(nt.BATCH_SUFFIX)
+                                     else topic]
             self.streams.append(Stream(nt.qualified(topic, namespace), type_name, qos))
             return len(self.streams) - 1
 
-        self.imu, self.batch = [], []
+        self.imu, self.batch, self.truth = [], [], []
         self._batch_encoders = []
         for acc in live.accelerometers:
             self.imu.append(add(nt.accel_topic(acc.name), nt.SENSOR_QOS))
             self.batch.append(add(nt.accel_batch_topic(acc.name), nt.BATCH_QOS))
+            if truth:   # the same layout and frame as the batch: one encoder for both
+                self.truth.append(add(nt.accel_truth_topic(acc.name), nt.BATCH_QOS,
+                                      nt.TYPES[nt.TRUTH_SUFFIX]))
             self._batch_encoders.append(BatchEncoder(acc.frame_id, ACCEL_FIELDS,
                                                      ACCEL_POINT_STEP))
         self.impacts = add(nt.IMPACTS, nt.EVENT_QOS)
         self.state = add(nt.IMPACTOR_STATE, nt.LATCHED_QOS)
         self.speed = add(nt.ROTOR_SPEED, nt.COMMAND_QOS)
         self.joint = add(nt.ROTOR_JOINT_STATES, nt.COMMAND_QOS)
+        self.tach = self.keyphasor = None
+        if live.has_rotor:
+            self.tach = add(nt.ROTOR_TACH, nt.BATCH_QOS)
+            self.keyphasor = add(nt.ROTOR_KEYPHASOR, nt.EVENT_QOS)
+            self._tach_encoder = BatchEncoder('', TACH_FIELDS, TACH_POINT_STEP)
+            self._keyphasor_encoder = BatchEncoder('', KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP)
         self.clock = add(nt.CLOCK, nt.CLOCK_QOS) if publish_clock else None
         self.speed_command = add(nt.SPEED_COMMAND, nt.COMMAND_QOS)
         self.unbalance_command = add(nt.UNBALANCE_COMMAND, nt.COMMAND_QOS)
@@ -298,9 +316,11 @@ class NodeMessages:
     def batch_items(self, batch):
         """The messages of a stepped chunk, in the order of their send times.
 
-        Per accelerometer one full-rate batch (sent at its last sample's time) and the
-        decimated samples one by one (each sent when the filter has it, a filter delay after
-        its stamp); the chunk's impacts as one batch (sent at the chunk's end).
+        Per accelerometer one full-rate batch (sent at its last sample's time), its ground
+        truth batch when on (sent with it), and the decimated samples one by one (each sent
+        when the filter has it, a filter delay after its stamp); the chunk's impacts, then
+        with a rotor its tachometer and keyphasor batches, each as one batch (sent at the
+        chunk's end).
 
         Parameters
         ----------
@@ -331,14 +351,42 @@ class NodeMessages:
                 for name, column in zip(('wx', 'wy', 'wz'), batch.angular_velocity[:, a].T):
                     rows[name] = column
                 items.append((int(t_ns[-1]), a, self.batch[a], encoder.encode(t_ns[0], rows)))
+                if self.truth:   # the same rows with the model's acceleration
+                    for name, column in zip(('ax', 'ay', 'az'), batch.truth[:, a].T):
+                        rows[name] = column
+                    items.append((int(t_ns[-1]), a, self.truth[a],
+                                  encoder.encode(t_ns[0], rows)))
         end_ns = int(round(live.t * 1e9))
         if self.scene.impactors:
             ev = batch.events
             items.append((end_ns, len(self.imu), self.impacts,
                           self._impact_batch(ev[ev['kind'] == _IMPACT])))
+        if self.tach is not None:
+            items += self._tach_items(batch, t_ns, end_ns)
         self.impacts_from = end_ns
         items.sort(key=lambda item: item[:2])   # by send time, then accelerometer
         return [(ns, stream, data) for ns, _, stream, data in items]
+
+    def _tach_items(self, batch, t_ns, end_ns):
+        """The tachometer batch (the angle and speed at every full-rate sample) and the
+        keyphasor batch (the turns completed in the chunk's interval, which the impact batch
+        covers too) of a stepped chunk, both sent at its end: list of items."""
+        items = []
+        order = len(self.imu)   # after the impacts at the same time
+        if t_ns.size:
+            rows = np.empty(t_ns.size, self._tach_encoder.dtype)
+            rows['t'] = (t_ns - t_ns[0]) * 1e-9
+            rows['angle'], rows['speed'] = batch.shaft_angle, batch.shaft_speed
+            items.append((end_ns, order, self.tach, self._tach_encoder.encode(t_ns[0], rows)))
+        events = batch.keyphasor
+        rows = np.empty(events.size, self._keyphasor_encoder.dtype)
+        # the exact crossing time, relative to the interval's start (ns) in float64 (s)
+        rows['t'] = np.maximum(events['t'] - self.impacts_from * 1e-9, 0.0)
+        rows['revolution'] = events['revolution']
+        rows['speed'] = events['speed']
+        items.append((end_ns, order, self.keyphasor,
+                      self._keyphasor_encoder.encode(self.impacts_from, rows)))
+        return items
 
     def _impact_batch(self, impacts):
         """The CDR bytes of the impact batch covering the chunk just stepped."""
@@ -402,7 +450,51 @@ class NodeMessages:
         return parameter_event_cdr(int(round(self.live.t * 1e9)), self.node_name, changed)
 
 
-def run_metadata(scene_model, overrides, parameters, node_name):
+def run_labels(live, scene_model):
+    """What a detector is scored against, as plain data: the run's labels at sim time now.
+
+    Parameters
+    ----------
+    live : LiveSimulation
+        The simulation (read: ``t``, ``noise_seed``, ``noise_std``, ``dampers_enabled``,
+        ``unbalance``, ``profile``, ``accelerometers``, ``channels``).
+    scene_model : SceneModel
+        Its scene (``scene['structure']``: the cross-couplings).
+
+    Returns
+    -------
+    dict
+        ``sim_time_s`` (when these values hold: the log's start; a later change is in the
+        log as the command or parameter change it was), ``seed`` (the noise seed, which
+        seeds every random stage of the channels), ``noise_std`` (m/s^2),
+        ``dampers_enabled``, ``unbalance_multiplier`` (X, None without unbalance),
+        ``rotor_speed_rad_s`` (None without a rotor), ``kcc_n_per_m`` (the scene's
+        cross-coupled stiffness, summed over its cross-couplings; 0 without) with
+        ``cross_couplings`` (each: node, kcc N/m, dofs), and ``accelerometers``: per
+        accelerometer its node, frame and ``channel`` (the preset and every stage's values,
+        :meth:`~impact_damper_sim.live.channel.SensorChannel.labels`). Every value SI.
+    """
+    structure = scene_model.scene.get('structure') or {}
+    couplings = [{'node': c['node'], 'kcc': c['kcc'], 'dofs': list(c['dofs'])}
+                 for c in structure.get('cross_couplings') or ()]
+    return plain({
+        'sim_time_s': float(live.t),
+        'seed': int(live.noise_seed),
+        'noise_std': float(live.noise_std),
+        'dampers_enabled': bool(live.dampers_enabled),
+        'unbalance_multiplier': (None if live.unbalance is None
+                                 else float(live.unbalance.multiplier)),
+        'rotor_speed_rad_s': (None if live.profile is None
+                              else float(live.profile.speed(np.asarray(live.t)))),
+        'kcc_n_per_m': float(sum(c['kcc'] for c in couplings)),
+        'cross_couplings': couplings,
+        'accelerometers': {acc.name: {'node': acc.node, 'frame_id': acc.frame_id,
+                                      'channel': channel.labels()}
+                           for acc, channel in zip(live.accelerometers, live.channels)},
+    })
+
+
+def run_metadata(scene_model, overrides, parameters, node_name, live=None):
     """The ``impact_damper_sim`` metadata record that opens the node's logs (str to str).
 
     Parameters
@@ -415,16 +507,21 @@ def run_metadata(scene_model, overrides, parameters, node_name):
         The node's parameters (or ``study record``'s equivalents), as YAML-safe values.
     node_name : str
         Fully qualified node name.
+    live : LiveSimulation, optional
+        The simulation about to be logged: its :func:`run_labels` are the ``labels`` entry.
 
     Returns
     -------
     dict of str to str
         Software version, scene, overrides, the resolved scene in SI, the parameters, the
-        node name and the time base; nothing that changes from run to run.
+        node name, the time base and (with ``live``) ``labels`` (YAML); nothing that changes
+        from run to run.
     """
     import yaml
 
     import impact_damper_sim
+    labels = {} if live is None else {
+        'labels': yaml.safe_dump(run_labels(live, scene_model), sort_keys=False)}
     return {
         'software_version': impact_damper_sim.__version__,
         'scene': scene_model.name, 'scene_source': str(scene_model.source),
@@ -433,6 +530,7 @@ def run_metadata(scene_model, overrides, parameters, node_name):
         'node_parameters': yaml.safe_dump(plain(dict(parameters)), sort_keys=True),
         'node_name': node_name,
         'time_base': 'sim time (log_time = publish_time = sim time of the publish call)',
+        **labels,
     }
 
 
@@ -452,4 +550,4 @@ def plain(value):
 __all__ = ['ImuEncoder', 'NodeMessages', 'PARAMETER_BOOL', 'PARAMETER_DOUBLE',
            'PARAMETER_INTEGER', 'PARAMETER_STRING', 'Stream', 'clock_cdr', 'float64_cdr',
            'joint_state_cdr', 'parameter_event_cdr', 'parameter_value_type',
-           'plain', 'run_metadata', 'vector3_stamped_cdr']
+           'plain', 'run_labels', 'run_metadata', 'vector3_stamped_cdr']

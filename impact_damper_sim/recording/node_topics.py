@@ -21,10 +21,17 @@ STATE_PERIOD_RANGE = (0.01, 60.0)
 
 ACCEL_PREFIX = 'accel/'
 BATCH_SUFFIX = '/batch'
+#: an accelerometer's ground truth (``accel/<name>`` + this): the model's acceleration before
+#: the channel, in the batch layout; published when the node's ``publish_truth`` is on
+TRUTH_SUFFIX = '/truth'
 IMPACTS = 'impacts'
 IMPACTOR_STATE = 'impactor_state'
 ROTOR_SPEED = 'rotor/speed'
 ROTOR_JOINT_STATES = 'rotor/joint_states'
+#: the tachometer: the shaft angle at every full-rate sample (scenes with a rotor)
+ROTOR_TACH = 'rotor/tach'
+#: the once-per-revolution keyphasor events (scenes with a rotor)
+ROTOR_KEYPHASOR = 'rotor/keyphasor'
 SPEED_COMMAND = 'rotor/speed_command'
 UNBALANCE_COMMAND = 'rotor/unbalance_command'
 CLOCK = '/clock'
@@ -46,10 +53,13 @@ PARAMETER_EVENT = 'rcl_interfaces/msg/ParameterEvent'
 TYPES = {
     ACCEL_PREFIX: IMU,
     BATCH_SUFFIX: POINTCLOUD2,
+    TRUTH_SUFFIX: POINTCLOUD2,
     IMPACTS: POINTCLOUD2,
     IMPACTOR_STATE: JOINT_STATE,
     ROTOR_SPEED: VECTOR3_STAMPED,
     ROTOR_JOINT_STATES: JOINT_STATE,
+    ROTOR_TACH: POINTCLOUD2,
+    ROTOR_KEYPHASOR: POINTCLOUD2,
     SPEED_COMMAND: FLOAT64,
     UNBALANCE_COMMAND: FLOAT64,
     CLOCK: CLOCK_TYPE,
@@ -60,7 +70,8 @@ TYPES = {
 #: Accelerometer samples: best effort, volatile, keep last 100 (see ros.interface).
 SENSOR_QOS = {'history': 'keep_last', 'depth': 100, 'reliability': 'best_effort',
               'durability': 'volatile'}
-#: Batches (full-rate samples, impacts): reliable, volatile, keep last 100.
+#: Batches (full-rate samples, ground truth, tachometer, impacts, keyphasor): reliable,
+#: volatile, keep last 100.
 BATCH_QOS = {'history': 'keep_last', 'depth': 100, 'reliability': 'reliable',
              'durability': 'volatile'}
 #: Impact batches: every impact counts.
@@ -96,6 +107,11 @@ def accel_batch_topic(sensor):
     return ACCEL_PREFIX + sensor + BATCH_SUFFIX
 
 
+def accel_truth_topic(sensor):
+    """Return the relative topic name of an accelerometer's ground truth batches (str)."""
+    return ACCEL_PREFIX + sensor + TRUTH_SUFFIX
+
+
 def qualified(topic, namespace='/'):
     """The fully qualified name of ``topic`` in ``namespace`` (absolute names stay)."""
     if topic.startswith('/'):
@@ -108,6 +124,6 @@ __all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'C
            'FLOAT64', 'IMPACTS', 'IMPACTOR_STATE', 'IMU', 'JOINT_STATE', 'LATCHED_QOS',
            'PARAMETER_EVENT', 'PARAMETER_EVENTS', 'PARAMETER_EVENTS_QOS', 'POINTCLOUD2',
            'RECORD_CHUNK_SIZE',
-           'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES',
-           'UNBALANCE_COMMAND', 'VECTOR3_STAMPED', 'accel_batch_topic', 'accel_topic',
-           'qualified']
+           'ROTOR_JOINT_STATES', 'ROTOR_KEYPHASOR', 'ROTOR_SPEED', 'ROTOR_TACH', 'SENSOR_QOS',
+           'SPEED_COMMAND', 'TRUTH_SUFFIX', 'TYPES', 'UNBALANCE_COMMAND', 'VECTOR3_STAMPED',
+           'accel_batch_topic', 'accel_topic', 'accel_truth_topic', 'qualified']

@@ -32,6 +32,25 @@ orientation is not measured: ``orientation_covariance[0] = -1`` (REP-145);
 ``linear_acceleration_covariance`` is diagonal with the noise variance (all zeros when
 noise is off: unknown); ``angular_velocity_covariance`` is all zeros (unknown).
 
+``accel/<accelerometer>/truth`` -- ``sensor_msgs/PointCloud2``, only with ``publish_truth``
+    The ground truth of the batch beside it, in its layout, frame and times: ``ax ay az`` the
+    model's acceleration (m/s^2, along the model's axes at the node) through the anti-alias
+    low-pass and no other stage of the channel (no mounting, resonance, high-pass, noise,
+    bias, range or ADC); ``wx wy wz`` as in the batch. With the ideal channel (and no noise)
+    it equals the batch. Off by default: a test stand has no such signal.
+
+``rotor/tach`` -- ``sensor_msgs/PointCloud2``, one batch per stepped chunk (rotor scenes)
+    The tachometer at the full rate, one row per accelerometer sample time: ``t`` (s, minus
+    ``header.stamp``, the first sample's time), ``angle`` (rad) the shaft angle ``phi(t)``
+    the unbalance force uses, unwrapped (0 at sim time 0, never decreasing: order tracking
+    resamples on it as it is), ``speed`` (rad/s); all float64, ``header.frame_id`` empty.
+
+``rotor/keyphasor`` -- ``sensor_msgs/PointCloud2``, one batch per stepped chunk (rotor scenes)
+    The once-per-revolution reference: one row per time ``phi`` reached ``2 pi k``: ``t``
+    (s, minus ``header.stamp``, the start of the interval the batch covers, as for
+    ``impacts``), ``revolution`` (uint32, k, 1 first), ``speed`` (rad/s, float64). The
+    unbalance of phase ``p`` points at ``phi + p``: at a keyphasor time it is at ``p``.
+
 ``impacts`` -- ``sensor_msgs/PointCloud2``, one batch per stepped chunk
     ``header.stamp`` the start of the interval the batch covers (an empty batch says nothing
     hit in it); ``header.frame_id`` the housing's frame. One row per impact: ``t`` (s, the
@@ -78,8 +97,10 @@ from ..recording import node_topics as _topics
 from ..recording.bag_metadata import qos_dict as _qos_dict
 from ..recording.node_topics import (ACCEL_PREFIX, BATCH_SUFFIX, CLOCK, DIAGNOSTICS,  # noqa: F401
                                      IMPACTOR_STATE, IMPACTS, PARAMETER_EVENTS,
-                                     ROTOR_JOINT_STATES, ROTOR_SPEED, SPEED_COMMAND, TYPES,
-                                     UNBALANCE_COMMAND, accel_batch_topic, accel_topic)
+                                     ROTOR_JOINT_STATES, ROTOR_KEYPHASOR, ROTOR_SPEED,
+                                     ROTOR_TACH, SPEED_COMMAND, TRUTH_SUFFIX, TYPES,
+                                     UNBALANCE_COMMAND, accel_batch_topic, accel_topic,
+                                     accel_truth_topic)
 from ..scene.units import G0  # standard gravity (m/s^2), for reports in g
 
 
@@ -122,5 +143,6 @@ __all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'C
            'DIAGNOSTICS',
            'DIAGNOSTICS_QOS', 'EVENT_QOS', 'G0', 'IMPACTS', 'IMPACTOR_STATE', 'LATCHED_QOS',
            'PARAMETER_EVENTS', 'PARAMETER_EVENTS_QOS',
-           'ROTOR_JOINT_STATES', 'ROTOR_SPEED', 'SENSOR_QOS', 'SPEED_COMMAND', 'TYPES',
-           'UNBALANCE_COMMAND', 'accel_batch_topic', 'accel_topic']
+           'ROTOR_JOINT_STATES', 'ROTOR_KEYPHASOR', 'ROTOR_SPEED', 'ROTOR_TACH', 'SENSOR_QOS',
+           'SPEED_COMMAND', 'TRUTH_SUFFIX', 'TYPES', 'UNBALANCE_COMMAND', 'accel_batch_topic',
+           'accel_topic', 'accel_truth_topic']

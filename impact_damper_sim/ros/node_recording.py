@@ -169,7 +169,7 @@ class RecordingMixin:
     def _run_metadata(self):
         from ..recording.node_messages import run_metadata
         return run_metadata(self.scene, self._params['overrides'], self._params,
-                            self.get_fully_qualified_name())
+                            self.get_fully_qualified_name(), live=self.live)
 
 
 def _new_record_path(scene, directory='.'):

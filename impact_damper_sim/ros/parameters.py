@@ -56,6 +56,10 @@ PARAMETERS = {
                               'commanded rotor)', (0.0, 1.0e6), False),
     'publish_clock': (True, 'publish /clock (turn off on all but one node of a system)',
                       None, True),
+    'publish_truth': (False, "publish each accelerometer's ground truth accel/<name>/truth: "
+                             "the model's acceleration (m/s^2) before the channel, through the "
+                             'anti-alias low-pass only, in the batch layout (recorded when on); '
+                             'off: a real test stand has none', None, True),
     'tick_period': (_topics.TICK_PERIOD, 'sim time stepped per chunk (s); samples are '
                     'computed one chunk ahead and published one by one at their own time',
                     _topics.TICK_PERIOD_RANGE, True),

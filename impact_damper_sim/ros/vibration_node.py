@@ -189,20 +189,30 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         # the bytes of every topic come from the ROS-free packer that study record uses
         messages = self._messages = NodeMessages(
             self.live, self.scene, namespace=self.get_namespace(),
-            node_name=self.get_fully_qualified_name(), publish_clock=p['publish_clock'])
+            node_name=self.get_fully_qualified_name(), publish_clock=p['publish_clock'],
+            truth=p['publish_truth'])
         self._accel_pubs = [Outlet(self, Imu, itf.accel_topic(acc.name), itf.SENSOR_QOS)
                             for acc in self.live.accelerometers]   # per-sample, imu_rate
         self._batch_pubs = [Outlet(self, PointCloud2, itf.accel_batch_topic(acc.name),
                                    itf.BATCH_QOS)
                             for acc in self.live.accelerometers]   # full-rate batches
+        self._truth_pubs = [Outlet(self, PointCloud2, itf.accel_truth_topic(acc.name),
+                                   itf.BATCH_QOS)
+                            for acc in self.live.accelerometers] if messages.truth else []
         self._impact_pub = Outlet(self, PointCloud2, itf.IMPACTS, itf.EVENT_QOS)
         self._state_pub = Outlet(self, JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
         self._speed_pub = Outlet(self, Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
         self._joint_pub = Outlet(self, JointState, itf.ROTOR_JOINT_STATES, itf.COMMAND_QOS)
+        # the tachometer and keyphasor: scenes with a rotor only
+        self._tach_pubs = [] if messages.tach is None else [
+            Outlet(self, PointCloud2, itf.ROTOR_TACH, itf.BATCH_QOS),
+            Outlet(self, PointCloud2, itf.ROTOR_KEYPHASOR, itf.EVENT_QOS)]
         self._clock_pub = (Outlet(self, Clock, itf.CLOCK, itf.CLOCK_QOS)
                            if p['publish_clock'] else None)
         self._outlet_of = {**dict(zip(messages.imu, self._accel_pubs)),
                            **dict(zip(messages.batch, self._batch_pubs)),
+                           **dict(zip(messages.truth, self._truth_pubs)),
+                           **dict(zip((messages.tach, messages.keyphasor), self._tach_pubs)),
                            messages.impacts: self._impact_pub, messages.state: self._state_pub,
                            messages.speed: self._speed_pub, messages.joint: self._joint_pub,
                            messages.clock: self._clock_pub}
@@ -334,8 +344,9 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
     @property
     def outlets(self):
         """list of _Outlet: Every publisher of the node (``topic``, ``type_name``, ``count``)."""
-        return [*self._accel_pubs, *self._batch_pubs, self._impact_pub, self._state_pub,
-                self._speed_pub, self._joint_pub, self._diag_pub] + (
+        return [*self._accel_pubs, *self._batch_pubs, *self._truth_pubs, self._impact_pub,
+                self._state_pub, self._speed_pub, self._joint_pub, *self._tach_pubs,
+                self._diag_pub] + (
                     [self._clock_pub] if self._clock_pub else [])
 
     # -- stepping -------------------------------------------------------------------------

@@ -95,6 +95,26 @@ class _Knots:
         k, dt, s = self._locate(t)
         return self._angle_at(k, dt, s), self._speed_at(k, dt, s), s
 
+    def time_at(self, angle):
+        """The first time the angle reaches each of ``angle`` (rad, non-decreasing angle).
+
+        On its segment the angle is ``phi_k + w_k dt + s_k dt^2 / 2``; the root is taken in
+        the form ``2 d / (w_k + sqrt(w_k^2 + 2 s_k d))`` (no cancellation when decelerating).
+        Before the first knot the speed is held at ``w_0``; after the last one at ``w_last``
+        (inf when that is 0 and the angle is never reached).
+        """
+        a = np.asarray(angle, dtype=float)
+        j = np.searchsorted(self.phi, a, side='left')   # first knot at or beyond the angle
+        k = np.maximum(j - 1, 0)
+        d = a - self.phi[k]
+        s = np.where((j == 0) | (j == self.phi.size), 0.0, self.s[k])
+        w = self.w[k]
+        root = np.sqrt(np.maximum(w * w + 2.0 * s * d, 0.0))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            dt = np.where(d == 0, 0.0, 2.0 * d / (w + root))
+        dt = np.where(np.isnan(dt), np.inf, dt)
+        return self.t[k] + dt
+
 
 class SpeedProfile:
     """Base class of rotor speed profiles: speed, acceleration and angle at times ``t``.
@@ -159,6 +179,26 @@ class SpeedProfile:
         t, out = _shaped(t)
         phi, omega, alpha = self._knots().state(t)
         return out(phi), out(omega), out(alpha)
+
+    def time_at_angle(self, angle):
+        """The first time the rotor angle ``phi`` reaches ``angle``, solved exactly.
+
+        ``phi`` never decreases (speeds are >= 0), so this is where ``phi`` crosses
+        ``angle``: the keyphasor's once-per-revolution times are ``time_at_angle(2 pi k)``.
+
+        Parameters
+        ----------
+        angle : float or array_like
+            Angles (rad), >= ``phi`` at the first knot.
+
+        Returns
+        -------
+        float or ndarray
+            Times (s), same shape as ``angle``; inf for an angle a rotor held at 0 rad/s
+            never reaches.
+        """
+        angle, out = _shaped(angle)
+        return out(self._knots().time_at(angle))
 
 
 class PiecewiseLinearSpeed(SpeedProfile):

@@ -13,6 +13,8 @@ command schedules and noise seeds (units allowed wherever a scene takes them)::
     noise_std: 0.05 g            # optional, at start (m/s^2 or units)
     tick_period: 100 ms          # optional, the node's tick_period: 1 ms to 100 ms,
                                  # default 10 ms
+    truth: true                  # optional, write each accelerometer's ground truth
+                                 # (study record --truth); default false
     overrides: [rotor.multiplier=2]   # optional, every run
     grid:                        # every combination ...
       impactors.0.clearance: [2 mil, 3 mil]
@@ -31,13 +33,15 @@ command schedules and noise seeds (units allowed wherever a scene takes them)::
 
 Each run is one ``study record`` (:func:`.record.record_log`) into ``DIR/runs/<id>.mcap``;
 its id is a digest of everything that decides its bytes (scene, overrides, schedule text,
-seed, noise, duration, tick period, software version), so a run whose inputs are unchanged
-keeps its id.
+seed, noise, duration, tick period, ground truth when on, software version), so a run whose
+inputs are unchanged keeps its id.
 ``DIR/manifest.json`` and ``DIR/manifest.csv`` list every run: id, every parameter, the
-summary labels (impacts per second, stuck fraction, peak and RMS acceleration in g, diverged
-or not, the sim time reached), the file, its size and its sha256, and for a failed run its
-one-line reason. The manifest is rewritten after every finished run, so a data set that is
-interrupted continues where it stopped: a run already in the manifest whose file is there
+summary labels (the accelerometer channel preset, impacts per second, stuck fraction, peak
+and RMS acceleration in g, diverged or not, the sim time reached), the file, its size and its
+sha256, and for a failed run its one-line reason. Each log's metadata holds the run's full
+labels (``labels``: every channel stage's values, unbalance, Kcc, dampers, seed). The
+manifest is rewritten after every finished run, so a data set that is interrupted continues
+where it stopped: a run already in the manifest whose file is there
 with its recorded sha256 is skipped (a failed run too, unless ``--retry-failed``). A failing
 run does not stop the others; a disk error does (a full disk fails every later run too): the
 run is listed as failed, ``disk error: ...``, and recorded again by the next run of the
@@ -66,10 +70,10 @@ import time
 from ..scene.schema import SceneError
 
 #: label columns of the manifest, from :func:`.record.record_log`'s result
-LABELS = ('impacts_per_s', 'stuck_fraction', 'peak_g', 'rms_g', 'diverged', 'failure',
-          'sim_time_s', 'wall_s', 'real_time_factor', 'messages')
-SPEC_KEYS = ('scene', 'duration', 'noise_std', 'tick_period', 'overrides', 'grid', 'schedules',
-             'seeds', 'sample')
+LABELS = ('channel_preset', 'impacts_per_s', 'stuck_fraction', 'peak_g', 'rms_g', 'diverged',
+          'failure', 'sim_time_s', 'wall_s', 'real_time_factor', 'messages')
+SPEC_KEYS = ('scene', 'duration', 'noise_std', 'tick_period', 'truth', 'overrides', 'grid',
+             'schedules', 'seeds', 'sample')
 
 
 #: How a manifest's ``error`` of a run failed by a disk error starts; such a run is recorded
@@ -118,8 +122,8 @@ def load_spec(path):
         One per run, in spec order: ``id``, ``scene``, ``overrides`` (the fixed ones, then
         the run's), ``keys`` (the run's own scene keys and values, as written), ``schedule``
         (absolute path or None), ``seed``, ``noise_std`` (m/s^2), ``duration`` (s),
-        ``tick_period`` (s) and ``inputs_sha256`` (the digest of the inputs the id is made
-        of).
+        ``tick_period`` (s), ``truth`` (bool) and ``inputs_sha256`` (the digest of the inputs
+        the id is made of).
 
     Raises
     ------
@@ -184,6 +188,10 @@ def load_spec(path):
         tick_period = parse_tick_period(raw.get('tick_period', TICK_PERIOD), "key 'tick_period'")
     except SceneError as exc:
         errors.append(str(exc))
+    truth = raw.get('truth', False)
+    if not isinstance(truth, bool):
+        errors.append(f"key 'truth': expected true or false, got {truth!r}")
+        truth = False
     fixed = text_list('overrides', raw.get('overrides', []))
     runs = []   # (keys dict, schedule, seed)
     if 'sample' in raw:
@@ -261,10 +269,12 @@ def load_spec(path):
                   'overrides': overrides, 'schedule_sha256': schedule_sha, 'seed': seed,
                   'noise_std': noise_std, 'duration': duration, 'tick_period': tick_period,
                   'software_version': version}
+        if truth:   # only when on: the ids of runs without it stay what they were
+            inputs['truth'] = True
         digest = hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()
         plan.append({'id': 'r' + digest[:12], 'scene': scene, 'overrides': overrides,
                      'keys': keys, 'schedule': schedule, 'seed': seed, 'noise_std': noise_std,
-                     'duration': duration, 'tick_period': tick_period,
+                     'duration': duration, 'tick_period': tick_period, 'truth': truth,
                      'inputs_sha256': digest})
     ids = [run['id'] for run in plan]
     if len(set(ids)) != len(ids):
@@ -302,7 +312,7 @@ def record_run(run, out_dir):
         result = record_log(run['scene'], part, run['duration'], schedule=run['schedule'],
                             overrides=run['overrides'], seed=run['seed'],
                             noise_std=run['noise_std'], tick_period=run['tick_period'],
-                            overwrite=True, progress=False)
+                            overwrite=True, progress=False, truth=bool(run.get('truth')))
         os.replace(part, final)
         size, digest = os.path.getsize(final), _file_sha256(final)
     except OSError as exc:   # the disk's failure, not the run's: the data set stops
@@ -335,7 +345,7 @@ def record_run(run, out_dir):
 #: manifest and for reading it back (:mod:`.dataset_gather`)
 RUN_COLUMNS = (('id', 'id'), ('scene', 'scene'), ('duration_s', 'duration'),
                ('tick_period_s', 'tick_period'), ('noise_std', 'noise_std'), ('seed', 'seed'),
-               ('schedule', 'schedule'), ('overrides', 'overrides'),
+               ('schedule', 'schedule'), ('truth', 'truth'), ('overrides', 'overrides'),
                ('inputs_sha256', 'inputs_sha256'))
 #: the outcome columns of a run (the rest of a manifest row)
 RESULT_COLUMNS = ('status', 'error', *LABELS, 'file', 'bytes', 'sha256')

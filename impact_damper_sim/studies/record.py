@@ -3,8 +3,8 @@
 ::
 
     study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
-                 [--noise-std A] [--tick-period T] [--set KEY=VALUE ...] [--overwrite]
-                 [--progress] [--json]
+                 [--noise-std A] [--tick-period T] [--truth] [--set KEY=VALUE ...]
+                 [--overwrite] [--progress] [--json]
 
 :func:`record_log` steps :class:`~impact_damper_sim.live.realtime.LiveSimulation` with no
 wall clock and writes what ``vibration_node`` would publish and record with the same
@@ -15,6 +15,9 @@ schedule (:mod:`impact_damper_sim.live.schedule`) is applied at the same sample 
 as the node applies it, and each applied key is logged as the live command
 (``std_msgs/Float64`` on ``rotor/speed_command`` or ``rotor/unbalance_command``) or
 parameter change (``rcl_interfaces/ParameterEvent`` on ``/parameter_events``) it stands for.
+With ``truth`` the log also holds each accelerometer's ground truth (the node's
+``publish_truth``), and its metadata the run's labels (the channels' presets and stages,
+the unbalance multiplier, Kcc, the dampers, the seed) as the node's log does.
 
 What the node writes and this does not: ``/diagnostics`` (a report of the wall-clock run:
 real-time factor, CPU, lag; there is none here). ``impactor_state`` is written on every
@@ -274,7 +277,7 @@ def write_failure(path, error, stats, complete=None):
 def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noise_std=0.0,
                overwrite=False, progress=None, sample_rate=None, imu_rate=None,
                tick_period=TICK_PERIOD, state_period=STATE_PERIOD, overwrite_option='--overwrite',
-               stream=None):
+               stream=None, truth=False):
     """Step a scene for ``duration`` of sim time and write the node's log of it to ``out``.
 
     Parameters
@@ -310,12 +313,17 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         How the caller asks for ``overwrite`` (named when the file exists).
     stream : file, optional
         Where progress goes; default ``sys.stderr``.
+    truth : bool
+        Also write each accelerometer's ground truth ``accel/<name>/truth`` (the node's
+        ``publish_truth``).
 
     Returns
     -------
     RecordResult
         ``path``, ``sim_time_s`` (reached), ``wall_s``, ``real_time_factor`` (sim s per wall
-        s), ``messages``, ``bytes``, ``samples`` (full-rate, per accelerometer),
+        s), ``messages``, ``bytes``, ``channel_preset`` (the accelerometers' channel preset;
+        ``name=preset`` pairs joined by ``;`` when they differ), ``samples`` (full-rate, per
+        accelerometer),
         ``impacts``, ``impacts_per_s``, ``stuck_fraction`` (time-weighted mean over the
         impactors, dimensionless; None without impactors), ``peak_g`` and ``rms_g`` (of the
         acceleration components over every accelerometer, g), ``commands`` (schedule keys
@@ -359,11 +367,12 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     if schedule is not None:
         schedule.check(live)
     start_rate = live.profile.max_rate if hasattr(live.profile, 'command') else None
-    messages = NodeMessages(live, scene_model, node_name=NODE_NAME)
+    messages = NodeMessages(live, scene_model, node_name=NODE_NAME, truth=bool(truth))
     streams = messages.streams
     parameters = {'scene': str(scene), 'overrides': list(overrides) or None,
                   'sample_rate': live.sample_rate, 'imu_rate': live.imu_rate,
                   'noise_std': float(noise_std), 'noise_seed': int(seed),
+                  'publish_truth': bool(truth),
                   'tick_period': float(tick_period), 'state_period': float(state_period),
                   'schedule': schedule.source if schedule is not None else '',
                   'real_time_factor': 0.0, 'recorded_by': 'study record',
@@ -383,7 +392,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     summary = _Summary(live, scene_model)
     applied = 0
     try:
-        metadata = run_metadata(scene_model, overrides, parameters, NODE_NAME)
+        metadata = run_metadata(scene_model, overrides, parameters, NODE_NAME, live=live)
         if schedule is not None:
             metadata['schedule'] = schedule.text
         writer.add_metadata('impact_damper_sim', metadata)
@@ -467,13 +476,24 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         real_time_factor=live.t / wall if wall > 0 else math.inf,
         messages=stats['messages_written'], bytes=stats['file_bytes'],
         commands=applied, diverged=live.failure is not None, failure=live.failure,
-        finished=bool(finished), write_error=None, **summary.result(live.t))
+        finished=bool(finished), write_error=None, channel_preset=channel_preset(live),
+        **summary.result(live.t))
     if not finished:
         line, reason, recoverable = write_failure(out, writer.error, stats,
                                                   complete=reached.messages)
         result['write_error'] = line
         raise LogWriteError(line, os.fspath(out), reason, result, recoverable)
     return result
+
+
+def channel_preset(live):
+    """The channel preset of a run's accelerometers (str): the one name when they share it,
+    else ``name=preset`` per accelerometer joined by ``;`` ('' without accelerometers)."""
+    presets = {acc.name: channel.spec['preset'] or 'ideal'
+               for acc, channel in zip(live.accelerometers, live.channels)}
+    if len(set(presets.values())) <= 1:
+        return next(iter(presets.values()), '')
+    return ';'.join(f'{name}={preset}' for name, preset in presets.items())
 
 
 class _Reached:
@@ -562,7 +582,8 @@ class _Progress:
 
 
 __all__ = ['EXIT_WRITE_FAILED', 'LogOpenError', 'LogWriteError', 'RecordResult',
-           'STATE_PERIOD', 'TICK_PERIOD', 'TICK_PERIOD_RANGE', 'check_definitions',
+           'STATE_PERIOD', 'TICK_PERIOD', 'TICK_PERIOD_RANGE', 'channel_preset',
+           'check_definitions',
            'check_tick_period',
            'error_reason', 'open_error', 'parse_tick_period', 'record_log',
            'tick_period_range_text', 'write_failure']
