@@ -44,8 +44,10 @@ PARAMETERS = {
                         None, False),
     'noise_std': (0.0, 'white noise added to each acceleration sample, standard deviation '
                        '(m/s^2)', (0.0, 1000.0), False),
-    'noise_seed': (0, 'seed of the noise generator; setting it restarts the noise sequence '
-                      '(dimensionless)', (0, 2**31 - 1), False),
+    'noise_seed': (0, 'seed of the noise generator and, at start, of every random stage of '
+                      'the accelerometer channel (sensor noise, biases, DAQ noise); setting '
+                      'it live restarts the noise_std sequence only (dimensionless)',
+                   (0, 2**31 - 1), False),
     'max_speed': (0.0, 'largest accepted speed command (rad/s); 0 = twice the scene speed',
                   (0.0, 1.0e5), True),
     'max_unbalance': (100.0, 'largest accepted unbalance multiplier X (dimensionless)',
