@@ -481,8 +481,10 @@ def test_command_floods(ros_context, scale):
                 msg = Float64(data=value)
             else:
                 msg = _random_message(rng, sub.msg_type)
-            sub.callback(msg)   # raising here would stop an executor: it must not
-            if topic in state:
+            applied = sub.callback(msg)   # raising here would stop an executor: it must not
+            if topic not in state:   # the fault command (a String): its callback says
+                invalid += applied is False
+            else:
                 get, high = state[topic]
                 if math.isfinite(value) and 0.0 <= value <= high:
                     last[topic] = value

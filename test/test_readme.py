@@ -70,7 +70,8 @@ def test_topic_table_names_every_topic():
     text = README.read_text()
     for topic in (itf.IMPACTS, itf.IMPACTOR_STATE, itf.ROTOR_SPEED, itf.ROTOR_JOINT_STATES,
                   itf.ROTOR_TACH, itf.ROTOR_KEYPHASOR, itf.SPEED_COMMAND,
-                  itf.UNBALANCE_COMMAND, itf.CLOCK, itf.DIAGNOSTICS, 'accel/<accelerometer>',
+                  itf.UNBALANCE_COMMAND, itf.FAULT_COMMAND, itf.CLOCK, itf.DIAGNOSTICS,
+                  'accel/<accelerometer>',
                   itf.accel_truth_topic('<accelerometer>')):
         assert f'| `{topic}`' in text, topic
 

@@ -20,7 +20,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Imu, JointState, PointCloud2  # noqa: E402
-from std_msgs.msg import Float64  # noqa: E402
+from std_msgs.msg import Float64, String  # noqa: E402
 
 from impact_damper_sim.recording.batches import rows_of  # noqa: E402
 from impact_damper_sim.ros import interface as itf  # noqa: E402
@@ -971,17 +971,32 @@ def test_fuzzed_messages_on_every_subscribed_topic(ros_context):
     ex.add_node(sender)
     subscribed = {name for name, _ in node.get_subscriber_names_and_types_by_node(
         'vibration_node', '/')}
-    assert subscribed == {'/' + itf.SPEED_COMMAND, '/' + itf.UNBALANCE_COMMAND}
+    assert subscribed == {'/' + itf.SPEED_COMMAND, '/' + itf.UNBALANCE_COMMAND,
+                          '/' + itf.FAULT_COMMAND}
     values = [math.nan, -math.nan, math.inf, -math.inf, -0.0, 0.0, 5e-324, -5e-324, 1.7e308,
               -1.7e308, 1.0, 2.0**53]
+    # the fault commands (std_msgs/String): bad YAML, other shapes, huge or odd text
+    texts = ['', '{', 'null', '[1, 2]', '42', 'x.yaml', '{clear: [all]}', '{clear: }',
+             '{kind: gain, accelerometer: hpotp_casing_bottom, gain: .nan}',
+             '{kind: spikes, accelerometer: hpotp_casing_bottom, rate: 1e300 Hz, amplitude: 1}',
+             '{kind: gain, accelerometer: hpotp_casing_bottom, gain: 2, onset: -inf}',
+             '&a [*a]', '{' * 5000, 'a: ' + 'x' * 100000, '\u00e9\u2603: 1', '{"kind": 7}']
     try:
-        pubs = [sender.create_publisher(Float64, topic, itf.COMMAND_QOS) for topic in subscribed]
+        float_topics = [t for t in subscribed if t != '/' + itf.FAULT_COMMAND]
+        pubs = [sender.create_publisher(Float64, topic, itf.COMMAND_QOS)
+                for topic in float_topics]
+        fault_pub = sender.create_publisher(String, itf.FAULT_COMMAND, itf.COMMAND_QOS)
         _spin(ex, 0.3)
         for v in values:
             for pub in pubs:
                 pub.publish(Float64(data=v))
             _spin(ex, 0.02)
+        refused = node.rejected
+        for text in texts:
+            fault_pub.publish(String(data=text))
+            _spin(ex, 0.02)
         _spin(ex, 0.3)
+        assert len(node.live.faults) == 0 and node.rejected - refused == len(texts)
         assert node.live.profile.target == 2.0**53 or node.live.profile.target == 1.0 or \
             node.live.profile.target <= node.live.max_speed
         assert node.live.unbalance.multiplier in (1.0, 0.0, 5e-324)

@@ -3,8 +3,8 @@
 ::
 
     study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
-                 [--noise-std A] [--tick-period T] [--truth] [--set KEY=VALUE ...]
-                 [--overwrite] [--progress] [--json]
+                 [--noise-std A] [--tick-period T] [--truth] [--fault YAML ...]
+                 [--set KEY=VALUE ...] [--overwrite] [--progress] [--json]
     study dataset SPEC.yaml --out DIR [--executor process|serial|dask] [--workers N]
                   [--dask-address ADDR] [--retry-failed] [--progress] [--json]
     study dataset --gather DIR [DIR ...] --out OUT [--json]
@@ -64,7 +64,7 @@ def add_record_parser(sub, scene_args):
     p.add_argument('--out', required=True, metavar='F.mcap', help='the log to write')
     p.add_argument('--schedule', metavar='F.yaml',
                    help='command schedule (speed, speed_rate, unbalance, dampers, noise_std, '
-                        'noise_seed at sim times; docs/node.md)')
+                        'noise_seed, fault, clear_fault at sim times; docs/node.md)')
     p.add_argument('--seed', type=int, default=0,
                    help="noise seed, the node's noise_seed (default 0)")
     p.add_argument('--noise-std', default='0', metavar='A',
@@ -81,6 +81,10 @@ def add_record_parser(sub, scene_args):
     p.add_argument('--truth', action='store_true',
                    help="also write each accelerometer's ground truth accel/<name>/truth: the "
                         "model's acceleration before the channel (the node's publish_truth)")
+    p.add_argument('--fault', action='append', default=[], metavar='YAML',
+                   help="a sensor fault from the start, as accel/fault_command takes it, e.g. "
+                        "'{kind: dropout, accelerometer: hpotp_casing_bottom, onset: 1 s, "
+                        "duration: 50 ms}' (repeat for more; docs/channel.md, Sensor faults)")
     p.add_argument('--overwrite', action='store_true', help='replace --out if it exists')
     p.add_argument('--progress', action=argparse.BooleanOptionalAction, default=None,
                    help='progress line on stderr (default: when stderr is a terminal)')
@@ -93,7 +97,7 @@ def run_record(args):
     ----------
     args : argparse.Namespace
         ``scene``, ``overrides``, ``json``, ``duration``, ``out``, ``schedule``, ``seed``,
-        ``noise_std``, ``tick_period``, ``truth``, ``overwrite``, ``progress``.
+        ``noise_std``, ``tick_period``, ``truth``, ``fault``, ``overwrite``, ``progress``.
 
     Returns
     -------
@@ -125,7 +129,8 @@ def run_record(args):
         result = record_log(args.scene, args.out, duration, schedule=args.schedule,
                             overrides=args.overrides, seed=args.seed, noise_std=noise_std,
                             tick_period=tick_period, overwrite=args.overwrite,
-                            progress=args.progress, truth=args.truth)
+                            progress=args.progress, truth=args.truth,
+                            faults=getattr(args, 'fault', None) or None)
     except FileExistsError as exc:   # created between the check and the open
         raise SceneError(str(exc)) from None
     except LogOpenError as exc:   # nothing written: like bad input

@@ -139,6 +139,10 @@ class FaultInjector:
         return cls([c.name for c in channels], rate, seed,
                    rails=[channel_rail(c) for c in channels])
 
+    def __len__(self):
+        """Faults added so far (over or not; dimensionless)."""
+        return len(self._faults)
+
     # -- faults ------------------------------------------------------------------------------
     def add(self, spec, now=None, *, key='fault'):
         """Add a fault.

@@ -26,6 +26,8 @@ import numpy as np
 
 from ..integrate.divergence import Divergence, scene_advice
 from ..scene.schema import SceneError
+from .fault_spec import FaultError
+from .faults import FaultInjector
 from .streams import accelerometers, default_imu_rate, default_sample_rate
 
 _TRANSLATIONS = ('ux', 'uy', 'uz')
@@ -81,6 +83,14 @@ class Batch:
     keyphasor : ndarray of KEYPHASOR_DTYPE, or None
         The times in this chunk's interval (end of the previous chunk, ``t[-1]``] at which
         ``phi`` reached a whole number of turns; None without a rotor.
+    valid : ndarray of bool, shape (k, n_acc)
+        Whether each full-rate sample of each accelerometer is there: False where a sensor
+        fault (a dropout, an intermittent connection with ``off: dropout``) lost it. A
+        missing sample is not published; its value in ``linear_acceleration`` is what the
+        channel made (the decimator downstream sees a continuous signal).
+    imu_valid : ndarray of bool, shape (j, n_acc)
+        The same for the decimated samples at ``imu_t`` (the full-rate sample each stands
+        for).
     """
 
     t: np.ndarray
@@ -97,6 +107,8 @@ class Batch:
     shaft_angle: np.ndarray = None
     shaft_speed: np.ndarray = None
     keyphasor: np.ndarray = None
+    valid: np.ndarray = None
+    imu_valid: np.ndarray = None
 
 
 
@@ -127,8 +139,8 @@ class LiveSimulation:
         Standard deviation of white noise added to each acceleration sample (m/s^2), in the
         channel before its range and ADC.
     seed : int
-        Seed of the noise generator and of every random stage of the channels
-        (dimensionless).
+        Seed of the noise generator, of every random stage of the channels and of the
+        sensor faults' default seeds (dimensionless).
     dampers_enabled : bool
         Whether the impact dampers act.
     method : str, optional
@@ -192,6 +204,9 @@ class LiveSimulation:
         self.noise_std = 0.0
         self.noise_seed = int(seed)
         self.set_noise(noise_std, seed)
+        # sensor faults on the channels' output streams (none until commanded)
+        self.faults = FaultInjector.for_channels(self.channels, self.sample_rate,
+                                                 seed=self.noise_seed)
         self.sim.set_impacts_enabled(dampers_enabled)
         self._stuck = self._stuck_flags()
         self.failure = None
@@ -343,6 +358,91 @@ class LiveSimulation:
                 np.random.SeedSequence([int(seed), k]).generate_state(1)[0])
             channel.set_white_noise(std, own)
 
+    def add_fault(self, spec, key='fault'):
+        """Add a sensor fault from now on (:mod:`.faults`): it acts from the next output
+        sample, or from its ``onset`` when that is later.
+
+        Parameters
+        ----------
+        spec : FaultSpec or dict
+            The fault (a mapping is read by :func:`~.fault_spec.parse_fault`: units allowed).
+        key : str
+            The command's name in messages (``accel/fault_command``, ``schedule[2].fault``).
+
+        Returns
+        -------
+        str
+            The fault's name (given, or ``<kind>-<n>``).
+
+        Raises
+        ------
+        CommandError
+            One line naming the key: an unknown accelerometer (naming the ones there are), a
+            value out of range, a name in use, a window that has passed; nothing changes.
+        """
+        try:
+            return self.faults.add(spec, now=float(self.sim.t), key=key)
+        except FaultError as exc:
+            raise CommandError(_one_line(exc)) from None
+
+    def clear_faults(self, name=None, key='clear'):
+        """End the sensor fault ``name`` (None: every fault) after the last stepped sample.
+
+        Parameters
+        ----------
+        name : str, optional
+            The fault's name; None clears every fault.
+        key : str
+            The command's name in messages.
+
+        Returns
+        -------
+        list of str
+            The faults this cut short.
+
+        Raises
+        ------
+        CommandError
+            No fault of that name (naming the ones there are); nothing changes.
+        """
+        try:
+            return self.faults.clear(name, key=key)
+        except FaultError as exc:
+            raise CommandError(_one_line(exc)) from None
+
+    def fault_command(self, command, key='accel/fault_command'):
+        """Apply a fault command as the node receives it (:func:`~.fault_spec.parse_command`).
+
+        Parameters
+        ----------
+        command : str or dict
+            YAML or JSON text (or its mapping): a fault to add (``{kind: ..., accelerometer:
+            ..., ...}``), ``{clear: <name>}`` or ``{clear: all}``.
+        key : str
+            The command's name in messages (the topic).
+
+        Returns
+        -------
+        action : str
+            ``'add'`` or ``'clear'``.
+        names : list of str
+            The fault added, or the faults cleared.
+
+        Raises
+        ------
+        CommandError
+            One line naming the key (bad YAML, a bad value, an unknown accelerometer naming
+            the ones there are, an unknown fault to clear); nothing changes.
+        """
+        from .fault_spec import parse_command
+        try:
+            cmd = parse_command(command, [acc.name for acc in self.accelerometers], key=key)
+        except FaultError as exc:
+            raise CommandError(_one_line(exc)) from None
+        if cmd.action == 'clear':
+            return 'clear', self.clear_faults(cmd.name, key=f'{key}.clear')
+        return 'add', [self.add_fault(cmd.spec, key=key)]
+
     def set_dampers_enabled(self, enabled):
         """Switch the impact dampers on or off (see ``Simulation.set_impacts_enabled``)."""
         self.sim.set_impacts_enabled(bool(enabled))
@@ -419,16 +519,22 @@ class LiveSimulation:
         v = np.vstack([self._v_prev[None, :], vel])
         self._v_prev = v[-1].copy()
         pick = slice(self.decimation - 1, None, self.decimation)
+        t = samples.t[pick]
         lin = np.empty((int(n_samples), n_acc, 3))
         ang = np.empty((int(n_samples), n_acc, 3))
         truth = np.empty((int(n_samples), n_acc, 3))
         clipped = np.zeros(n_acc, dtype=np.int64)
+        valid = np.ones((t.size, n_acc), bool)
+        faults = self.faults
         for a, channel in enumerate(self.channels):
-            # mean acceleration over each step, translations only (rotations give rates)
-            out = channel.process(np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt)
-            lin[:, a, :], truth[:, a, :], clipped[a] = out.samples, out.truth, out.clipped
+            # mean acceleration over each step, translations only (rotations give rates);
+            # the faults that change values act before the range and ADC (a gain clips, and
+            # the clip count counts it), the rest after them (stuck, missing samples)
+            out = channel.process(np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt,
+                                  before_limit=faults.hook(t, a))
+            lin[:, a, :], valid[:, a] = faults.after_limit(t, out.samples, a)
+            truth[:, a, :], clipped[a] = out.truth, out.clipped
             ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
-        t = samples.t[pick]
         if self._t_first is None and t.size:
             self._t_first = float(t[0])
         # the sensor's noise passes through the DAQ's decimation filter, as in hardware
@@ -440,6 +546,10 @@ class LiveSimulation:
         for a, channel in enumerate(self.channels):   # the Imu is on the ADC's grid too
             imu_lin[:, a, :], imu_clipped[a] = channel.process_decimated(dec[:, a, :3])
         imu_t = (self._t_first or 0.0) + index / self.sample_rate
+        imu_valid = np.ones((imu_t.size, n_acc), bool)
+        if len(faults):   # a missing sample is missing in both streams
+            for a in range(n_acc):
+                imu_valid[:, a] = faults.valid_at(imu_t, a)
         events = self.sim.take_events()
         stuck = self._stuck_flags()
         changed = stuck != self._stuck
@@ -447,7 +557,7 @@ class LiveSimulation:
         self.steps += n_steps
         angle, speed, keyphasor = self._tachometer(t)
         return Batch(t, lin, ang, events, changed, imu_t, imu_lin, dec[:, :, 3:], truth,
-                     clipped, imu_clipped, angle, speed, keyphasor)
+                     clipped, imu_clipped, angle, speed, keyphasor, valid, imu_valid)
 
     def _tachometer(self, t):
         """The rotor angle and speed at the output times ``t`` (s) of the chunk just stepped,
@@ -503,6 +613,11 @@ def _turns(angle):
     while _TWO_PI * (k + 1) <= angle:
         k += 1
     return k
+
+
+def _one_line(exc):
+    """A refusal's problems (a ``SceneError``'s ``errors``) on one line."""
+    return '; '.join(' '.join(str(e).splitlines()) for e in exc.errors)
 
 
 def _checked(value, name, low, high, unit):

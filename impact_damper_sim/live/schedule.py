@@ -8,6 +8,9 @@ allowed range; engineering units accepted and converted to SI once)::
       - {at: 0.5 s, speed_rate: 2000 rpm/s, speed: 3000 rpm}
       - {at: 2 s, unbalance: 2.5}
       - {at: 3 s, dampers: false}
+      - {at: 4 s, fault: {kind: gain, accelerometer: hpotp_casing_bottom, gain: 20,
+                          duration: 0.5 s}}
+      - {at: 5 s, clear_fault: all}
 
 Each entry is applied at sim time ``at`` (more exactly, at the first output sample boundary
 at or after it, so that every driver applies it between the same two samples), its keys in
@@ -22,7 +25,15 @@ key                     applies as                             value
 ``dampers``             parameter ``dampers_enabled``           true or false
 ``noise_std``           parameter ``noise_std``                 m/s^2
 ``noise_seed``          parameter ``noise_seed``                restarts the noise sequence
+``clear_fault``         topic ``accel/fault_command``           a fault's name, or ``all``:
+                        (``{clear: <name>}``)                   ends it (them) now
+``fault``               topic ``accel/fault_command``           a sensor fault (keys:
+                                                               :mod:`.fault_spec`); without
+                                                               ``onset`` it starts at ``at``
 ======================  =====================================  ==============================
+
+A ``fault`` is checked at load (its kind's keys, units and ranges) and against the scene's
+accelerometers when the schedule is checked against the simulation (:meth:`Schedule.check`).
 
 ``vibration_node`` plays a schedule (parameter ``schedule``) on its stepping thread and
 ``study record`` while it steps; both record every applied key as the live command or
@@ -35,7 +46,9 @@ import dataclasses
 import math
 
 from ..scene.containers import ListOf, Section
-from ..scene.schema import Boolean, Integer, Quantity, SceneError, validate
+from ..scene.schema import Boolean, Integer, Quantity, SceneError, String, validate
+from .fault_spec import _NAME as FAULT_NAME
+from .fault_spec import FAULT, FaultError, accelerometer_problem
 
 #: (schedule key, 'topic' or 'parameter', the node's topic or parameter name), in the order
 #: an entry's keys apply (a new rate limit before the speed command it should govern)
@@ -44,7 +57,9 @@ KEYS = (('speed_rate', 'parameter', 'speed_rate_limit'),
         ('unbalance', 'topic', 'rotor/unbalance_command'),
         ('dampers', 'parameter', 'dampers_enabled'),
         ('noise_std', 'parameter', 'noise_std'),
-        ('noise_seed', 'parameter', 'noise_seed'))
+        ('noise_seed', 'parameter', 'noise_seed'),
+        ('clear_fault', 'topic', 'accel/fault_command'),
+        ('fault', 'topic', 'accel/fault_command'))
 
 #: the schema of a schedule file; ranges are the node's parameter and command ranges
 SCHEMA = Section({'schedule': ListOf(Section({
@@ -61,6 +76,9 @@ SCHEMA = Section({'schedule': ListOf(Section({
                           doc='accelerometer noise standard deviation (noise_std)'),
     'noise_seed': Integer(None, min=0, max=2**31 - 1,
                           doc='seed of the noise generator (noise_seed)'),
+    'clear_fault': String(None, pattern=FAULT_NAME,
+                          doc="ends the sensor fault of this name, or every one ('all')"),
+    'fault': FAULT,
 }, checks=[lambda e: None if any(e[k] is not None for k, _, _ in KEYS) else
            'an entry needs at least one of ' + ', '.join(k for k, _, _ in KEYS)]),
     min_len=1)})
@@ -89,7 +107,8 @@ class Entry:
         Sim time (s).
     commands : tuple of (str, str, str, object)
         Schedule key, ``'topic'`` or ``'parameter'``, the node's name for it, and the value
-        (SI: rad/s, rad/s^2, m/s^2; bool; int).
+        (SI: rad/s, rad/s^2, m/s^2; bool; int; a ``fault``'s plain SI mapping,
+        :meth:`~.fault_spec.FaultSpec.as_dict`; a ``clear_fault``'s name or ``'all'``).
     """
 
     at: float
@@ -163,10 +182,14 @@ class Schedule:
         ScheduleError
             Naming the entry, the key and the reason (a speed above ``max_speed``, a speed
             or rate for a scene without a commanded rotor, an unbalance without one, dampers
-            on without impactors, an unbalance above ``max_unbalance``).
+            on without impactors, an unbalance above ``max_unbalance``; a fault on an
+            accelerometer the scene does not have, naming the ones it has, a fault whose
+            window has passed at ``at`` or that cannot apply, a fault name given twice, a
+            ``clear_fault`` of a name no earlier entry gives).
         """
         problems = []
         commanded = live.has_rotor and hasattr(live.profile, 'command')
+        problems += self._check_faults(live)
         for i, entry in enumerate(self.entries):
             for key, _, name, value in entry.commands:
                 where = f'schedule[{i}].{key} (at {entry.at:g} s)'
@@ -184,6 +207,49 @@ class Schedule:
                     problems.append(f'{where}: scene {live.scene.name!r} has no impactors')
         if problems:
             raise ScheduleError(problems, source=self.source)
+
+    def _check_faults(self, live):
+        """The problems of the fault entries against ``live``'s accelerometers: each added,
+        in order, to an injector of the same channels at its entry's time (list of str)."""
+        import re
+
+        from .fault_kinds import after_index
+        from .faults import FaultInjector
+        names = [acc.name for acc in live.accelerometers]
+        dry = FaultInjector.for_channels(live.channels, live.sample_rate, seed=0)
+        problems, given = [], []
+        for i, entry in enumerate(self.entries):
+            at = self.boundary(entry, live.sample_rate)
+            for key, _, _, value in entry.commands:
+                where = f'schedule[{i}].{key}'
+                if key == 'clear_fault':
+                    if value != 'all' and value not in given:
+                        known = ', '.join(given) or 'none'
+                        problems.append(f'{where} (at {entry.at:g} s): no earlier entry adds a '
+                                        f'fault named {value!r}; the faults: {known}')
+                    continue
+                if key != 'fault':
+                    continue
+                problem = accelerometer_problem(value['accelerometer'], names)
+                if problem:
+                    problems.append(f'{where}.accelerometer (at {entry.at:g} s): {problem}')
+                    continue
+                onset = at if value['onset'] is None else value['onset']
+                end = None if value['duration'] is None else onset + value['duration']
+                if end is not None and (after_index(end, live.sample_rate)
+                                        <= after_index(at, live.sample_rate)):
+                    problems.append(f"{where}.onset (at {entry.at:g} s): the window "
+                                    f"{onset:g} s + {value['duration']:g} s has passed "
+                                    'when the entry applies')
+                    continue
+                try:
+                    given.append(dry.add(value, now=at, key=where))
+                except FaultError as exc:   # a name in use, an intermittent without a rail
+                    for line in exc.errors:
+                        match = re.match(r"key '([^']*)': (.*)", line, re.S)
+                        problems.append(f'{match.group(1)} (at {entry.at:g} s): '
+                                        f'{match.group(2)}' if match else line)
+        return problems
 
     def boundary(self, entry, sample_rate):
         """The sim time (s) ``entry`` applies at: its time rounded up to a sample boundary.

@@ -12,7 +12,9 @@ Layouts (every field little-endian, count 1; ``header.stamp`` the start of the b
 ``accel/<accelerometer>/batch`` (:data:`ACCEL_FIELDS`, 56 bytes a sample)
     ``t`` float64 (s): the sample's time minus ``header.stamp``; ``ax ay az`` float64
     (m/s^2): linear acceleration; ``wx wy wz`` float64 (rad/s): angular velocity.
-    ``header.stamp`` is the first sample's time, ``header.frame_id`` the accelerometer frame.
+    ``header.stamp`` is the chunk's first sample time, ``header.frame_id`` the accelerometer
+    frame. A sample a sensor fault dropped has no row (the rows keep their own ``t``; a
+    chunk with every sample dropped is an empty batch).
 
 ``accel/<accelerometer>/truth`` (:data:`ACCEL_FIELDS`, the same 56 bytes a sample)
     The ground truth of the same samples: ``ax ay az`` the model's acceleration (m/s^2, the

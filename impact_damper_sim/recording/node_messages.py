@@ -47,6 +47,37 @@ def float64_cdr(value):
     return _HEADER + struct.pack('<d', float(value))
 
 
+def string_cdr(text):
+    """``std_msgs/String`` bytes of ``text`` (UTF-8)."""
+    w = CdrWriter()
+    w.string(str(text))
+    return w.bytes()
+
+
+def fault_command_text(key, value):
+    """The ``accel/fault_command`` text a schedule's fault key stands for (YAML flow, SI).
+
+    Parameters
+    ----------
+    key : str
+        ``'fault'`` or ``'clear_fault'``.
+    value : dict or str
+        A fault's plain SI mapping (``FaultSpec.as_dict``; keys without a value are left
+        out), or the name of the fault to clear (``'all'``: every one).
+
+    Returns
+    -------
+    str
+        ``{kind: gain, accelerometer: hpotp_casing_bottom, duration: 0.5, axes: xyz, gain:
+        20.0}`` or ``{clear: all}``: what a live command would send, read back to the same
+        fault by ``parse_command``.
+    """
+    import yaml
+    data = ({'clear': str(value)} if key == 'clear_fault' else
+            {k: plain(v) for k, v in value.items() if v is not None})
+    return yaml.safe_dump(data, default_flow_style=True, sort_keys=False, width=1 << 16).strip()
+
+
 def vector3_stamped_cdr(ns, frame_id, vector):
     """``geometry_msgs/Vector3Stamped`` bytes.
 
@@ -231,9 +262,10 @@ class NodeMessages:
         Per accelerometer, the stream of its ``accel/<name>``, ``accel/<name>/batch`` and
         ``accel/<name>/truth`` (``truth`` empty when off).
     impacts, state, speed, joint, tach, keyphasor, clock, speed_command, unbalance_command,
-    parameter_events
+    parameter_events, fault_command
         Stream numbers (``clock`` None without ``/clock``; ``tach`` and ``keyphasor`` None
-        without a rotor).
+        without a rotor). ``parameter_events`` and ``fault_command`` are in a log only
+        once something is written to them.
     """
 
     def __init__(self, live, scene, *, namespace='/', node_name='/vibration_node',
@@ -276,6 +308,7 @@ class NodeMessages:
         self.speed_command = add(nt.SPEED_COMMAND, nt.COMMAND_QOS)
         self.unbalance_command = add(nt.UNBALANCE_COMMAND, nt.COMMAND_QOS)
         self.parameter_events = add(nt.PARAMETER_EVENTS, nt.PARAMETER_EVENTS_QOS)
+        self.fault_command = add(nt.FAULT_COMMAND, nt.COMMAND_QOS, nt.STRING)
         self.set_noise_variances(live.imu_noise_variances())
         # per modal-model impactor (a zero-mass scene entry has none), matched by name
         spec_of = {spec['name']: spec for spec in scene.scene['impactors']}
@@ -322,6 +355,13 @@ class NodeMessages:
         with a rotor its tachometer and keyphasor batches, each as one batch (sent at the
         chunk's end).
 
+        A sample a sensor fault lost (``batch.valid``, ``batch.imu_valid`` False) is missing:
+        its row is left out of the accelerometer's batch (the rows keep their own times
+        ``t`` after ``header.stamp``, which stays the chunk's first sample time, so a reader
+        sees the gap; a chunk with every sample lost is an empty batch) and its Imu message
+        is not sent. The ground truth keeps every row. With every sample there the bytes
+        are those of a run without faults.
+
         Parameters
         ----------
         batch : Batch
@@ -337,10 +377,17 @@ class NodeMessages:
         imu_ns = np.rint(batch.imu_t * 1e9).astype(np.int64)
         items = []
         for a, encoder in enumerate(self._imu_encoders):
-            data = encoder.pack(imu_ns, batch.imu_linear_acceleration[:, a, :],
-                                batch.imu_angular_velocity[:, a, :])
+            keep = _present(batch.imu_valid, a)
+            if keep is None:
+                data = encoder.pack(imu_ns, batch.imu_linear_acceleration[:, a, :],
+                                    batch.imu_angular_velocity[:, a, :])
+                sent = imu_ns
+            else:   # the samples a fault lost are not sent
+                sent = imu_ns[keep]
+                data = encoder.pack(sent, batch.imu_linear_acceleration[keep, a, :],
+                                    batch.imu_angular_velocity[keep, a, :])
             stream = self.imu[a]
-            items += [(ns + delay_ns, a, stream, d) for ns, d in zip(imu_ns.tolist(), data)]
+            items += [(ns + delay_ns, a, stream, d) for ns, d in zip(sent.tolist(), data)]
         t_ns = np.rint(batch.t * 1e9).astype(np.int64)
         if t_ns.size:
             for a, encoder in enumerate(self._batch_encoders):
@@ -350,7 +397,9 @@ class NodeMessages:
                     rows[name] = column
                 for name, column in zip(('wx', 'wy', 'wz'), batch.angular_velocity[:, a].T):
                     rows[name] = column
-                items.append((int(t_ns[-1]), a, self.batch[a], encoder.encode(t_ns[0], rows)))
+                keep = _present(batch.valid, a)
+                items.append((int(t_ns[-1]), a, self.batch[a], encoder.encode(
+                    t_ns[0], rows if keep is None else rows[keep])))
                 if self.truth:   # the same rows with the model's acceleration
                     for name, column in zip(('ax', 'ay', 'az'), batch.truth[:, a].T):
                         rows[name] = column
@@ -450,6 +499,26 @@ class NodeMessages:
         return parameter_event_cdr(int(round(self.live.t * 1e9)), self.node_name, changed)
 
 
+def _present(valid, a):
+    """The mask of accelerometer ``a``'s samples that are there (ndarray of bool), or None
+    when every one is (or no mask is given): the fast path, the bytes of a run without
+    faults."""
+    if valid is None:
+        return None
+    keep = valid[:, a]
+    return None if keep.all() else keep
+
+
+def published_samples(batch):
+    """Full-rate sample times of a stepped chunk published on at least one accelerometer's
+    batch (dimensionless): the chunk's samples less those every accelerometer lost to a
+    sensor fault (all of them without a mask or an accelerometer)."""
+    valid = batch.valid
+    if valid is None or valid.shape[1] == 0 or valid.all():
+        return int(batch.t.size)
+    return int(np.count_nonzero(valid.any(axis=1)))
+
+
 def run_labels(live, scene_model):
     """What a detector is scored against, as plain data: the run's labels at sim time now.
 
@@ -470,9 +539,12 @@ def run_labels(live, scene_model):
         ``dampers_enabled``, ``unbalance_multiplier`` (X, None without unbalance),
         ``rotor_speed_rad_s`` (None without a rotor), ``kcc_n_per_m`` (the scene's
         cross-coupled stiffness, summed over its cross-couplings; 0 without) with
-        ``cross_couplings`` (each: node, kcc N/m, dofs), and ``accelerometers``: per
+        ``cross_couplings`` (each: node, kcc N/m, dofs), ``accelerometers``: per
         accelerometer its node, frame and ``channel`` (the preset and every stage's values,
-        :meth:`~impact_damper_sim.live.channel.SensorChannel.labels`). Every value SI.
+        :meth:`~impact_damper_sim.live.channel.SensorChannel.labels`), and ``faults``: the
+        sensor faults added so far (``FaultInjector.labels``: kind, values, seed, window);
+        those added later, and what every fault did, are in :func:`fault_metadata`, written
+        when the log closes. Every value SI.
     """
     structure = scene_model.scene.get('structure') or {}
     couplings = [{'node': c['node'], 'kcc': c['kcc'], 'dofs': list(c['dofs'])}
@@ -491,7 +563,40 @@ def run_labels(live, scene_model):
         'accelerometers': {acc.name: {'node': acc.node, 'frame_id': acc.frame_id,
                                       'channel': channel.labels()}
                            for acc, channel in zip(live.accelerometers, live.channels)},
+        'faults': live.faults.labels(),
     })
+
+
+#: name of the metadata record with the run's sensor faults, written when a log closes
+FAULTS_METADATA = 'impact_damper_sim_faults'
+
+
+def fault_metadata(live):
+    """The :data:`FAULTS_METADATA` record: every sensor fault of the run and what it did.
+
+    Written when the log closes (``study record`` at its end, the node when recording
+    stops): faults come on command after the log opened, so the opening ``labels`` cannot
+    hold them. The node's ``/diagnostics`` never mention faults (a real sensor does not
+    report its own); this record does.
+
+    Parameters
+    ----------
+    live : LiveSimulation
+        The simulation (read: ``t``, ``faults``).
+
+    Returns
+    -------
+    dict of str to str
+        ``sim_time_s`` (how far the run went) and ``faults``: YAML of
+        ``FaultInjector.labels()``, one entry per fault in the order added: ``name``,
+        ``kind``, ``accelerometer``, ``axes``, ``stage``, ``seed``, ``parameters`` (SI),
+        ``requested`` onset and duration, the actual window ``onset_s`` < t <= ``end_s``
+        (None: until the end of the run), ``cleared_at_s``, ``samples`` in the window,
+        and ``events`` (spike times, open periods).
+    """
+    import yaml
+    return {'sim_time_s': repr(float(live.t)),
+            'faults': yaml.safe_dump(plain(live.faults.labels()), sort_keys=False)}
 
 
 def run_metadata(scene_model, overrides, parameters, node_name, live=None):
@@ -547,7 +652,8 @@ def plain(value):
     return value
 
 
-__all__ = ['ImuEncoder', 'NodeMessages', 'PARAMETER_BOOL', 'PARAMETER_DOUBLE',
-           'PARAMETER_INTEGER', 'PARAMETER_STRING', 'Stream', 'clock_cdr', 'float64_cdr',
-           'joint_state_cdr', 'parameter_event_cdr', 'parameter_value_type',
-           'plain', 'run_labels', 'run_metadata', 'vector3_stamped_cdr']
+__all__ = ['FAULTS_METADATA', 'ImuEncoder', 'NodeMessages', 'PARAMETER_BOOL',
+           'PARAMETER_DOUBLE', 'PARAMETER_INTEGER', 'PARAMETER_STRING', 'Stream', 'clock_cdr',
+           'fault_command_text', 'fault_metadata', 'float64_cdr', 'joint_state_cdr',
+           'parameter_event_cdr', 'parameter_value_type', 'plain', 'published_samples',
+           'run_labels', 'run_metadata', 'string_cdr', 'vector3_stamped_cdr']

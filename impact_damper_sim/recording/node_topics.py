@@ -34,6 +34,9 @@ ROTOR_TACH = 'rotor/tach'
 ROTOR_KEYPHASOR = 'rotor/keyphasor'
 SPEED_COMMAND = 'rotor/speed_command'
 UNBALANCE_COMMAND = 'rotor/unbalance_command'
+#: sensor fault commands (std_msgs/String: YAML or JSON text, ``live.fault_spec``): a fault
+#: to add, ``{clear: <name>}`` or ``{clear: all}``; recorded as received, schedule faults too
+FAULT_COMMAND = 'accel/fault_command'
 CLOCK = '/clock'
 DIAGNOSTICS = '/diagnostics'
 #: where ROS 2 nodes announce parameter changes; the node's log records each accepted
@@ -45,6 +48,7 @@ POINTCLOUD2 = 'sensor_msgs/msg/PointCloud2'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
 FLOAT64 = 'std_msgs/msg/Float64'
+STRING = 'std_msgs/msg/String'
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 PARAMETER_EVENT = 'rcl_interfaces/msg/ParameterEvent'
@@ -62,6 +66,7 @@ TYPES = {
     ROTOR_KEYPHASOR: POINTCLOUD2,
     SPEED_COMMAND: FLOAT64,
     UNBALANCE_COMMAND: FLOAT64,
+    FAULT_COMMAND: STRING,
     CLOCK: CLOCK_TYPE,
     DIAGNOSTICS: DIAGNOSTIC_ARRAY,
     PARAMETER_EVENTS: PARAMETER_EVENT,
@@ -121,9 +126,11 @@ def qualified(topic, namespace='/'):
 
 __all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'CLOCK_TYPE',
            'COMMAND_QOS', 'DIAGNOSTICS', 'DIAGNOSTICS_QOS', 'DIAGNOSTIC_ARRAY', 'EVENT_QOS',
-           'FLOAT64', 'IMPACTS', 'IMPACTOR_STATE', 'IMU', 'JOINT_STATE', 'LATCHED_QOS',
+           'FAULT_COMMAND', 'FLOAT64', 'IMPACTS', 'IMPACTOR_STATE', 'IMU', 'JOINT_STATE',
+           'LATCHED_QOS',
            'PARAMETER_EVENT', 'PARAMETER_EVENTS', 'PARAMETER_EVENTS_QOS', 'POINTCLOUD2',
            'RECORD_CHUNK_SIZE',
            'ROTOR_JOINT_STATES', 'ROTOR_KEYPHASOR', 'ROTOR_SPEED', 'ROTOR_TACH', 'SENSOR_QOS',
-           'SPEED_COMMAND', 'TRUTH_SUFFIX', 'TYPES', 'UNBALANCE_COMMAND', 'VECTOR3_STAMPED',
+           'SPEED_COMMAND', 'STRING', 'TRUTH_SUFFIX', 'TYPES', 'UNBALANCE_COMMAND',
+           'VECTOR3_STAMPED',
            'accel_batch_topic', 'accel_topic', 'accel_truth_topic', 'qualified']

@@ -13,7 +13,8 @@ structure), in two forms, as drivers of high-rate sensors publish:
     One message per stepped chunk (``tick_period``, 10 ms): ``header.stamp`` the first
     sample's time, ``header.frame_id`` the accelerometer frame, one row per sample with
     fields ``t`` (s, the sample's time minus ``header.stamp``), ``ax ay az`` (m/s^2) and
-    ``wx wy wz`` (rad/s), all float64 (layout: :mod:`impact_damper_sim.recording.batches`).
+    ``wx wy wz`` (rad/s), all float64 (layout: :mod:`impact_damper_sim.recording.batches`);
+    a sample a sensor fault dropped has no row, and no Imu message below.
     At 20 kHz that is 100 messages a second of 200 samples, which a Python client reads with
     ``np.frombuffer`` (``batches.rows_of``). Always recorded.
 
@@ -88,6 +89,14 @@ measures the options).
 
 ``rotor/speed_command``, ``rotor/unbalance_command`` -- ``std_msgs/Float64`` subscriptions
     Target speed (rad/s, applied under the scene's rate limit) and multiplier X (>= 0).
+
+``accel/fault_command`` -- ``std_msgs/String`` subscription
+    A sensor fault on command (:mod:`impact_damper_sim.live.fault_spec`), YAML or JSON text:
+    ``{kind: gain, accelerometer: hpotp_casing_bottom, gain: 20, duration: 0.5 s}`` adds one
+    from the next stepped chunk (or its ``onset``), ``{clear: <name>}`` or ``{clear: all}``
+    ends it (them). Recorded as received; the schedule's ``fault`` and ``clear_fault`` keys
+    are recorded here too. A fault shows in the data (missing samples are missing, a gain
+    clips) and in the log's labels, never in ``/diagnostics``.
 """
 from __future__ import annotations
 
@@ -96,7 +105,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from ..recording import node_topics as _topics
 from ..recording.bag_metadata import qos_dict as _qos_dict
 from ..recording.node_topics import (ACCEL_PREFIX, BATCH_SUFFIX, CLOCK, DIAGNOSTICS,  # noqa: F401
-                                     IMPACTOR_STATE, IMPACTS, PARAMETER_EVENTS,
+                                     FAULT_COMMAND, IMPACTOR_STATE, IMPACTS, PARAMETER_EVENTS,
                                      ROTOR_JOINT_STATES, ROTOR_KEYPHASOR, ROTOR_SPEED,
                                      ROTOR_TACH, SPEED_COMMAND, TRUTH_SUFFIX, TYPES,
                                      UNBALANCE_COMMAND, accel_batch_topic, accel_topic,
@@ -141,7 +150,8 @@ PARAMETER_EVENTS_QOS = _profile(_topics.PARAMETER_EVENTS_QOS)
 
 __all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS',
            'DIAGNOSTICS',
-           'DIAGNOSTICS_QOS', 'EVENT_QOS', 'G0', 'IMPACTS', 'IMPACTOR_STATE', 'LATCHED_QOS',
+           'DIAGNOSTICS_QOS', 'EVENT_QOS', 'FAULT_COMMAND', 'G0', 'IMPACTS', 'IMPACTOR_STATE',
+           'LATCHED_QOS',
            'PARAMETER_EVENTS', 'PARAMETER_EVENTS_QOS',
            'ROTOR_JOINT_STATES', 'ROTOR_KEYPHASOR', 'ROTOR_SPEED', 'ROTOR_TACH', 'SENSOR_QOS',
            'SPEED_COMMAND', 'TRUTH_SUFFIX', 'TYPES', 'UNBALANCE_COMMAND', 'accel_batch_topic',

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..recording.node_messages import published_samples
+
 _IMPACT = 0   # EVENT_KINDS index of an impact
 
 
@@ -82,9 +84,14 @@ class PublishingMixin:
                 wire = wire_of[stream] = outlet.has_subscribers()
             self._pending.append((ns, outlet, data, wire))
         k = batch.t.size
-        self.stats.samples += k
-        self.stats_total['samples'] += k
+        # what was published: a sample a sensor fault lost is not counted (the counters
+        # say nothing of faults, as a DAQ driver counting what it sends would not)
+        published = published_samples(batch)
+        self.stats.samples += published
+        self.stats_total['samples'] += published
         lin = batch.linear_acceleration
+        if batch.valid is not None and not batch.valid.all():   # the peak of what was sent
+            lin = lin[batch.valid]
         peak = float(np.max(np.abs(lin))) if lin.size else 0.0   # a scene may have no sensor
         self.stats.peak = max(self.stats.peak, peak)
         ev = batch.events

@@ -4,8 +4,10 @@
 :class:`~impact_damper_sim.recording.AsyncRecorder` (from the ``record`` parameter at start,
 or the ``~/record`` service), writes each item with its sim time as log time and opens the
 file with the run's metadata (software version, the resolved scene in SI, the node's
-parameters). It is separate from :mod:`.vibration_node` because recording is an optional
-side channel of publishing: the node runs the same without it. A mixin of
+parameters); it closes it with the run's sensor faults (``impact_damper_sim_faults``: each
+fault's kind, values, seed and actual window). It is separate from :mod:`.vibration_node`
+because recording is an optional side channel of publishing: the node runs the same without
+it. A mixin of
 :class:`~impact_damper_sim.ros.vibration_node.VibrationNode` only: it keeps ``recorder`` and
 ``record_error`` on the node and uses its lock, outlets and command subscriptions.
 
@@ -93,9 +95,12 @@ class RecordingMixin:
         AsyncRecorder or None
             The recorder that was stopped.
         """
+        from ..recording.node_messages import FAULTS_METADATA, fault_metadata
         from ..studies.record import write_failure
         with self._lock:
             rec, self.recorder = self.recorder, None
+            if rec is not None:   # the sensor faults came after the log opened: at close
+                rec.add_metadata(FAULTS_METADATA, fault_metadata(self.live))
         if rec is None:
             return None
         stats = rec.close()

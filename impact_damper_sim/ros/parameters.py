@@ -76,9 +76,9 @@ PARAMETERS = {
     'record_overwrite': (False, 'overwrite an existing record file (otherwise refused)', None,
                          True),
     'schedule': ('', 'command schedule to play in sim time (YAML file: speed, speed_rate, '
-                     'unbalance, dampers, noise_std, noise_seed at given times; docs/node.md); '
-                     'each applied entry is recorded as the command or parameter change it '
-                     "stands for; empty = none", None, True),
+                     'unbalance, dampers, noise_std, noise_seed, fault, clear_fault at given '
+                     'times; docs/node.md); each applied entry is recorded as the command or '
+                     "parameter change it stands for; empty = none", None, True),
 }
 
 #: parameters every rclpy node declares itself

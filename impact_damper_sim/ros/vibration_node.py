@@ -29,7 +29,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState, PointCloud2
-from std_msgs.msg import Float64
+from std_msgs.msg import Float64, String
 from std_srvs.srv import SetBool
 
 from rclpy.parameter import Parameter
@@ -37,7 +37,8 @@ from rclpy.parameter import Parameter
 from ..live.realtime import CommandError, LiveSimulation, Pacer
 from ..live.schedule import Schedule
 from ..live.streams import live_scene
-from ..recording.node_messages import NodeMessages, float64_cdr
+from ..recording.node_messages import NodeMessages, fault_command_text, float64_cdr, string_cdr
+from ..recording.node_topics import STRING
 from ..scene.schema import SceneError
 from . import interface as itf
 from .node_diagnostics import DiagnosticsMixin, _Stats
@@ -226,6 +227,9 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
                                      itf.COMMAND_QOS),
             self.create_subscription(Float64, itf.UNBALANCE_COMMAND, self.on_unbalance_command,
                                      itf.COMMAND_QOS)]
+        # sensor faults on command (YAML or JSON text); in a log once one is received
+        self._fault_sub = self.create_subscription(String, itf.FAULT_COMMAND,
+                                                   self.on_fault_command, itf.COMMAND_QOS)
         self.create_service(SetBool, '~/record', self.on_record_request)
         self._tick_period = p['tick_period']
         # the graph is read with the diagnostics: often enough, and off the stepping thread
@@ -290,6 +294,39 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         self.stats.commands += 1
         topic = (itf.SPEED_COMMAND, itf.UNBALANCE_COMMAND)[which]
         self._log('info', f'{topic} {value:g} accepted at sim time {self.live.t:.3f} s',
+                  self.COMMAND_LOG_PERIOD, topic)
+        return True
+
+    def on_fault_command(self, msg):
+        """Apply an ``accel/fault_command`` (a ``std_msgs/String``), or refuse it in one WARN
+        line naming the key; True when applied."""
+        return self._fault_command(msg.data)
+
+    def _fault_command(self, text):
+        """Apply a fault command (a received text, or a schedule entry's: recorded alike, as
+        received) from the next stepped sample, or refuse it with a throttled warning; True
+        when applied. Logged at INFO, never in /diagnostics (a real sensor does not report
+        its own faults)."""
+        topic = itf.FAULT_COMMAND
+        try:
+            with self._lock:
+                if self.recorder is not None:   # every command received, refused ones too
+                    self._record(self._fault_sub.topic_name, STRING, itf.COMMAND_QOS,
+                                 string_cdr(text))
+                action, names = self.live.fault_command(text, key=topic)
+        except CommandError as exc:
+            self.rejected += 1
+            self._log('warning', f'rejected: {exc}', 1.0, topic)
+            return False
+        except Exception as exc:   # no message may stop the node
+            self.rejected += 1
+            self._log('error', f'{topic} {text!r} refused: {type(exc).__name__}: {exc}', 1.0,
+                      topic)
+            return False
+        self.stats.commands += 1
+        what = (f"fault {names[0]!r} added" if action == 'add' else
+                f"cleared {', '.join(repr(n) for n in names) or 'nothing (none active)'}")
+        self._log('info', f'{topic}: {what}, accepted at sim time {self.live.t:.3f} s',
                   self.COMMAND_LOG_PERIOD, topic)
         return True
 
@@ -519,6 +556,9 @@ class VibrationNode(PublishingMixin, DiagnosticsMixin, RecordingMixin, Node):
         change it stands for (recorded as such; a refused one is logged, as live)."""
         for entry in self.schedule.due(self.live.t, self.live.sample_rate):
             for key, kind, name, value in entry.commands:
+                if key in ('fault', 'clear_fault'):   # as the text a live command sends
+                    self._fault_command(fault_command_text(key, value))
+                    continue
                 if kind == 'topic':
                     apply = (self.live.command_speed if key == 'speed'
                              else self.live.command_unbalance)

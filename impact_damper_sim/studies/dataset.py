@@ -15,6 +15,10 @@ command schedules and noise seeds (units allowed wherever a scene takes them)::
                                  # default 10 ms
     truth: true                  # optional, write each accelerometer's ground truth
                                  # (study record --truth); default false
+    faults:                      # optional, sensor faults of every run (from sim time 0
+                                 # unless onset; keys: docs/channel.md, "Sensor faults")
+      - {kind: gain, accelerometer: hpotp_casing_bottom, gain: 20, onset: 1 s,
+         duration: 0.5 s}
     overrides: [rotor.multiplier=2]   # optional, every run
     grid:                        # every combination ...
       impactors.0.clearance: [2 mil, 3 mil]
@@ -33,12 +37,14 @@ command schedules and noise seeds (units allowed wherever a scene takes them)::
 
 Each run is one ``study record`` (:func:`.record.record_log`) into ``DIR/runs/<id>.mcap``;
 its id is a digest of everything that decides its bytes (scene, overrides, schedule text,
-seed, noise, duration, tick period, ground truth when on, software version), so a run whose
-inputs are unchanged keeps its id.
-``DIR/manifest.json`` and ``DIR/manifest.csv`` list every run: id, every parameter, the
-summary labels (the accelerometer channel preset, impacts per second, stuck fraction, peak
-and RMS acceleration in g, diverged or not, the sim time reached), the file, its size and its
-sha256, and for a failed run its one-line reason. Each log's metadata holds the run's full
+seed, noise, duration, tick period, ground truth when on, faults when given, software
+version), so a run whose inputs are unchanged keeps its id.
+``DIR/manifest.json`` and ``DIR/manifest.csv`` list every run: id, every parameter (the
+spec's ``faults`` in SI), the summary labels (the accelerometer channel preset, impacts per
+second, stuck fraction, peak and RMS acceleration in g, diverged or not, the sim time reached,
+``fault_labels``: every sensor fault of the run, the spec's and its schedule's, with its
+actual window), the file, its size and its sha256, and for a failed run its one-line
+reason. Each log's metadata holds the run's full
 labels (``labels``: every channel stage's values, unbalance, Kcc, dampers, seed). The
 manifest is rewritten after every finished run, so a data set that is interrupted continues
 where it stopped: a run already in the manifest whose file is there
@@ -71,9 +77,9 @@ from ..scene.schema import SceneError
 
 #: label columns of the manifest, from :func:`.record.record_log`'s result
 LABELS = ('channel_preset', 'impacts_per_s', 'stuck_fraction', 'peak_g', 'rms_g', 'diverged',
-          'failure', 'sim_time_s', 'wall_s', 'real_time_factor', 'messages')
-SPEC_KEYS = ('scene', 'duration', 'noise_std', 'tick_period', 'truth', 'overrides', 'grid',
-             'schedules', 'seeds', 'sample')
+          'failure', 'sim_time_s', 'wall_s', 'real_time_factor', 'messages', 'fault_labels')
+SPEC_KEYS = ('scene', 'duration', 'noise_std', 'tick_period', 'truth', 'faults', 'overrides',
+             'grid', 'schedules', 'seeds', 'sample')
 
 
 #: How a manifest's ``error`` of a run failed by a disk error starts; such a run is recorded
@@ -122,7 +128,8 @@ def load_spec(path):
         One per run, in spec order: ``id``, ``scene``, ``overrides`` (the fixed ones, then
         the run's), ``keys`` (the run's own scene keys and values, as written), ``schedule``
         (absolute path or None), ``seed``, ``noise_std`` (m/s^2), ``duration`` (s),
-        ``tick_period`` (s), ``truth`` (bool) and ``inputs_sha256`` (the digest of the inputs
+        ``tick_period`` (s), ``truth`` (bool), ``faults`` (the sensor faults of every run,
+        plain SI mappings; empty when none) and ``inputs_sha256`` (the digest of the inputs
         the id is made of).
 
     Raises
@@ -192,6 +199,14 @@ def load_spec(path):
     if not isinstance(truth, bool):
         errors.append(f"key 'truth': expected true or false, got {truth!r}")
         truth = False
+    faults = []
+    if raw.get('faults') is not None:   # the accelerometers are checked when a run starts
+        from ..live.fault_spec import parse_faults
+        try:
+            faults = [{k: v for k, v in spec.as_dict().items() if v is not None}
+                      for spec in parse_faults(raw['faults'])]
+        except SceneError as exc:
+            errors += list(exc.errors)
     fixed = text_list('overrides', raw.get('overrides', []))
     runs = []   # (keys dict, schedule, seed)
     if 'sample' in raw:
@@ -271,11 +286,13 @@ def load_spec(path):
                   'software_version': version}
         if truth:   # only when on: the ids of runs without it stay what they were
             inputs['truth'] = True
+        if faults:   # likewise
+            inputs['faults'] = faults
         digest = hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()
         plan.append({'id': 'r' + digest[:12], 'scene': scene, 'overrides': overrides,
                      'keys': keys, 'schedule': schedule, 'seed': seed, 'noise_std': noise_std,
                      'duration': duration, 'tick_period': tick_period, 'truth': truth,
-                     'inputs_sha256': digest})
+                     'faults': faults, 'inputs_sha256': digest})
     ids = [run['id'] for run in plan]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
@@ -312,7 +329,8 @@ def record_run(run, out_dir):
         result = record_log(run['scene'], part, run['duration'], schedule=run['schedule'],
                             overrides=run['overrides'], seed=run['seed'],
                             noise_std=run['noise_std'], tick_period=run['tick_period'],
-                            overwrite=True, progress=False, truth=bool(run.get('truth')))
+                            overwrite=True, progress=False, truth=bool(run.get('truth')),
+                            faults=run.get('faults') or None)
         os.replace(part, final)
         size, digest = os.path.getsize(final), _file_sha256(final)
     except OSError as exc:   # the disk's failure, not the run's: the data set stops
@@ -345,8 +363,8 @@ def record_run(run, out_dir):
 #: manifest and for reading it back (:mod:`.dataset_gather`)
 RUN_COLUMNS = (('id', 'id'), ('scene', 'scene'), ('duration_s', 'duration'),
                ('tick_period_s', 'tick_period'), ('noise_std', 'noise_std'), ('seed', 'seed'),
-               ('schedule', 'schedule'), ('truth', 'truth'), ('overrides', 'overrides'),
-               ('inputs_sha256', 'inputs_sha256'))
+               ('schedule', 'schedule'), ('truth', 'truth'), ('faults', 'faults'),
+               ('overrides', 'overrides'), ('inputs_sha256', 'inputs_sha256'))
 #: the outcome columns of a run (the rest of a manifest row)
 RESULT_COLUMNS = ('status', 'error', *LABELS, 'file', 'bytes', 'sha256')
 
@@ -409,8 +427,23 @@ def write_manifest(out_dir, plan, rows, spec_path, gathered_from=None):
     writer = csv.DictWriter(buf, fieldnames=_columns(plan), extrasaction='ignore')
     writer.writeheader()
     for entry in entries:
-        writer.writerow({k: ('' if v is None else v) for k, v in entry.items()})
+        writer.writerow({k: _csv_text(k, v) for k, v in entry.items()})
     _write_atomic(os.path.join(out_dir, 'manifest.csv'), buf.getvalue())
+
+
+def _csv_text(column, value):
+    """A manifest value as its CSV cell: '' for None; the spec's faults as JSON; the fault
+    labels as ``name kind accelerometer (onset_s, end_s]`` per fault, joined by ``; `` (the
+    JSON holds every value and event)."""
+    if value is None:
+        return ''
+    if column == 'fault_labels' and isinstance(value, list):
+        return '; '.join(f"{f['name']} {f['kind']} {f['accelerometer']} ({f['onset_s']:g}, "
+                         + ('end' if f['end_s'] is None else format(f['end_s'], 'g')) + ']'
+                         for f in value)
+    if isinstance(value, (list, dict)):
+        return json.dumps(value, separators=(', ', ': '))
+    return value
 
 
 def _finished(out_dir, plan, retry_failed):

@@ -3,8 +3,8 @@
 ::
 
     study record SCENE --duration S --out F.mcap [--schedule F.yaml] [--seed N]
-                 [--noise-std A] [--tick-period T] [--truth] [--set KEY=VALUE ...]
-                 [--overwrite] [--progress] [--json]
+                 [--noise-std A] [--tick-period T] [--truth] [--fault YAML ...]
+                 [--set KEY=VALUE ...] [--overwrite] [--progress] [--json]
 
 :func:`record_log` steps :class:`~impact_damper_sim.live.realtime.LiveSimulation` with no
 wall clock and writes what ``vibration_node`` would publish and record with the same
@@ -14,7 +14,12 @@ layout (:class:`~impact_damper_sim.recording.Rosbag2McapWriter`), log time = sim
 schedule (:mod:`impact_damper_sim.live.schedule`) is applied at the same sample boundaries
 as the node applies it, and each applied key is logged as the live command
 (``std_msgs/Float64`` on ``rotor/speed_command`` or ``rotor/unbalance_command``) or
-parameter change (``rcl_interfaces/ParameterEvent`` on ``/parameter_events``) it stands for.
+parameter change (``rcl_interfaces/ParameterEvent`` on ``/parameter_events``) it stands for;
+a ``fault`` or ``clear_fault`` entry as the ``std_msgs/String`` on ``accel/fault_command``
+the node would receive (the same text, read by the same parser). Faults given to
+:func:`record_log` itself (``--fault``, a data set's ``faults``) apply from the start and are
+logged as such commands at sim time 0. The log closes with the run's sensor faults and what
+they did (metadata ``impact_damper_sim_faults``), as the node's does.
 With ``truth`` the log also holds each accelerometer's ground truth (the node's
 ``publish_truth``), and its metadata the run's labels (the channels' presets and stages,
 the unbalance multiplier, Kcc, the dampers, the seed) as the node's log does.
@@ -277,7 +282,7 @@ def write_failure(path, error, stats, complete=None):
 def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noise_std=0.0,
                overwrite=False, progress=None, sample_rate=None, imu_rate=None,
                tick_period=TICK_PERIOD, state_period=STATE_PERIOD, overwrite_option='--overwrite',
-               stream=None, truth=False):
+               stream=None, truth=False, faults=None):
     """Step a scene for ``duration`` of sim time and write the node's log of it to ``out``.
 
     Parameters
@@ -316,6 +321,11 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     truth : bool
         Also write each accelerometer's ground truth ``accel/<name>/truth`` (the node's
         ``publish_truth``).
+    faults : sequence of (dict or str or FaultSpec), optional
+        Sensor faults from the start (:mod:`impact_damper_sim.live.fault_spec`: mappings
+        with units, or YAML/JSON text as ``accel/fault_command`` takes it); a fault without
+        ``onset`` starts at 0. Each is logged as the fault command it stands for at sim
+        time 0.
 
     Returns
     -------
@@ -326,15 +336,19 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         accelerometer),
         ``impacts``, ``impacts_per_s``, ``stuck_fraction`` (time-weighted mean over the
         impactors, dimensionless; None without impactors), ``peak_g`` and ``rms_g`` (of the
-        acceleration components over every accelerometer, g), ``commands`` (schedule keys
-        applied), ``diverged`` (bool), ``failure`` (why the simulation stopped, or None),
-        ``finished`` (True: the log is closed with its summary) and ``write_error`` (None).
+        acceleration components over every accelerometer, g; ``samples``, ``peak_g`` and
+        ``rms_g`` count the published samples: not those a sensor fault lost),
+        ``commands`` (schedule keys applied), ``fault_labels`` (every sensor fault of the run
+        with its actual window, ``FaultInjector.labels()``), ``diverged`` (bool),
+        ``failure`` (why the simulation stopped, or None), ``finished`` (True: the log is
+        closed with its summary) and ``write_error`` (None).
 
     Raises
     ------
     SceneError
         A bad scene, override or schedule (each problem named), a schedule the scene
-        cannot take, or a ``tick_period`` out of :data:`TICK_PERIOD_RANGE`.
+        cannot take, a bad fault in ``faults`` (a ``FaultError``, one line naming its key),
+        or a ``tick_period`` out of :data:`TICK_PERIOD_RANGE`.
     FileExistsError
         ``out`` exists and ``overwrite`` is false.
     SceneError
@@ -352,8 +366,10 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     from ..live.schedule import Schedule
     from ..live.streams import live_scene
     from ..recording import Rosbag2McapWriter
-    from ..recording.node_messages import NodeMessages, float64_cdr, run_metadata
-    from ..recording.node_topics import FLOAT64, RECORD_CHUNK_SIZE
+    from ..recording.node_messages import (FAULTS_METADATA, NodeMessages, fault_command_text,
+                                           fault_metadata, float64_cdr, run_metadata,
+                                           string_cdr)
+    from ..recording.node_topics import FAULT_COMMAND, FLOAT64, RECORD_CHUNK_SIZE
     from ..scene.schema import SceneError
     duration = float(duration)
     if not (math.isfinite(duration) and duration > 0):
@@ -366,6 +382,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         schedule = Schedule.load(schedule)
     if schedule is not None:
         schedule.check(live)
+    start_faults = _start_faults(live, faults)
     start_rate = live.profile.max_rate if hasattr(live.profile, 'command') else None
     messages = NodeMessages(live, scene_model, node_name=NODE_NAME, truth=bool(truth))
     streams = messages.streams
@@ -377,6 +394,8 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
                   'schedule': schedule.source if schedule is not None else '',
                   'real_time_factor': 0.0, 'recorded_by': 'study record',
                   'duration': duration}
+    if start_faults:
+        parameters['faults'] = start_faults
     check_definitions(out)
     try:
         writer = Rosbag2McapWriter(out, overwrite=overwrite, chunk_size=RECORD_CHUNK_SIZE,
@@ -398,7 +417,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         writer.add_metadata('impact_damper_sim', metadata)
         # the channels the node opens its log with: every publisher, then the commands
         for i, s in enumerate(streams):
-            if i != messages.parameter_events:
+            if i not in (messages.parameter_events, messages.fault_command):
                 writer.add_topic(s.topic, s.type_name, s.qos)
         reached.bytes = writer.file_bytes   # the opening records hold no message
 
@@ -421,6 +440,8 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
             write(messages.parameter_events, messages.parameter_event([(name, value)]))
 
         write(messages.state, messages.state_message())   # the latched state opens the log
+        for text in start_faults:   # applied before the log opened, logged as received
+            write(messages.fault_command, string_cdr(text))
         chunk = max(1, int(round(tick_period * live.sample_rate)))
         total = int(round(duration * live.sample_rate))
         done = 0
@@ -431,7 +452,11 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
                 for entry in schedule.due(live.t, live.sample_rate):
                     for key, kind, name, value in entry.commands:
                         try:
-                            if kind == 'topic':   # recorded as received, then applied
+                            if key in ('fault', 'clear_fault'):   # the node's text
+                                text = fault_command_text(key, value)
+                                write(messages.fault_command, string_cdr(text))
+                                live.fault_command(text, key=FAULT_COMMAND)
+                            elif kind == 'topic':   # recorded as received, then applied
                                 s = streams[messages.speed_command if key == 'speed'
                                             else messages.unbalance_command]
                                 writer.write(s.topic, FLOAT64, s.qos, float64_cdr(value),
@@ -463,6 +488,8 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
                     next_state += state_period
             bar.show(live.t)
     finally:
+        if writer.error is None:   # the faults came after the log opened: at its close
+            writer.add_metadata(FAULTS_METADATA, fault_metadata(live))
         writer.close()
         bar.end()
     wall = time.perf_counter() - wall0
@@ -476,6 +503,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         real_time_factor=live.t / wall if wall > 0 else math.inf,
         messages=stats['messages_written'], bytes=stats['file_bytes'],
         commands=applied, diverged=live.failure is not None, failure=live.failure,
+        fault_labels=live.faults.labels(),
         finished=bool(finished), write_error=None, channel_preset=channel_preset(live),
         **summary.result(live.t))
     if not finished:
@@ -484,6 +512,41 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
         result['write_error'] = line
         raise LogWriteError(line, os.fspath(out), reason, result, recoverable)
     return result
+
+
+def _start_faults(live, faults):
+    """Add the faults of a run's start to ``live`` (before its log opens: a bad one leaves no
+    file) and return the ``accel/fault_command`` text each stands for (list of str).
+
+    Raises
+    ------
+    FaultError
+        One line naming the fault's key (``faults[1].accelerometer``: the accelerometers
+        there are), its range, a name given twice, or a clear command among them.
+    """
+    from ..live.fault_spec import FaultError, FaultSpec, parse_command, parse_fault
+    from ..live.realtime import CommandError
+    from ..recording.node_messages import fault_command_text
+    names = [acc.name for acc in live.accelerometers]
+    texts = []
+    for i, raw in enumerate(faults or ()):
+        key = f'faults[{i}]'
+        if isinstance(raw, FaultSpec):
+            spec = raw
+            spec.check(names, key)
+        elif isinstance(raw, str):   # a command's text
+            command = parse_command(raw, names, key=key)
+            if command.action != 'add':
+                raise FaultError(f"key '{key}': a fault to add, not a clear command")
+            spec = command.spec
+        else:
+            spec = parse_fault(raw, names, key=key)
+        try:
+            live.add_fault(spec, key=key)
+        except CommandError as exc:
+            raise FaultError(str(exc)) from None
+        texts.append(fault_command_text('fault', spec.as_dict()))
+    return texts
 
 
 def channel_preset(live):
@@ -526,16 +589,19 @@ class _Summary:
         self.values = 0
 
     def add(self, batch):
+        from ..recording.node_messages import published_samples
         k = batch.t.size
         ev = batch.events
         self.impacts += int(np.count_nonzero(ev['kind'] == 0))
         self.stuck_time += sum(self.live._stuck) * k / self.live.sample_rate
         lin = batch.linear_acceleration
+        if batch.valid is not None and not batch.valid.all():   # what was published
+            lin = lin[batch.valid]
         if lin.size:
             self.peak = max(self.peak, float(np.max(np.abs(lin))))
             self.square_sum += float(np.sum(lin * lin))
             self.values += lin.size
-        self.samples += k
+        self.samples += published_samples(batch)
 
     def result(self, t):
         t = max(t, 1e-300)
