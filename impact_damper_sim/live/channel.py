@@ -10,7 +10,7 @@ frame, at the step rate ``fs = 1/dt``) into what a real channel publishes at the
                  -> + ADC noise, ADC clip, round to the ADC grid
 
 and, beside it, the ground truth: the model acceleration through the same low-pass and pick and
-no other stage (delayed as the samples are when the resonance needs a look-ahead). With every
+no other stage. No stage looks ahead, so neither is delayed beyond the low-pass. With every
 stage off (``spec=None``, the *ideal* channel) the samples are the ground truth plus the live
 white noise, bit for bit what ``LiveSimulation.step`` computed before (``StreamingLowpass``
 then the pick). The state of every stage is kept between calls, so any split of a run into
@@ -31,11 +31,11 @@ Conventions (the stage's own docstrings say more):
 * **mounting**: ``R = Rz(yaw) Ry(pitch) Rx(roll)`` holds the sensor's axes in the model frame,
   a tilted sensor reads ``R.T a``; the transverse sensitivity ``T`` is defined in
   :func:`.channel_design.transverse_matrix`; ``S = diag(1 + sensitivity_error)``.
-* **resonance**: the least-squares digital fit of ``H(s) = wn^2/(s^2 + wn/Q s + wn^2)`` over
-  ``0 .. min(0.4 fs, 0.5 fn)``, within 0.1 % and 0.1 deg and 10 % of the lift itself; a
-  resonance above the band needs a look-ahead of a few steps, paid as latency of the whole
-  channel, ground truth included (:attr:`SensorChannel.delay_steps`, 4 steps at fn 30 kHz,
-  Q 30 and a 20 kHz step; why in :func:`.channel_design.design_resonance`).
+* **resonance**: ``H(s) = wn^2/(s^2 + wn/Q s + wn^2)`` as 1 to 3 causal, stable biquads with
+  zero latency, fitted over the published band ``0 .. min(lowpass, 0.45 fs)``: gain within
+  0.5 %, phase within 0.5 deg, the lift within 10 % of itself (where it is at least 1e-4);
+  a resonance that no such cascade matches is refused (why and how in
+  :func:`.channel_design.design_resonance`). :attr:`SensorChannel.delay_steps` is 0.
 * **noise density** (one-sided, ``(m/s^2)/sqrt(Hz)``, as datasheets give it): white noise of
   ``sigma = density sqrt(fs / 2)`` per step, so a Welch (one-sided) PSD of the noise is
   ``density^2``. PX4 and Kalibr write ``sigma = n / sqrt(dt) = n sqrt(fs)`` with ``n`` the
@@ -85,8 +85,8 @@ class ChannelOutput:
     samples : ndarray, shape (k, 3)
         Published acceleration (m/s^2, sensor frame), output rate.
     truth : ndarray, shape (k, 3)
-        Model acceleration (m/s^2, model frame) through the same low-pass, pick and delay and
-        no other stage.
+        Model acceleration (m/s^2, model frame) through the same low-pass and pick and no
+        other stage.
     clipped : int
         Sample values (one per axis) this chunk clipped at the range or the ADC's full scale.
     """
@@ -156,19 +156,17 @@ class SensorChannel:
         # 1. mounting
         self.mounting = mounting_matrix(s['orientation'], s['transverse'],
                                         s['sensitivity_error'])
-        # 2. resonance: FIR part here, its denominator (if any) in the sos below
+        # 2. resonance: its biquads (none when the in-band effect is below the tolerances),
+        # ahead of the high-pass in one sos cascade
         self.resonance = None
         pre = []
-        self.delay_steps = 0
         if s['resonance'] is not None:
-            self.resonance = design_resonance(s['resonance']['frequency'],
-                                              s['resonance']['q'], fs)
-            if not self.resonance.identity:
-                self.delay_steps = self.resonance.delay
-                if len(self.resonance.a) > 1:
-                    pre.append(np.concatenate([[1.0, 0.0, 0.0], self.resonance.a]))
-        self._fir = (self.resonance.b if self.resonance is not None and not
-                     self.resonance.identity and len(self.resonance.b) > 1 else None)
+            try:
+                self.resonance = design_resonance(s['resonance']['frequency'],
+                                                  s['resonance']['q'], fs, self.lowpass_hz)
+            except ValueError as exc:
+                raise ValueError(self._msg(str(exc))) from None
+            pre.extend(self.resonance.sos)
         # 3. high-pass
         if s['highpass'] is not None:
             pre.append(highpass_sos(s['highpass']['corner'], fs)[0])
@@ -205,15 +203,12 @@ class SensorChannel:
         self.white_noise_std = 0.0
         self.white_noise_seed = None
         self._rng_white = rng['white_noise']
-        self._step_ideal = (self.mounting is None and self._fir is None
-                            and self._pre_sos is None and not self._has_sensor_noise)
+        self._step_ideal = (self.mounting is None and self._pre_sos is None
+                            and not self._has_sensor_noise)
         # state
         self._zi_lp = np.zeros((self._lp_sos.shape[0], 2, 3 if self._step_ideal else 6))
         self._zi_pre = (None if self._pre_sos is None
                         else np.zeros((self._pre_sos.shape[0], 2, 3)))
-        n_hist = 0 if self._fir is None else len(self._fir) - 1
-        self._fir_hist = np.zeros((n_hist, 3))
-        self._truth_hist = np.zeros((self.delay_steps, 3))
         self._lp_energy = None
         self._sosfilt = None
 
@@ -229,15 +224,18 @@ class SensorChannel:
         """float: Output sample rate ``step_rate_hz / decimation`` (Hz)."""
         return self.step_rate_hz / self.decimation
 
+    #: int: Latency of the chain beyond the anti-alias filter's own (integrator steps): 0,
+    #: always (the resonance is realised without a look-ahead); kept for its readers.
+    delay_steps = 0
+
     @property
     def ideal(self):
         """bool: No stage changes the numbers: samples = the ground truth (+ white noise)."""
-        return (self._step_ideal and self.delay_steps == 0 and self.range is None
-                and self._adc is None)
+        return self._step_ideal and self.range is None and self._adc is None
 
     @property
     def delay_s(self):
-        """float: Latency of the resonance section (s), samples and truth alike; 0 without."""
+        """float: :attr:`delay_steps` in seconds: 0."""
         return self.delay_steps / self.step_rate_hz
 
     @property
@@ -297,8 +295,7 @@ class SensorChannel:
         -------
         ChannelOutput
             ``k`` output samples (sensor frame), the ground truth (model frame), the clip
-            count; every value in m/s^2. Both are :attr:`delay_steps` behind the input when
-            the resonance section needs a look-ahead (0 otherwise).
+            count; every value in m/s^2. Neither is delayed beyond the anti-alias filter.
         """
         sosfilt = self._sosfilt or self._load_kernel()
         a = np.ascontiguousarray(mean_acc, dtype=float)
@@ -313,7 +310,7 @@ class SensorChannel:
             samples = truth.copy()
         else:
             x = np.empty((a.shape[0], 6))
-            x[:, :3] = self._delayed_truth(a)
+            x[:, :3] = a
             x[:, 3:] = self._step_chain(a, sosfilt)
             y = np.empty_like(x)
             sosfilt(self._lp_sos, x, self._zi_lp, y)
@@ -326,26 +323,9 @@ class SensorChannel:
         clipped = self._limit(samples, self._adc is not None and self._adc[3] > 0)
         return ChannelOutput(samples, truth, clipped)
 
-    def _delayed_truth(self, a):
-        if not self.delay_steps:
-            return a
-        buf = np.concatenate([self._truth_hist, a])
-        self._truth_hist = buf[len(buf) - self.delay_steps:].copy()
-        return buf[:len(a)]
-
     def _step_chain(self, a, sosfilt):
         """Stages 1-4 at the step rate: (n, 3) model frame -> (n, 3) sensor, before the LP."""
         x = a if self.mounting is None else a @ self.mounting.T
-        if self._fir is not None:
-            b = self._fir
-            m = len(b) - 1
-            buf = np.concatenate([self._fir_hist, x])
-            self._fir_hist = buf[len(buf) - m:].copy()
-            n = len(x)
-            out = b[0] * buf[m:]
-            for i in range(1, m + 1):     # one vector op per tap, the same order every chunk
-                out += b[i] * buf[m - i:m - i + n]
-            x = out
         if self._pre_sos is not None:
             y = np.empty_like(x)
             sosfilt(self._pre_sos, np.ascontiguousarray(x), self._zi_pre, y)
@@ -491,16 +471,18 @@ class SensorChannel:
         -------
         dict
             The spec as given (None = off) plus what the channel derived: the mounting matrix,
-            the resonance section and its latency, the per-step noise, the drawn turn-on bias,
-            the ADC's LSB, the white noise, the rates and the output noise variance.
+            the resonance section (its biquads and errors), the per-step noise, the drawn
+            turn-on bias, the ADC's LSB, the white noise, the rates, the latency (0) and the
+            output noise variance.
         """
         s = self.spec
         res = None
         if self.resonance is not None:
             d = self.resonance
-            res = {**s['resonance'], 'delay_steps': int(d.delay), 'band_hz': float(d.band_hz),
+            res = {**s['resonance'], 'band_hz': float(d.band_hz),
                    'gain_error': float(d.gain_error),
                    'phase_error_deg': float(d.phase_error_deg),
+                   'lift_error': float(d.lift_error), 'sos': d.sos.tolist(),
                    'b': [float(v) for v in d.b], 'a': [float(v) for v in d.a]}
         adc = None
         if s['adc'] is not None:
