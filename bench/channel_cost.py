@@ -96,10 +96,10 @@ def in_place(live, chunk, seconds):
     spent = [0.0] * len(live.channels)
 
     def timed(k, method):
-        def call(*args):
+        def call(*args, **kwargs):
             c = time.thread_time()
             try:
-                return method(*args)
+                return method(*args, **kwargs)
             finally:
                 spent[k] += time.thread_time() - c
         return call
@@ -122,9 +122,9 @@ def recorded_input(live, chunk, seconds=1.0):
     ch, chunks = live.channels[0], []
     process = ch.process
 
-    def keep(mean_acc):
+    def keep(mean_acc, **kwargs):
         chunks.append(np.array(mean_acc))
-        return process(mean_acc)
+        return process(mean_acc, **kwargs)
 
     ch.process = keep
     t0 = live.t

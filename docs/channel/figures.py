@@ -50,12 +50,12 @@ def simulate():
     steps = []   # (step end times, mean acceleration per step) in the trace window
     process = channel.process
 
-    def keep_input(mean_acc):   # the chain's input: the model's mean acceleration per step
+    def keep_input(mean_acc, **hooks):   # the chain's input: the model's mean acc. per step
         n = len(mean_acc)
         t = t_before[0] + live.dt * np.arange(1, n + 1)
         if t[-1] >= TRACE[0] - 0.01 and t[0] <= TRACE[1] + 0.01:
             steps.append((t, np.array(mean_acc)))
-        return process(mean_acc)
+        return process(mean_acc, **hooks)
 
     channel.process = keep_input
     t_before = [live.t]
@@ -118,7 +118,7 @@ def draw_chain(path):
         ('model: mean acceleration per step\n(model frame, no gravity)', 'step', 'white', True),
         ('1  mounting  M = S (I + T) R^T\norientation, transverse, sensitivity_error',
          'step', 'white', False),
-        ('2  mounted resonance (fn, Q): resonance\nlook-ahead of L steps = latency',
+        ('2  mounted resonance (fn, Q): resonance\ncausal biquads, no latency',
          'step', 'white', False),
         ('3  IEPE high-pass, first order\nhighpass (corner or time_constant)', 'step',
          'white', False),
@@ -170,7 +170,7 @@ def draw_chain(path):
     # the ground-truth branch, level with the stages it shares
     def level(i):
         return rows[i][0], rows[i][1]
-    truth = [(2, 'delay L steps\n(as the resonance)'), (5, 'the same\nanti-alias low-pass'),
+    truth = [(5, 'the same\nanti-alias low-pass'),
              (6, 'the same pick'), (7, 'Batch.truth\n(model frame)')]
     grey = '#555555'
     for k, (i, text) in enumerate(truth):
@@ -180,7 +180,7 @@ def draw_chain(path):
             pb, _ = level(truth[k - 1][0])
             arrow(rx + rw / 2, pb, rx + rw / 2, b + h, color=grey)
     mb, mh = rows[0]
-    b2, h2 = level(2)
+    b2, h2 = level(truth[0][0])
     arrow(x + w, mb + mh / 2, rx + rw / 2, b2 + h2, color=grey,
           style='angle,angleA=0,angleB=90,rad=0')
     ax.text(rx + rw / 2, 86.2, 'ground truth', ha='center', va='bottom', fontsize=9,
