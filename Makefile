@@ -73,7 +73,8 @@ test-slow: $(DEV)
 
 # Generated documents (tools/generated_docs.py). Fast ones are regenerated and compared by CI;
 # slow ones record their commit, command and a digest of their sources in docs/generated.json,
-# and test/test_generated_docs.py fails when those sources change.
+# and test/test_generated_docs.py fails when those sources change: their code or their scene
+# values, not their comments or docstrings (an edit of those needs no accept).
 
 # the paper's results next to ours (docs/validation.md and docs/validation/*.png; the run
 # time is in the document's header); OpenBLAS's Haswell kernels on x86-64, so that the chaotic

@@ -8,10 +8,14 @@
   ``docs/validation.md``'s tables) equal what their printers print now.
 * The slow documents (``docs/convergence.md``, the impact-cost curve) record the commit and
   command that made them and a digest of their sources in ``docs/generated.json``; a test fails
-  when those sources differ, naming the files and the make target that regenerates it.
+  when those sources differ, naming the files and the make target that regenerates it. The
+  digests see code and data, not comments, docstrings or layout (issue 37 item 5): a comment
+  edit needs no ``accept``.
 """
+import ast
 import importlib.util
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -114,12 +118,134 @@ def test_slow_document_sources_unchanged(name):
 def test_digest_sees_a_change():
     """The digest covers the engine: a changed kernel or scene file is a change."""
     files = gd.file_digests('convergence')
-    assert 'impact_damper_sim/integrate/kernels/exact.py' in files
+    assert any(p.startswith('impact_damper_sim/integrate/kernels/') for p in files)
     assert 'config/scenes/hpotp.yaml' in files
     assert not any(p.startswith(('impact_damper_sim/ros/', 'impact_damper_sim/cli/'))
                    for p in files)
     changed = dict(files, **{'config/scenes/hpotp.yaml': '0' * 16})
     assert gd.total_digest(changed) != gd.total_digest(files)
+
+
+# --- digests by what can change a result (issue 37 item 5) ----------------------------------
+
+_MODULE = '''"""A module."""
+import math
+
+RATE = 2.5   # per second
+
+
+class Spring:
+    """A spring."""
+
+    def force(self, x):
+        """Force at ``x``."""
+        return -RATE * x + math.sin(x)
+'''
+
+
+def test_python_digest_ignores_comments_docstrings_and_layout():
+    base = gd.python_code_digest(_MODULE)
+    same = [
+        _MODULE.replace('# per second', '# per second, say why at length'),
+        _MODULE.replace('"""A spring."""', '"""A spring, documented.\n\n    More.\n    """'),
+        _MODULE.replace('"""A module."""', "'Another module docstring.'"),
+        _MODULE.replace('"""A module."""\n', ''),                        # docstring removed
+        _MODULE.replace('return -RATE * x + math.sin(x)',
+                        'return (-RATE * x\n                + math.sin(x))  # re-wrapped'),
+        _MODULE.replace('\n\n\nclass', '\n# a comment line\n\n\n\nclass'),
+        _MODULE.replace('RATE = 2.5', 'RATE = 2.50'),                    # the same float
+    ]
+    assert [gd.python_code_digest(t) == base for t in same] == [True] * len(same)
+    moved = [
+        _MODULE.replace('RATE = 2.5', 'RATE = 2.6'),                     # a constant
+        _MODULE.replace('-RATE * x +', '-RATE * x -'),                   # an operator
+        _MODULE.replace('math.sin', 'math.cos'),                         # a name
+        _MODULE.replace('        return', '        x = abs(x)\n        return'),  # a statement
+        _MODULE.replace('import math\n', 'import math\nimport cmath as math\n'),
+    ]
+    assert len({gd.python_code_digest(t) for t in moved} | {base}) == len(moved) + 1
+
+
+def test_real_source_digest_ignores_a_comment_but_not_a_constant():
+    """On an engine file: a comment and a docstring edit keep its digest; a changed number
+    does not."""
+    path = 'impact_damper_sim/dampers/law.py'
+    data = (ROOT / path).read_bytes()
+    text = data.decode()
+    base = gd.source_digest(path, data)
+    commented = '# a comment edit\n' + text.replace('"""', '"""Reworded. ', 1)
+    assert commented != text and gd.source_digest(path, commented.encode()) == base
+    number = next(n for n in ast.walk(ast.parse(text)) if isinstance(n, ast.Constant)
+                  and type(n.value) in (int, float))       # a number of the code
+    lines = text.splitlines(True)
+    line = lines[number.lineno - 1]
+    lines[number.lineno - 1] = (line[:number.col_offset] + repr(number.value * 2 + 1)
+                                + line[number.end_col_offset:])
+    assert gd.source_digest(path, ''.join(lines).encode()) != base
+    # a file that does not parse (half-edited) falls back to its bytes: any change shows
+    assert gd.source_digest(path, b'def (') != gd.source_digest(path, b'def ( ')
+
+
+def test_yaml_digest_ignores_comments_but_not_values():
+    """Scene files by their parsed events: a comment or a layout change keeps the digest, a
+    value (even an equal number written another way) changes it."""
+    path = 'config/scenes/sdof.yaml'
+    text = (ROOT / path).read_text()
+    base = gd.source_digest(path, text.encode())
+    assert 'mass: 2 kg                                # primary (housing) mass M' in text
+    assert '  - {name: primary, node: 0, dof: uy}\n' in text
+    same = [
+        '# a new header comment\n' + text,
+        text.replace('# primary (housing) mass M', '# M, the housing'),
+        text.replace('mass: 2 kg                                #', 'mass: 2 kg  #'),
+        text.replace('  - {name: primary, node: 0, dof: uy}\n',
+                     '  - name: primary\n    node: 0\n    dof: uy\n'),       # flow -> block
+    ]
+    assert [gd.source_digest(path, t.encode()) == base for t in same] == [True] * len(same)
+    moved = [text.replace('mass: 2 kg ', 'mass: 3 kg '),
+             text.replace('damping_ratio: 0.02 ', 'damping_ratio: 2e-2 '),   # read differently
+             text.replace('  n_modes: 1\n', '  n_modes: 1\n  extra: 1\n'),
+             text.replace('mass: 2 kg ', "mass: '2 kg'")]                     # quoted
+    assert all(t != text for t in moved)
+    assert [gd.source_digest(path, t.encode()) != base for t in moved] == [True] * len(moved)
+
+
+def test_other_files_keep_a_byte_digest():
+    assert gd.source_digest('docs/x.csv', b'a,b\n1,2\n') != gd.source_digest(
+        'docs/x.csv', b'a,b\n1,2 \n')
+
+
+_COPIED = ['impact_damper_sim/__init__.py', 'impact_damper_sim/dampers/law.py',
+           *[f'config/scenes/{s}.yaml' for s in ('cantilever', 'hpotp', 'rbs_kcc', 'sdof')]]
+
+
+def test_accept_records_code_digests_that_ignore_a_comment(tmp_path, monkeypatch):
+    """``accept`` on a small copy of the checkout (a few engine files, the scenes, the page and
+    docs/generated.json): the record carries the digest method, the check then passes, still
+    passes after a comment edit, and fails naming the file after a change of code."""
+    for rel in _COPIED + ['docs/convergence.md', 'docs/generated.json']:
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(ROOT / rel, tmp_path / rel)
+    monkeypatch.setattr(gd, 'ROOT', tmp_path)
+    monkeypatch.setattr(gd, 'MANIFEST', tmp_path / 'docs' / 'generated.json')
+    old = gd.load_manifest()['convergence']
+    if old.get('digest_method') != gd.DIGEST_METHOD:
+        assert 'made another way' in gd.stale('convergence')[0]
+    gd.cmd_accept('convergence', 'test: comments only')
+    entry = gd.load_manifest()['convergence']
+    assert entry['digest_method'] == gd.DIGEST_METHOD
+    assert sorted(entry['files']) == sorted(_COPIED)
+    assert entry['commit'] == old['commit'] and entry['accepted']['reason'] == 'test: comments only'
+    assert f'`{entry["digest"]}`' in (tmp_path / 'docs' / 'convergence.md').read_text()
+    assert gd.stale('convergence') == []
+    law = tmp_path / 'impact_damper_sim' / 'dampers' / 'law.py'
+    law.write_text('# a comment added after the accept\n' + law.read_text())
+    scene = tmp_path / 'config' / 'scenes' / 'hpotp.yaml'
+    scene.write_text(scene.read_text() + '\n# a trailing comment\n')
+    assert gd.stale('convergence') == []
+    law.write_text(law.read_text() + '\nEXTRA = 1\n')
+    problems = gd.stale('convergence')
+    assert len(problems) == 1 and '1 changed: impact_damper_sim/dampers/law.py' in problems[0]
 
 
 # --- what the README and docs quote ----------------------------------------------------------

@@ -12,7 +12,10 @@ Two kinds:
   ``docs/generated.json`` records for each the commit and command that made it and a SHA-256
   digest of every source file its results depend on; ``test/test_generated_docs.py`` fails
   when a digest differs from the working tree's, names the files and the make target that
-  regenerates it.
+  regenerates it. The digests see what can change a result and nothing else
+  (:func:`source_digest`): a Python file's code without its comments, docstrings and layout,
+  a YAML file's parsed values without its comments and layout; so a comment or docstring edit
+  needs no ``accept``.
 
 Usage (from the checkout, with the venv's python)::
 
@@ -31,6 +34,7 @@ Usage (from the checkout, with the venv's python)::
 from __future__ import annotations
 
 import argparse
+import ast
 import datetime
 import difflib
 import fnmatch
@@ -92,8 +96,91 @@ def _sha(data):
     return hashlib.sha256(data).hexdigest()[:16]
 
 
+#: How the digests of docs/generated.json are made (recorded in each entry): a record made
+#: another way is compared with nothing and reported as such. 1 (no field): every byte.
+DIGEST_METHOD = 'code/2'
+
+
+def _is_string_statement(node):
+    """A bare string statement (docstring, or a string used as a comment): it runs to
+    nothing, whatever it says."""
+    return (isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+            and isinstance(node.value.value, str))
+
+
+def _code_text(node):
+    """The canonical text of an AST node: class names, fields and constants, without line
+    numbers and without fields that are None or empty (Python 3.12 added ``type_params``, 3.13's
+    ``ast.dump`` leaves empty fields out: the digest must not depend on the interpreter)."""
+    if isinstance(node, ast.AST):
+        parts = []
+        for field in node._fields:
+            value = getattr(node, field, None)
+            if isinstance(value, list):
+                value = [v for v in value if not _is_string_statement(v)]
+            if value is None or value == []:
+                continue
+            parts.append(f'{field}={_code_text(value)}')
+        return f'{type(node).__name__}({", ".join(parts)})'
+    if isinstance(node, list):
+        return f'[{", ".join(_code_text(v) for v in node)}]'
+    return repr(node)
+
+
+def python_code_digest(text):
+    """Digest of a Python module's code: comments, docstrings (and every other bare string
+    statement), blank lines, line wrapping and quote style leave it unchanged; a changed
+    constant, operator, name or statement changes it. ``None`` if the text does not parse."""
+    try:
+        tree = ast.parse(text)
+    except (SyntaxError, ValueError):
+        return None
+    return _sha(_code_text(tree).encode())
+
+
+def yaml_data_digest(text):
+    """Digest of a YAML document's event stream as a parser reads it: every scalar as
+    written (``1e-3`` and ``0.001`` differ, since loaders read them differently), its tag
+    and whether it was quoted, anchors, aliases and the nesting; comments, indentation, flow
+    or block style leave it unchanged. ``None`` if the text does not parse."""
+    import yaml
+    events = []
+    try:
+        for ev in yaml.parse(text, Loader=getattr(yaml, 'CSafeLoader', yaml.SafeLoader)):
+            kind = type(ev).__name__
+            if isinstance(ev, yaml.ScalarEvent):
+                events.append((kind, ev.anchor, ev.tag, ev.implicit, ev.value))
+            elif isinstance(ev, (yaml.CollectionStartEvent, yaml.AliasEvent)):
+                events.append((kind, ev.anchor, getattr(ev, 'tag', None)))
+            else:
+                events.append((kind,))
+    except yaml.YAMLError:
+        return None
+    return _sha(repr(events).encode())
+
+
+def source_digest(path, data):
+    """Digest of one source file's content ``data`` (bytes): by what can change a result.
+
+    Python sources by their code (:func:`python_code_digest`), YAML files (the scenes) by their
+    parsed events (:func:`yaml_data_digest`), any other file, and a file that does not parse
+    or decode, by its bytes. ``make``, ``accept`` and the check all use this one function.
+    """
+    try:
+        text = data.decode('utf-8')
+    except UnicodeDecodeError:
+        return _sha(data)
+    digest = None
+    if path.endswith('.py'):
+        digest = python_code_digest(text)
+    elif path.endswith(('.yaml', '.yml')):
+        digest = yaml_data_digest(text)
+    return digest if digest is not None else _sha(data)
+
+
 def file_digests(name, commit=None):
-    """``{path: sha256[:16]}`` of NAME's source files in the working tree, or at ``commit``."""
+    """``{path: digest}`` of NAME's source files in the working tree, or at ``commit``
+    (:func:`source_digest`)."""
     spec = SLOW[name]
     if commit is None:
         paths = set()
@@ -103,10 +190,10 @@ def file_digests(name, commit=None):
                 paths.add(str(top.relative_to(ROOT)))
             for base, _dirs, names in os.walk(top if top.is_dir() else top.parent):
                 paths.update(str((Path(base) / n).relative_to(ROOT)) for n in names)
-        return {p: _sha((ROOT / p).read_bytes()) for p in _selected(paths, spec)}
+        return {p: source_digest(p, (ROOT / p).read_bytes()) for p in _selected(paths, spec)}
     paths = _git('ls-tree', '-r', '--name-only', commit).split('\n')
-    return {p: _sha(subprocess.run(['git', 'show', f'{commit}:{p}'], cwd=ROOT, check=True,
-                                   capture_output=True).stdout)
+    return {p: source_digest(p, subprocess.run(['git', 'show', f'{commit}:{p}'], cwd=ROOT,
+                                               check=True, capture_output=True).stdout)
             for p in _selected(paths, spec)}
 
 
@@ -136,6 +223,12 @@ def stale(name, manifest=None):
     spec = SLOW[name]
     if entry is None:
         return [f'{name}: no record in docs/generated.json; regenerate with `{spec["target"]}`']
+    if entry.get('digest_method', 'bytes/1') != DIGEST_METHOD:
+        return [f'{name}: docs/generated.json records digests made another way '
+                f'({entry.get("digest_method", "bytes/1")}, not {DIGEST_METHOD}), so its '
+                f'sources cannot be compared; regenerate with `{spec["target"]}`, or, if no '
+                f'result can have moved since it was made, '
+                f'`tools/generated_docs.py accept {name} --reason ...`']
     now = file_digests(name)
     if total_digest(now) == entry['digest']:
         return []
@@ -158,7 +251,8 @@ def record(name, *, commit, command, date, files, accepted=None):
     entry = {'outputs': SLOW[name]['outputs'], 'target': SLOW[name]['target'],
              'commit': commit, 'command': command, 'date': date,
              'sources': SLOW[name]['sources'], 'exclude': ENGINE_EXCLUDE,
-             'digest': total_digest(files), 'files': dict(sorted(files.items()))}
+             'digest_method': DIGEST_METHOD, 'digest': total_digest(files),
+             'files': dict(sorted(files.items()))}
     if accepted:
         entry['accepted'] = accepted
     manifest[name] = entry
