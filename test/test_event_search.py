@@ -29,8 +29,8 @@ from impact_damper_sim.integrate.exact import ExactPropagator, MassUpdate
 from impact_damper_sim.integrate.forcing import Forcing, Harmonic
 from impact_damper_sim.integrate.kernels import codes
 from impact_damper_sim.integrate.kernels import contact as KC
-from impact_damper_sim.integrate.kernels import exact as KE
-from impact_damper_sim.integrate.kernels import flow as KF
+from impact_damper_sim.integrate.kernels import event_loop as KE
+from impact_damper_sim.integrate.kernels import flow_eval as KF
 from impact_damper_sim.integrate.kernels import poly as KP
 from impact_damper_sim.integrate.kernels import search as KS
 from impact_damper_sim.integrate.kernels.scan import (FN_PLANAR, FN_RELEASE, FN_WALL_NEG,

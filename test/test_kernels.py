@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from impact_damper_sim.integrate.kernels import flow as K
+from impact_damper_sim.integrate.kernels import flow_eval as K
 from impact_damper_sim.integrate.kernels import ledger as L
 from impact_damper_sim.integrate.kernels import poly as PL
 from impact_damper_sim.integrate.kernels import quadrature as Q
@@ -394,7 +394,7 @@ def test_kernels_compile_without_reference_counting():
     # cannot compile; the same function with ``_nrt=True`` runs.
     from numba import config
     from numba.core.errors import TypingError
-    from impact_damper_sim.integrate.kernels import KERNEL_OPTIONS, exact, kernel
+    from impact_damper_sim.integrate.kernels import KERNEL_OPTIONS, event_loop, kernel
     if config.DISABLE_JIT:
         pytest.skip('the kernels run as Python')
 
@@ -404,4 +404,4 @@ def test_kernels_compile_without_reference_counting():
     with pytest.raises(TypingError):
         kernel(cache=False)(total)(3)
     assert kernel(cache=False, _nrt=True)(total)(3) == 3.0
-    assert KERNEL_OPTIONS['_nrt'] is False and exact.advance.targetoptions['_nrt'] is False
+    assert KERNEL_OPTIONS['_nrt'] is False and event_loop.advance.targetoptions['_nrt'] is False

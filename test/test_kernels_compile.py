@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.integrate import kernels
-from impact_damper_sim.integrate.kernels import flow
+from impact_damper_sim.integrate.kernels import flow_eval
 
 pytestmark = pytest.mark.skipif(os.environ.get('NUMBA_DISABLE_JIT', '0') != '0',
                                 reason='the kernels run as Python: nothing is compiled')
@@ -100,12 +100,12 @@ def test_a_kernel_calls_another_by_symbol_without_its_code():
             c(2, n2), 2, np.empty(n2, complex), np.empty(n2, complex), np.empty((3, nf)),
             np.empty((3, n2), complex), np.empty((3, 2)))
     expected = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
-    flow.housing_velocity_py(*expected)
-    caller = kernels.kernel(cache=False)(flow.housing_velocity_py)   # inspectable: not cached
+    flow_eval.housing_velocity_py(*expected)
+    caller = kernels.kernel(cache=False)(flow_eval.housing_velocity_py)   # inspectable: not cached
     caller(*args)
     np.testing.assert_array_equal(args[-1][:2], expected[-1][:2])
     ir = next(iter(caller.inspect_llvm().values()))
-    callee = flow.point_eval.internal()
+    callee = flow_eval.point_eval.internal()
     symbol = kernels._symbol(kernels._load_of(callee, callee.signatures[0]))
     uses = [line for line in ir.splitlines() if re.search(f'@"?{re.escape(symbol)}"?\\(', line)]
     assert any(line.startswith('declare ') for line in uses)

@@ -15,7 +15,7 @@ from impact_damper_sim.integrate.direct import modal_damping_matrix, physical_mo
 from impact_damper_sim.integrate.events import EVENT_KINDS
 from impact_damper_sim.integrate.exact import ExactPropagator
 from impact_damper_sim.integrate.forcing import Forcing, Harmonic
-from impact_damper_sim.integrate.kernels import newmark as kn
+from impact_damper_sim.integrate.kernels import newmark_step as kn
 from impact_damper_sim.integrate.model import LinearModel
 from impact_damper_sim.integrate.newmark import NewmarkIntegrator
 from impact_damper_sim.modal import modal_reduction

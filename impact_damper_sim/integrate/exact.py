@@ -13,8 +13,8 @@ import numpy as np
 
 from .divergence import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS,
                           cache_limit, configuration_bytes)
-from .kernels import exact as kernels
-from .kernels import flow as flow_kernels
+from .kernels import event_loop as kernels
+from .kernels import flow_eval as flow_kernels
 from .kernels import ledger as ledger_kernels
 from .kernels.prefetch import prefetch
 from .kernels.quadrature import phi1_real
@@ -137,7 +137,7 @@ class _Table:
         self.built[slot] = 1
 
     def kernel_args(self, ni):
-        """The ``tb_*`` arguments of :func:`.kernels.exact.advance` (impactors ``[:ni]``)."""
+        """The ``tb_*`` arguments of :func:`.kernels.event_loop.advance` (impactors ``[:ni]``)."""
         a = self.arrays
         return (self.built, a['lam'], self.lam_max, a['V'], a['Vinv'], a['W'], a['part_plus'],
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
@@ -473,7 +473,7 @@ class ExactPropagator(IntegratorBase):
         return Samples(times, disp, vel, acc)
 
     def _ledger_model(self, model):
-        """The ``ledger_model`` and ``c_pattern`` arguments of :func:`.kernels.exact.advance`.
+        """The ``ledger_model`` and ``c_pattern`` arguments of :func:`.kernels.event_loop.advance`.
 
         ``(None, None)`` without the ledger. Otherwise ``(C, K_skew, B)`` of ``model``, and
         ``None`` for a diagonal ``C`` (modal damping) or the columns of the non-zero entries

@@ -34,7 +34,7 @@ from ..dampers.law import law_mobility, IMPACT_LAWS
 from ..modal.basis import lanczos_start
 from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples, STICK_RULES
-from .kernels import newmark as kernels
+from .kernels import newmark_step as kernels
 from .newmark_events import NewmarkEventsMixin
 
 IMPACT_MODES = ('located', 'step_end')

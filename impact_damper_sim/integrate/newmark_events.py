@@ -10,7 +10,7 @@ state of its own and works on the integrator's (``_q``, ``_v``, ``_a``, ``_rows`
 ``_config``, ``_trial``, ``_force_at`` and ``_accel``.
 
 Impact law, sticking and release mirror the exact kernels (:mod:`.kernels.contact`,
-:func:`.kernels.exact.advance`): the effective-mass (or lumped) law with the impulse applied
+:func:`.kernels.event_loop.advance`): the effective-mass (or lumped) law with the impulse applied
 through the model (``qd += M^{-1} R^T P``), the paper's or the accumulation sticking rule, the
 cap on impacts per output step, the plastic lock at stick entry, the stuck state (impactor
 mass added to the housing rows, ``M + m R^T R``) and release when the normal contact force
@@ -19,7 +19,7 @@ force inside the step, refined by regula falsi on re-steps so that the released 
 non-compressive force). Differences from the exact kernel:
 
 * a stuck planar impactor's release force is that of a frictionless normal contact,
-  ``-n . (I - m G_s)^{-1} a_h`` (see :func:`.kernels.newmark.release_force`), which has the
+  ``-n . (I - m G_s)^{-1} a_h`` (see :func:`.kernels.newmark_step.release_force`), which has the
   sign of the lock criterion; the kernel's ``-n . a_h`` in the stuck configuration can
   disagree with it when the mobility ``G`` is anisotropic, giving stick/release pairs at one
   instant. For SDOF the factor is a positive scalar and the release instant is the kernel's;
@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from .events import EVENT_KINDS
-from .kernels import newmark as kernels
+from .kernels import newmark_step as kernels
 
 _EV_IMPACT = EVENT_KINDS.index('impact')
 _EV_STICK = EVENT_KINDS.index('stick')

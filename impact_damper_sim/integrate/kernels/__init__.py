@@ -8,15 +8,15 @@ the compiled kernel against (``test/test_kernels*.py``), so the JIT never hides 
 path. Compiled kernels are cached in ``NUMBA_CACHE_DIR``, a per-user directory unless set
 (:mod:`impact_damper_sim._cache_dir`).
 
-Modules: :mod:`.flow` (evaluating and bounding the exact modal flow), :mod:`.poly`
+Modules: :mod:`.flow_eval` (evaluating and bounding the exact modal flow), :mod:`.poly`
 (polynomials: safe steps, Bernstein bounds, certified roots), :mod:`.scan` (the safe-step event
 scan), :mod:`.search` (the event search and the quiet-window certificate), :mod:`.contact`
 (impacts, sticks, releases and configuration switches), :mod:`.codes` (status codes, event
 kinds, sticking rules, work counters), :mod:`.ledger` (energy ledger quadrature: its forms)
-with :mod:`.quadrature` (the series, integrals and factors they share), :mod:`.exact` (the
+with :mod:`.quadrature` (the series, integrals and factors they share), :mod:`.event_loop` (the
 exact propagator's event loop, and the entry point of :mod:`impact_damper_sim.integrate.exact`),
-:mod:`.prefetch` (what a cold start compiles in helper processes first), :mod:`.newmark` and
-:mod:`.filters`.
+:mod:`.prefetch` (what a cold start compiles in helper processes first), :mod:`.newmark_step`
+(the Newmark step) and :mod:`.filters` (the streaming low-pass).
 
 Compile time (an empty cache compiles the kernels a run calls, once): a kernel is compiled
 for the first call that needs it, once per argument types (:class:`Kernel`). Numba links a
@@ -33,7 +33,7 @@ docs/impact-cost.md). A kernel with a declared return type (``kernel(returns=...
 event search, its fallback scan and the ledger's two main forms) is compiled by a helper
 process when a caller is typed on a cold start (:func:`_farm`), so a cold start uses the
 machine's cores (``IMPACT_DAMPER_SIM_COMPILE_HELPERS=0``: none). What a run does not use is
-not compiled: :func:`.exact.advance` leaves out the energy ledger, or the ledger form a model
+not compiled: :func:`.event_loop.advance` leaves out the energy ledger, or the ledger form a model
 does not need, by the types of its arguments.
 
 Numba keys a cached function on its own source file only, not on the files of the functions

@@ -1,9 +1,9 @@
 """Codes the exact propagator's kernels share: status codes, event kinds, sticking rules and
 work counters.
 
-:func:`.exact.advance` returns a status code; each event it records has a kind (in the order
+:func:`.event_loop.advance` returns a status code; each event it records has a kind (in the order
 of :data:`~impact_damper_sim.integrate.events.EVENT_KINDS`); its caller passes the sticking
-rule; ``counters`` (``CNT_*``) count the work done by the event loop (:mod:`.exact`), the
+rule; ``counters`` (``CNT_*``) count the work done by the event loop (:mod:`.event_loop`), the
 event search (:mod:`.search`) and the contact handling (:mod:`.contact`). Plain integers,
 constants of the compiled kernels; kept in one module that the three import, so that none of
 them imports another only for its codes.

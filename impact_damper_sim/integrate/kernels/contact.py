@@ -2,7 +2,7 @@
 release (:func:`impact`, :func:`record`), and the change of configuration that a stick or a
 release brings (:func:`switch_slot`, :func:`release_normals`).
 
-Separate from the event loop (:mod:`.exact`) that calls them and from the event search
+Separate from the event loop (:mod:`.event_loop`) that calls them and from the event search
 (:mod:`.search`) that finds the events: these kernels apply the impact law and the sticking
 rules (codes in :mod:`.codes`) to the state at the event and append it to the event buffers.
 
@@ -22,7 +22,7 @@ import numpy as np
 from . import kernel
 
 from .codes import EV_IMPACT, EV_STICK, STICK_ACCUMULATION, STICK_PAPER
-from .flow import add_particular
+from .flow_eval import add_particular
 from .scan import FN_WALL_POS
 
 

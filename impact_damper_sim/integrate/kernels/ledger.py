@@ -7,7 +7,7 @@ Taylor series of the exact flow (:func:`ledger_modal` for diagonal damping, rows
 :func:`ledger_taylor` in general). :func:`ledger_panel`, composite 4-point Gauss-Legendre on
 flow evaluations, is the independent reference the tests hold them to. The pieces the forms
 share (series degrees and panels, integrals of polynomial products, closed-form factors) are
-in :mod:`.quadrature`. Conventions as in :mod:`.flow`.
+in :mod:`.quadrature`. Conventions as in :mod:`.flow_eval`.
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from numba import types
 
 from . import kernel
 
-from .flow import cabs, point_eval, propagate
+from .flow_eval import cabs, point_eval, propagate
 from .quadrature import (N_TERMS, PANEL_RADIUS, _HILBERT, _INV, damping_row, dense_row_sums,
                          hilbert_dot, input_series, panel_plan, phi1_ledger, row_series,
                          taylor_degree)
@@ -117,7 +117,7 @@ def ledger_taylor_py(yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, u
     Parameters
     ----------
     yh, lam, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur
-        The flow over the piece, as in :func:`.flow.point_eval` (state in modal units,
+        The flow over the piece, as in :func:`.flow_eval.point_eval` (state in modal units,
         ``lam`` in 1/s, ``omegas`` in rad/s, inputs in their SI units, ``t_cur`` in s).
     tau : float
         Length of the piece (s).
@@ -462,7 +462,7 @@ def ledger_closed_py(yh, lam, w0, ws, u0, us, tau, e_tau, p1_tau, p2_tau, m_tau,
         ``int_0^tau |e^(lam s)|^2 ds`` (s).
     part_plus, part_minus, omegas, amps : ndarray
         Harmonic particular solution (modal units), frequencies (rad/s) and input amplitudes
-        (N), as in :func:`.flow.point_eval`; empty without harmonics.
+        (N), as in :func:`.flow_eval.point_eval`; empty without harmonics.
     harm : ndarray of complex
         :func:`.quadrature.harmonic_factors` of the piece.
     Vv : ndarray of complex

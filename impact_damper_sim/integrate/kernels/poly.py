@@ -1,7 +1,7 @@
 """Numba kernels on polynomials: safe steps, Bernstein range bounds and first roots.
 
 A polynomial is an array of normalized Taylor coefficients ``a[m]``, ``p(s) = sum a[m] s^m``
-(float64). Conventions as in :mod:`.flow`.
+(float64). Conventions as in :mod:`.flow_eval`.
 """
 from __future__ import annotations
 

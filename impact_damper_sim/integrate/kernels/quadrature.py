@@ -8,8 +8,8 @@ series (:func:`input_series`); the exact integrals of products of such polynomia
 closed-form factors of a piece (:func:`piece_factors`, :func:`harmonic_factors`,
 :func:`phi1_real`, :func:`phi1_ledger`). Separate from the forms because they share these
 pieces: the series forms the degrees and polynomial integrals, the closed form the factors
-(and the series of a row it cannot take in closed form), the event loop (:mod:`.exact`) the
-factors of a piece. Conventions as in :mod:`.flow`.
+(and the series of a row it cannot take in closed form), the event loop (:mod:`.event_loop`) the
+factors of a piece. Conventions as in :mod:`.flow_eval`.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import numpy as np
 
 from . import kernel
 
-from .flow import _PHI1_SERIES, flow_factors, phis_from
+from .flow_eval import _PHI1_SERIES, flow_factors, phis_from
 
 
 #: Relative size of the first dropped term of each coordinate's Taylor series in
@@ -218,7 +218,7 @@ def piece_factors_py(lam, tau, e_tau, p1_tau, p2_tau, m_tau):
     ``int_0^tau |e^(lam s)|^2 ds = tau phi1(2 Re(lam) tau)`` (s).
 
     One exponential per coordinate at ``|lam tau| >= 0.2``; below, none
-    (:func:`.flow.flow_factors`).
+    (:func:`.flow_eval.flow_factors`).
     """
     for k in range(lam.size):
         z = lam[k] * tau

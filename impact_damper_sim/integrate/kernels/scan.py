@@ -6,8 +6,8 @@ planar ``g = c^2 - |z - x_h|^2``; stuck impactors have the release function ``f 
 scan advances only as far as the cubic lower bound ``g + g' s + g'' s^2/2 - G3 s^3/6`` stays
 positive, where ``G3`` bounds ``|g'''|`` over the interval from the modal amplitudes, so a dip
 and return inside a step cannot be missed; brackets are refined by Illinois regula falsi.
-:mod:`.exact` falls back on it where its Taylor-model search cannot certify an answer.
-Conventions as in :mod:`.flow`.
+:mod:`.event_loop` falls back on it where its Taylor-model search cannot certify an answer.
+Conventions as in :mod:`.flow_eval`.
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from numba import types
 
 from . import kernel
 
-from .flow import derivative_bounds, point_eval, row_bound, row_derivs
+from .flow_eval import derivative_bounds, point_eval, row_bound, row_derivs
 from .poly import cubic_safe_step
 
 _MAX_SCAN = 2000

@@ -1,15 +1,16 @@
 """Numba kernels of the exact propagator's event search: the first event of any impactor in a
 sub-interval (:func:`search`), and the quiet-window certificate (:func:`quiet_window`).
 
-Separate from the event loop (:mod:`.exact`), which calls :func:`search` once per sub-interval
-and handles what it finds (:mod:`.contact`): the search reads the state and writes only its
-result, its work arrays and the counters. Conventions as in :mod:`.flow`; ``counters`` as in :mod:`.codes`.
+Separate from the event loop (:mod:`.event_loop`), which calls :func:`search` once per
+sub-interval and handles what it finds (:mod:`.contact`): the search reads the state and
+writes only its result, its work arrays and the counters. Conventions as in
+:mod:`.flow_eval`; ``counters`` as in :mod:`.codes`.
 
 Event search over a sub-interval (from the current time to the end of the output step, or a
 shorter Taylor segment):
 
 1. *Filters.* With the exact state and its first derivatives at the start, and bounds of the
-   derivatives over the sub-interval (:func:`.flow.derivative_bounds`), an impactor is
+   derivatives over the sub-interval (:func:`.flow_eval.derivative_bounds`), an impactor is
    cleared by an excursion bound or by the cubic lower bound of its event function
    (:mod:`.scan`) when it cannot reach a wall (or, stuck, its release) in the sub-interval.
 2. *Taylor models.* Each remaining event function gets its Taylor polynomial of degree ``P``
@@ -36,7 +37,7 @@ from . import kernel
 
 from .codes import (CNT_CANDIDATES, CNT_CERTIFIED, CNT_EVALS, CNT_FALLBACK, CNT_SEARCHES,
                     CNT_SEGMENTS, CNT_TAYLOR)
-from .flow import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
+from .flow_eval import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
                    point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
 from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
                    positive_until, quadratic_first_root)
@@ -219,7 +220,7 @@ third_bound = kernel(forceinline=True)(third_bound_py)
 def out_of_reach_py(n_rows, reach, X, z, v, limit, T):
     """True if a free impactor cannot reach its clearance within ``T`` (s).
 
-    The housing moves by at most ``reach`` (m, see :func:`.flow.site_bounds`) from ``X[0]``;
+    The housing moves by at most ``reach`` (m, see :func:`.flow_eval.site_bounds`) from ``X[0]``;
     the impactor moves on a straight line.
     """
     if n_rows == 1:
@@ -516,7 +517,7 @@ def quiet_window_py(T, yh, lam, W, part_plus, part_minus, omegas, u_grid, k0, k1
     Valid whatever the input does between the grid samples ``u_grid[k0..k1]`` (N) that span
     the window, so unlike a search it may cross output steps, where the held input has kinks:
     the housing's excursion is bounded from ``|exp(lam t) - 1| |yh|`` plus ``T`` times the
-    largest ``|W u|`` over the window (:func:`.flow.excursion_bounds`), and each impactor
+    largest ``|W u|`` over the window (:func:`.flow_eval.excursion_bounds`), and each impactor
     flies straight (:func:`out_of_reach`). ``Xs[site, 0]`` holds the housing rows' position
     now (m); a stuck impactor, or one on a boundary, is never certified.
     """

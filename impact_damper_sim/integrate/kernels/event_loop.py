@@ -1,6 +1,6 @@
 """Numba kernel of the exact, event-located propagator: :func:`advance`, the event loop.
 
-Between events the modal state flows exactly (:mod:`.flow`). Events are impacts, sticks and
+Between events the modal state flows exactly (:mod:`.flow_eval`). Events are impacts, sticks and
 releases; every one of them, and the change of the model's configuration when an impactor
 sticks or is released, is handled inside the compiled loop: each sub-interval is searched for
 its first event (:mod:`.search`), the state is moved to it, and the event is applied
@@ -13,7 +13,7 @@ and :func:`advance_work` it exposes the codes the propagator passes in and reads
 sticking rules, the status codes, ``N_COUNTERS`` and ``CNT_SWITCHES``: ``__all__``), which are
 defined in :mod:`.codes`.
 
-Conventions as in :mod:`.flow`; ``counters`` (``CNT_*``, :mod:`.codes`) count the work done.
+Conventions as in :mod:`.flow_eval`; ``counters`` (``CNT_*``, :mod:`.codes`) count the work done.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from .codes import (BUFFER_FULL, CHATTER, CNT_EVALS, CNT_LEDGER_CLOSED, CNT_LEDG
                     EV_RELEASE, N_COUNTERS, NONFINITE, STICK_ACCUMULATION, STICK_NONE,
                     STICK_PAPER)
 from .contact import impact, record, release_normals, switch_slot
-from .flow import point_eval, row_derivs
+from .flow_eval import point_eval, row_derivs
 from .ledger import ledger_closed, ledger_modal, ledger_taylor
 from .quadrature import N_TERMS as LEDGER_TERMS, harmonic_factors, piece_factors
 from .scan import FN_RELEASE
