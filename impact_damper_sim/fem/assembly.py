@@ -319,6 +319,26 @@ class FEModel:
         ValueError
             If the model has no node, or an unclamped DOF has neither stiffness nor mass (an
             isolated node, a point mass without inertia on an unconnected node, ...).
+
+        Examples
+        --------
+        A 1 m steel cantilever of 50 mm diameter under 1 kN at its tip deflects
+        ``P L^3 / (3 E I)`` (Euler-Bernoulli, exact for one element):
+
+        >>> import numpy as np
+        >>> from impact_damper_sim.fem import STEEL, FEModel, SolidCircular
+        >>> model = FEModel()
+        >>> model.add_node(0, (0.0, 0.0, 0.0))
+        >>> model.add_node(1, (1.0, 0.0, 0.0))
+        >>> model.add_beam(0, 1, STEEL, SolidCircular(0.05), shear=False)
+        0
+        >>> model.clamp(0)
+        >>> system = model.assemble()
+        >>> force = np.zeros(system.n_dof)
+        >>> force[system.index(1, 'uy')] = 1e3
+        >>> tip = float(np.linalg.solve(system.K.toarray(), force)[system.index(1, 'uy')])
+        >>> f'{tip * 1e3:.3f} mm', round(tip * 3 * STEEL.E * SolidCircular(0.05).Iz / 1e3, 9)
+        ('5.432 mm', 1.0)
         """
         if not self._nodes:
             raise ValueError('the model has no nodes: add nodes and elements before assemble()')

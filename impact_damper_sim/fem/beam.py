@@ -114,6 +114,23 @@ def beam_local_stiffness(material, section, length, *, shear=True):
     -------
     ndarray, shape (12, 12)
         Stiffness (N/m, N/rad, N m/rad), symmetric.
+
+    Examples
+    --------
+    A 0.5 m steel shaft of 50 mm diameter: the lateral term is ``12 E I / L^3`` without shear
+    and about 2 % less with it; the corner is axial ``E A / L``, lateral and torsional
+    ``G J / L`` (MN/m, MN m/rad):
+
+    >>> import numpy as np
+    >>> from impact_damper_sim.fem import STEEL, SolidCircular
+    >>> section, length = SolidCircular(0.05), 0.5
+    >>> k = beam_local_stiffness(STEEL, section, length, shear=False)
+    >>> round(float(k[1, 1]) * length**3 / (STEEL.E * section.Iz), 9)
+    12.0
+    >>> np.round(k[:4, :4] / 1e6, 1).tolist()
+    [[785.4, 0.0, 0.0, 0.0], [0.0, 5.9, 0.0, 0.0], [0.0, 0.0, 5.9, 0.0], [0.0, 0.0, 0.0, 0.1]]
+    >>> round(float(beam_local_stiffness(STEEL, section, length)[1, 1] / k[1, 1]), 4)
+    0.9785
     """
     length = _length(length)
     phi_y, phi_z = shear_parameters(material, section, length, shear=shear)
@@ -145,6 +162,16 @@ def beam_local_mass(material, section, length, *, rotary_inertia=False):
     -------
     ndarray, shape (12, 12)
         Mass (kg on translations, kg m^2 on rotations).
+
+    Examples
+    --------
+    Half of the 7.71 kg element on each end's translations, nothing on its rotations:
+
+    >>> import numpy as np
+    >>> from impact_damper_sim.fem import STEEL, SolidCircular
+    >>> m = beam_local_mass(STEEL, SolidCircular(0.05), 0.5)
+    >>> np.round(np.diag(m)[:6], 4).tolist()
+    [3.8534, 3.8534, 3.8534, 0.0, 0.0, 0.0]
     """
     length = _length(length)
     half = 0.5 * material.rho * length
