@@ -91,3 +91,38 @@ def test_the_topic_table_is_the_nodes_interface():
     assert itf.TYPES is nt.TYPES and itf.accel_batch_topic('s') == 'accel/s/batch'
     assert nt.qualified('impacts', '/rig') == '/rig/impacts'
     assert nt.qualified('impacts') == '/impacts' and nt.qualified('/clock', '/rig') == '/clock'
+
+
+def test_every_stamped_message_names_its_frame():
+    """Issue 38: ``rotor/speed`` had an empty frame_id. Every stamped message the packer writes
+    (one chunk of a rotor scene with impactors: batches, Imu, impacts, tach, keyphasor,
+    rotor/speed, rotor/joint_states, impactor_state) carries a frame: the accelerometer's,
+    the housing's, or the rotor's (``<scene>_rotor``, the same on every rotor topic)."""
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import PointCloud2
+
+    from impact_damper_sim.live.realtime import LiveSimulation
+    from impact_damper_sim.live.streams import live_scene
+    model, target = live_scene('rbs')
+    live = LiveSimulation(model, initial_target=target)
+    messages = nm.NodeMessages(live, model)
+    items = messages.batch_items(live.step(20)) + messages.time_items()
+    items.append((0, messages.state, messages.state_message()))
+    classes = {'sensor_msgs/msg/Imu': Imu, 'sensor_msgs/msg/PointCloud2': PointCloud2,
+               'sensor_msgs/msg/JointState': JointState,
+               'geometry_msgs/msg/Vector3Stamped': Vector3Stamped}
+    frames = {}
+    for _, stream, data in items:
+        s = messages.streams[stream]
+        if s.type_name in classes:
+            msg = deserialize_message(data, classes[s.type_name])
+            frames.setdefault(s.topic.lstrip('/'), set()).add(msg.header.frame_id)
+    housing = {acc.frame_id for acc in live.accelerometers}
+    expected = {'rotor/speed', 'rotor/joint_states', 'rotor/tach', 'rotor/keyphasor',
+                'impactor_state', 'impacts'}
+    assert expected <= set(frames) and any(t.startswith('accel/') for t in frames)
+    assert all(f != {''} and len(f) == 1 for f in frames.values()), frames
+    for topic in ('rotor/speed', 'rotor/joint_states', 'rotor/tach', 'rotor/keyphasor'):
+        assert frames[topic] == {'rbs_rotor'}, topic
+    assert frames['impactor_state'] == frames['impacts'] and frames['impacts'] <= housing
+    assert nm.rotor_frame_id('hpotp') == 'hpotp_rotor'

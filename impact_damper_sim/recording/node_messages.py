@@ -97,6 +97,11 @@ def vector3_stamped_cdr(ns, frame_id, vector):
     return w.bytes()
 
 
+def rotor_frame_id(scene_name):
+    """The rotor's frame name (``'<scene>_rotor'``): ``rotor/speed`` and ``rotor/joint_states``."""
+    return f'{scene_name}_rotor'
+
+
 def joint_state_cdr(ns, names, position=(), velocity=(), effort=(), frame_id=''):
     """``sensor_msgs/JointState`` bytes.
 
@@ -302,8 +307,11 @@ class NodeMessages:
         if live.has_rotor:
             self.tach = add(nt.ROTOR_TACH, nt.BATCH_QOS)
             self.keyphasor = add(nt.ROTOR_KEYPHASOR, nt.EVENT_QOS)
-            self._tach_encoder = BatchEncoder('', TACH_FIELDS, TACH_POINT_STEP)
-            self._keyphasor_encoder = BatchEncoder('', KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP)
+            # angles about the rotor axis: the rotor's frame
+            self._tach_encoder = BatchEncoder(rotor_frame_id(scene.name), TACH_FIELDS,
+                                              TACH_POINT_STEP)
+            self._keyphasor_encoder = BatchEncoder(rotor_frame_id(scene.name),
+                                                   KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP)
         self.clock = add(nt.CLOCK, nt.CLOCK_QOS) if publish_clock else None
         self.speed_command = add(nt.SPEED_COMMAND, nt.COMMAND_QOS)
         self.unbalance_command = add(nt.UNBALANCE_COMMAND, nt.COMMAND_QOS)
@@ -329,6 +337,11 @@ class NodeMessages:
         impact_frame = (self._frame_of_node(housings[0]) if len(housings) == 1
                         else scene.name)
         self._impact_encoder = BatchEncoder(impact_frame, IMPACT_FIELDS, IMPACT_POINT_STEP)
+        #: ``header.frame_id`` of ``impactor_state``: positions are relative to the housing
+        self.impactor_frame = impact_frame
+        #: ``header.frame_id`` of ``rotor/speed`` and ``rotor/joint_states``: the rotor's
+        #: frame, named after the scene as the accelerometer frames are (``hpotp_rotor``)
+        self.rotor_frame = rotor_frame_id(scene.name)
         # the start of the interval the next impact batch covers (ns)
         self.impacts_from = int(round(live.t * 1e9))
 
@@ -470,9 +483,11 @@ class NodeMessages:
             items.append((ns, self.clock, clock_cdr(ns)))
         if live.has_rotor:
             speed, rate, x = live.rotor_state()
-            items.append((ns, self.speed, vector3_stamped_cdr(ns, '', (speed, rate, x))))
+            items.append((ns, self.speed, vector3_stamped_cdr(ns, self.rotor_frame,
+                                                              (speed, rate, x))))
             angle = float(live.profile.angle(np.asarray(live.t))) % (2.0 * math.pi)
-            items.append((ns, self.joint, joint_state_cdr(ns, ['rotor'], [angle], [speed])))
+            items.append((ns, self.joint, joint_state_cdr(ns, ['rotor'], [angle], [speed],
+                                                          frame_id=self.rotor_frame)))
         return items
 
     def state_message(self):
@@ -486,7 +501,8 @@ class NodeMessages:
             pos += [float(x) for x in s['position']]
             vel += [float(x) for x in s['velocity']]
             eff += [(1.0 if s['stuck'] else 0.0) if enabled else -1.0] * d
-        return joint_state_cdr(int(round(live.t * 1e9)), self.joint_names, pos, vel, eff)
+        return joint_state_cdr(int(round(live.t * 1e9)), self.joint_names, pos, vel, eff,
+                               frame_id=self.impactor_frame)
 
     def parameter_event(self, changed):
         """``/parameter_events`` bytes for parameters of this node changed now.
@@ -656,4 +672,5 @@ __all__ = ['FAULTS_METADATA', 'ImuEncoder', 'NodeMessages', 'PARAMETER_BOOL',
            'PARAMETER_DOUBLE', 'PARAMETER_INTEGER', 'PARAMETER_STRING', 'Stream', 'clock_cdr',
            'fault_command_text', 'fault_metadata', 'float64_cdr', 'joint_state_cdr',
            'parameter_event_cdr', 'parameter_value_type', 'plain', 'published_samples',
-           'run_labels', 'run_metadata', 'string_cdr', 'vector3_stamped_cdr']
+           'rotor_frame_id', 'run_labels', 'run_metadata', 'string_cdr',
+           'vector3_stamped_cdr']
