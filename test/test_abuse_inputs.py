@@ -20,9 +20,9 @@ from node_helpers import FakeClock, make_node
 from node_helpers import wake as _wake
 from node_refusal import node_refusal
 
-from impact_damper_sim.integrate.divergence import MAX_IMPACTORS
 from impact_damper_sim.scene import loading
 from impact_damper_sim.scene.loading import MAX_SCENE_BYTES, MAX_SCENE_NODES, load_yaml
+from impact_damper_sim.scene.model_budget import MAX_IMPACTORS
 from impact_damper_sim.scene.schema import SceneError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

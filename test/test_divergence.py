@@ -7,8 +7,9 @@ import pytest
 
 from impact_damper_sim.cli.study import main
 from impact_damper_sim.integrate.divergence import (EXIT_DIVERGED, MAX_DISPLACEMENT, Divergence,
-                                          TooLarge, check_allocation, check_samples,
-                                          from_engine_error, sample_bytes, scene_advice)
+                                                   check_samples, from_engine_error)
+from impact_damper_sim.integrate.memory import TooLarge, check_allocation, sample_bytes
+from impact_damper_sim.scene.advice import scene_advice
 from impact_damper_sim.integrate.events import Samples
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.integrate.simulation import CHECK_EVERY

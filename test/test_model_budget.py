@@ -1,7 +1,7 @@
 """The model-size budget (issue 29): estimated from the scene before anything is built.
 
 10,000 impactors ran 64 s and reached 4.5 GB with exit 0: the 4 GiB refusal counted only
-the sample arrays. Now :func:`impact_damper_sim.integrate.divergence.model_estimate` counts DOFs,
+the sample arrays. Now :func:`impact_damper_sim.scene.model_budget.model_estimate` counts DOFs,
 modes, impactors and stuck configurations up front, ``build`` refuses an over-budget scene
 in one line before building it (``study``: exit 2; the node: one line, exit 2), and the
 stuck configurations a run keeps are bounded.
@@ -15,10 +15,11 @@ import pytest
 
 from node_refusal import node_refusal
 
-from impact_damper_sim.integrate import divergence
 from impact_damper_sim.cli.study import main as study
-from impact_damper_sim.integrate.divergence import (MAX_IMPACTORS, ModelTooLarge, check_model,
-                                          memory_limit, model_estimate)
+from impact_damper_sim.integrate import memory
+from impact_damper_sim.integrate.memory import memory_limit
+from impact_damper_sim.scene.model_budget import (MAX_IMPACTORS, ModelTooLarge, check_model,
+                                                  model_estimate)
 from impact_damper_sim.scene import build as build_mod
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.catalog import available_scenes, validated
@@ -101,8 +102,8 @@ def test_samples_share_the_limit_with_the_model(tmp_path, capsys, monkeypatch):
     path = many_impactors(tmp_path / 'some.yaml', 400)
     scene, _ = validated(path)
     model = model_estimate(scene).total
-    samples = divergence.sample_bytes(2000, 1)   # 0.2 s at 0.1 ms
-    monkeypatch.setattr(divergence, 'memory_limit', lambda: model + samples - 1)
+    samples = memory.sample_bytes(2000, 1)   # 0.2 s at 0.1 ms
+    monkeypatch.setattr(memory, 'memory_limit', lambda: model + samples - 1)
     assert study(['simulate', str(path)]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "samples would need about" in line and "with the model's" in line, line
@@ -123,8 +124,8 @@ def test_the_configurations_a_run_keeps_are_bounded(monkeypatch):
     monkeypatch.setattr(exact_mod, 'MAX_TABLE_SLOTS', 0)   # switch through Python
 
     def run(keep):
-        monkeypatch.setattr(divergence, 'MAX_CACHED_CONFIGURATIONS', keep)
-        monkeypatch.setattr(divergence, 'MAX_CACHE_BYTES', 1)
+        monkeypatch.setattr(memory, 'MAX_CACHED_CONFIGURATIONS', keep)
+        monkeypatch.setattr(memory, 'MAX_CACHE_BYTES', 1)
         sim = scene.make_simulation()
         samples = sim.advance_to(1.0)
         return sim, samples, sim.take_events()

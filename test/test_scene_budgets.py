@@ -7,8 +7,10 @@ import pytest
 
 from node_refusal import node_refusal
 
+from impact_damper_sim.scene import loading
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.loading import MAX_SCENE_BYTES, MAX_SCENE_DEPTH, load_yaml
+from impact_damper_sim.scene.model_budget import MAX_IMPACTORS
 from impact_damper_sim.scene.schema import SceneError
 
 BOMB = """a: &a [x, x, x, x, x, x, x, x, x, x]
@@ -31,6 +33,33 @@ def test_an_alias_bomb_is_refused_at_once():
                                          r'aliases are expanded'):
         load_yaml(BOMB)
     assert time.process_time() - t0 < 1.0   # CPU, not wall: what the check itself costs
+
+
+@pytest.mark.parametrize('libyaml', [True, False], ids=['libyaml', 'pure-python'])
+@pytest.mark.parametrize('style', ['flow', 'block'])
+def test_one_impactor_over_the_limit_is_refused_on_its_line(libyaml, style):
+    """The event pre-scan counts the top-level ``impactors`` list and refuses item
+    ``MAX_IMPACTORS + 1`` on its own line (this error path read a name ``limit`` that only
+    a conditional import bound: ruff F821); ``MAX_IMPACTORS`` items pass."""
+    if libyaml and loading._CParser is None:
+        pytest.skip('PyYAML without libyaml')
+
+    def text(n):
+        if style == 'flow':
+            return 'name: many\nimpactors: [' + ', '.join(['{}'] * n) + ']\n'
+        return 'name: many\nimpactors:\n' + '- {}\n' * n
+
+    def prescan(n):
+        return loading._count_events(loading._events(text(n), libyaml), 'many.yaml', 'scene')
+
+    prescan(MAX_IMPACTORS)   # the limit itself: no error
+    with pytest.raises(SceneError) as info:
+        prescan(MAX_IMPACTORS + 1)
+    line = 2 if style == 'flow' else MAX_IMPACTORS + 3   # name, impactors:, then one a line
+    assert str(info.value) == (
+        f"many.yaml:{line}: scene key 'impactors': over the limit of 1,000 impactors (allowed "
+        '0 to 1,000; impactor 1,001 is on this line): each costs time every step and memory '
+        'in every stuck configuration; use fewer impactors')
 
 
 def test_aliases_within_the_budget_still_load():

@@ -286,7 +286,8 @@ def main(argv=None):
         args = _parser().parse_args(argv)
     except SystemExit as exc:   # argparse has printed usage and the problem
         return exc.code if isinstance(exc.code, int) else EXIT_USAGE
-    from ..integrate.divergence import Divergence, TooLarge
+    from ..integrate.divergence import Divergence
+    from ..integrate.memory import TooLarge
     from ..scene.schema import SceneError
     try:
         if getattr(args, 'scene', None) is not None:
@@ -489,8 +490,10 @@ def run(scene):
         If the run diverges; its ``setting`` names the scene keys to change.
     """
     from ..studies.analysis import summarize
-    from ..integrate.divergence import (Divergence, TooLarge, check_allocation, model_estimate,
-                              scene_advice)
+    from ..integrate.divergence import Divergence
+    from ..integrate.memory import TooLarge, check_allocation
+    from ..scene.advice import scene_advice
+    from ..scene.model_budget import model_estimate
     from ..live.filters import scene_lowpass
     from ..scene.schema import SceneError
     from ..integrate.events import EVENT_KINDS

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .divergence import MAX_CACHED_CONFIGURATIONS
+from .memory import MAX_CACHED_CONFIGURATIONS
 from ..modal.basis import modal_reduction
 from ..modal.stuck import add_point_mass
 from .model import LinearModel
@@ -50,7 +50,7 @@ _ROWS_RTOL = 1e-9
 
 def _bound(cache, keep=None):
     """Drop the oldest entries of ``cache`` (never ``keep``) beyond
-    :data:`~impact_damper_sim.integrate.divergence.MAX_CACHED_CONFIGURATIONS`: a run visiting many
+    :data:`~impact_damper_sim.integrate.memory.MAX_CACHED_CONFIGURATIONS`: a run visiting many
     stuck sets keeps a bounded number of bases (each a modal reduction and its dense
     condensation), built again if reached again."""
     while len(cache) > MAX_CACHED_CONFIGURATIONS:

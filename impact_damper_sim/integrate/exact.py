@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .divergence import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS,
-                          cache_limit, configuration_bytes)
 from .kernels import event_loop as kernels
 from .kernels import flow_eval as flow_kernels
 from .kernels import ledger as ledger_kernels
@@ -21,6 +19,8 @@ from .kernels.quadrature import phi1_real
 from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples, STICK_RULES
 from .flow import build_flow
+from .memory import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS, cache_limit,
+                     configuration_bytes)
 
 class MassUpdate:
     """Stuck impactors add their mass to the housing rows of the free coordinates.
@@ -60,7 +60,7 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
 # kernel; a scene with more, e.g. many impactors on distinct housings, switches through
 # Python) and the configurations kept when switching through Python (cache_limit,
 # MAX_CACHED_CONFIGURATIONS) are memory budgets, stated with the others in
-# impact_damper_sim.integrate.divergence.
+# impact_damper_sim.integrate.memory.
 #: Largest table whose configurations are all built when the engine is made (0.5 to 1 ms
 #: each at 10 modes): the event loop then never returns to Python to build one, and a live
 #: node never stalls for a build in the middle of a run. Larger tables build on first use.

@@ -11,14 +11,15 @@ Everything is in SI units. Typical use::
 :meth:`Simulation.advance` checks every chunk of :data:`CHECK_EVERY` samples: a run that
 diverges raises :class:`~impact_damper_sim.integrate.divergence.Divergence` at once (what, when), and
 a request whose samples would not fit in memory raises
-:class:`~impact_damper_sim.integrate.divergence.TooLarge` before anything is allocated.
+:class:`~impact_damper_sim.integrate.memory.TooLarge` before anything is allocated.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .divergence import check_allocation, check_samples, check_state, from_engine_error
+from .divergence import check_samples, check_state, from_engine_error
 from .events import EVENT_KINDS, Samples
+from .memory import check_allocation
 
 METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
 

@@ -24,7 +24,8 @@ import time
 
 import numpy as np
 
-from ..integrate.divergence import Divergence, scene_advice
+from ..integrate.divergence import Divergence
+from ..scene.advice import scene_advice
 from ..scene.schema import SceneError
 from .fault_spec import FaultError
 from .faults import FaultInjector

@@ -581,11 +581,11 @@ def build(scene, *, source=None, overrides=()):
     ------
     SceneError
         For model problems, each naming the scene key; before anything is built, for a model
-        whose estimated memory (:func:`impact_damper_sim.integrate.divergence.model_estimate`: DOFs,
+        whose estimated memory (:func:`impact_damper_sim.scene.model_budget.model_estimate`: DOFs,
         modes, impactors, stuck configurations) is over the limit, in one line with the
         estimate and the limit.
     """
-    from ..integrate.divergence import ModelTooLarge, check_model
+    from .model_budget import ModelTooLarge, check_model
     try:
         check_model(scene)
     except ModelTooLarge as exc:

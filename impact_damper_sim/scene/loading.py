@@ -2,7 +2,7 @@
 
 Reading is strict and bounded: :func:`load_yaml` refuses what is not a regular UTF-8 file under
 :data:`MAX_SCENE_BYTES`, documents over the count budgets (:data:`MAX_SCENE_NODES` values,
-:data:`MAX_SCENE_DEPTH` levels, :data:`~impact_damper_sim.integrate.divergence.MAX_IMPACTORS`
+:data:`MAX_SCENE_DEPTH` levels, :data:`~impact_damper_sim.scene.model_budget.MAX_IMPACTORS`
 impactors: counted on the YAML event stream, before the document is composed), duplicate keys,
 tagged values it cannot convert and alias bombs, each with its line. :func:`apply_overrides`
 edits the raw mapping with ``key=value`` strings read by the same YAML loader, and
@@ -21,6 +21,7 @@ import unicodedata
 
 import yaml
 
+from .model_budget import MAX_IMPACTORS
 from .schema import SceneError, _describe, _got, _join, validate
 
 try:   # libyaml's parser: the pre-scan reads a 1 MB file's events in 0.1 s, not 2.5 s
@@ -153,7 +154,7 @@ def _events(text, libyaml=True):
 
 def _prescan(text, source, kind):
     """Refuse a document over :data:`MAX_SCENE_NODES` values, :data:`MAX_SCENE_DEPTH` levels
-    or (a scene) :data:`~impact_damper_sim.integrate.divergence.MAX_IMPACTORS` items in its
+    or (a scene) :data:`~impact_damper_sim.scene.model_budget.MAX_IMPACTORS` items in its
     top-level ``impactors`` list, reading its events only as far as the first excess.
 
     Composing is what costs (about 0.1 ms a value in Python); an event costs 1 us with
@@ -206,17 +207,16 @@ def _count_events(events, source, kind):
                 parent[1] = not parent[1]
             elif parent[3] is not None:
                 parent[3] += 1
-                if parent[3] > limit:
+                if parent[3] > MAX_IMPACTORS:
                     raise SceneError(
                         f"{source}:{line}: scene key 'impactors': over the limit of "
-                        f'{limit:,} impactors (allowed 0 to {limit:,}; impactor '
-                        f'{limit + 1:,} is on this line): each costs time every step and '
-                        'memory in every stuck configuration; use fewer impactors')
+                        f'{MAX_IMPACTORS:,} impactors (allowed 0 to {MAX_IMPACTORS:,}; '
+                        f'impactor {MAX_IMPACTORS + 1:,} is on this line): each costs time '
+                        'every step and memory in every stuck configuration; use fewer '
+                        'impactors')
         if isinstance(event, yaml.CollectionStartEvent):
             counted = (kind == 'scene' and len(stack) == 1 and key == 'impactors'
                        and isinstance(event, yaml.SequenceStartEvent))
-            if counted:   # here, not at the top: the integrate layer brings NumPy
-                from ..integrate.divergence import MAX_IMPACTORS as limit
             stack.append([isinstance(event, yaml.MappingStartEvent), True, None,
                           0 if counted else None])
 

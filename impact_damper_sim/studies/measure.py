@@ -119,7 +119,7 @@ def check_memory(scene, duration=None, dt=None):
     TooLarge
         With the estimate (a ``ValueError``: ``study`` exits 2).
     """
-    from ..integrate.divergence import TooLarge, check_allocation
+    from ..integrate.memory import TooLarge, check_allocation
     cfg = scene.scene['simulation']
     duration = cfg['duration'] if duration is None else duration
     dt = cfg['dt'] if dt is None else dt

@@ -138,7 +138,7 @@ def _execute(point):
 def _advised(exc, point):
     if exc.setting:
         return exc
-    from ..integrate.divergence import scene_advice
+    from ..scene.advice import scene_advice
     try:
         from .measure import load_point
         return exc.with_setting(scene_advice(load_point(point), exc))
