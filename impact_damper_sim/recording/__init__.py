@@ -13,6 +13,32 @@ imports rclpy. QoS is an ``rclpy.qos.QoSProfile`` (read by attribute) or a plain
 
 The names below are imported on first use, so that ``study`` (which imports
 :mod:`.cli` for its ``recover`` subcommand) does not pay for mcap and PyYAML.
+
+Three ``std_msgs/Float64`` messages (CDR: a 4-byte little-endian encapsulation header, then
+the double) written 10 ms apart, read back with
+:class:`~impact_damper_sim.studies.log_reader.RosLog`:
+
+>>> import os, struct, tempfile
+>>> from impact_damper_sim.recording import Rosbag2McapWriter
+>>> from impact_damper_sim.studies.log_reader import RosLog
+>>> folder = tempfile.TemporaryDirectory()
+>>> path = os.path.join(folder.name, 'speed.mcap')
+>>> t0 = 1_700_000_000_000_000_000                      # ns since the epoch
+>>> with Rosbag2McapWriter(path) as writer:        # True: accepted (False: dropped)
+...     [writer.write('/rotor/speed_command', 'std_msgs/msg/Float64', {'depth': 10},
+...                   bytes([0, 1, 0, 0]) + struct.pack('<d', speed), t, t)
+...      for speed, t in [(100.0, t0), (150.0, t0 + 10**7), (200.0, t0 + 2 * 10**7)]]
+[True, True, True]
+>>> writer.finished, writer.error
+(True, None)
+>>> log = RosLog(path)
+>>> log.profile, log.message_count, round(log.duration_s, 6)
+('ros2', 3, 0.02)
+>>> [(ch.topic, log.type_of(ch)) for ch in log.channels.values()]
+[('/rotor/speed_command', 'std_msgs/msg/Float64')]
+>>> [struct.unpack('<d', msg.data[4:])[0] for _, msg in log.messages()]
+[100.0, 150.0, 200.0]
+>>> folder.cleanup()
 """
 import importlib
 

@@ -94,6 +94,40 @@ class RosLog:
     ------
     LogError
         Missing, empty, not MCAP, truncated, corrupt or not ROS 2; one line naming the file.
+
+    Examples
+    --------
+    The node's log of 50 ms of the ``sdof`` scene, written offline by ``study record``
+    (:func:`~impact_damper_sim.studies.record.record_log`): the accelerometer's decimated Imu
+    stream; its full-rate batches, ``/clock`` and the impacts once per 10 ms tick; the
+    impactor state at the start; no impact yet (the first comes at 0.208 s):
+
+    >>> import os, tempfile
+    >>> from impact_damper_sim.studies.record import record_log
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> path = os.path.join(folder.name, 'sdof.mcap')
+    >>> result = record_log('sdof', path, 0.05, progress=False)
+    >>> result['samples'], result['impacts']
+    (100, 0)
+    >>> log = RosLog(path)
+    >>> log.message_count, round(log.duration_s, 6)
+    (40, 0.05)
+    >>> for channel in sorted(log.channels.values(), key=lambda c: c.topic):
+    ...     if log.counts.get(channel.id):
+    ...         print(f'{channel.topic:27} {log.type_of(channel):30} {log.counts[channel.id]}')
+    /accel/sdof_primary         sensor_msgs/msg/Imu            24
+    /accel/sdof_primary/batch   sensor_msgs/msg/PointCloud2    5
+    /clock                      rosgraph_msgs/msg/Clock        5
+    /impactor_state             sensor_msgs/msg/JointState     1
+    /impacts                    sensor_msgs/msg/PointCloud2    5
+    >>> sorted(log.metadata)
+    ['impact_damper_sim', 'impact_damper_sim_faults', 'rosbag2']
+    >>> try:
+    ...     RosLog(os.path.join(folder.name, 'missing.mcap'))
+    ... except LogError as exc:
+    ...     print(exc)
+    /...missing.mcap: cannot read: No such file or directory
+    >>> folder.cleanup()
     """
 
     def __init__(self, path):
