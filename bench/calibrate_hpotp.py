@@ -172,9 +172,9 @@ def report(scene):
 
 def reduction(multipliers, overrides=(), omega=(1150.0, 1850.0), rate=480.0, ledger=False):
     """Ramp-window damper measurement at the 240 Hz criticals (see the module docstring)."""
-    from impact_damper_sim.studies.analysis import G0
     from impact_damper_sim.live.filters import scene_lowpass
     from impact_damper_sim.scene.build import load
+    from impact_damper_sim.studies.analysis import G0
     dt, mil = 2.5e-4, 2.54e-5
     duration = (omega[1] - omega[0]) / rate
     speed = (f'rotor.speed={{kind: piecewise, times: [0 s, {duration!r} s], '

@@ -152,7 +152,7 @@ def scene_table(names, repeat, duration):
 
 
 def stick_rules(names, repeat, duration):
-    print(f"\nstick rule: cost and answer (ledger on), same run")
+    print("\nstick rule: cost and answer (ledger on), same run")
     print(f"{'scene':10s} {'rule':13s} {'impacts':>8s} {'sticks':>7s} {'imp/stick':>9s} "
           f"{'RTF':>6s}  sensor RMS acceleration (m/s^2) | peak displacement (um)")
     for name in names:

@@ -332,10 +332,10 @@ def simulate(params, t_end, *, rtol=1e-8, atol=None, method='DOP853', x0=(0.0, 0
             beta = 32.0 * _EPS * max(abs(y[0]), abs(y[2]), half)
             lim = half + beta
 
-            def hit_pos(t_, y_):
+            def hit_pos(t_, y_, lim=lim):   # events bound to this step's offset
                 return (y_[2] - y_[0]) - lim
 
-            def hit_neg(t_, y_):
+            def hit_neg(t_, y_, lim=lim):
                 return (y_[2] - y_[0]) + lim
 
             hit_pos.terminal, hit_pos.direction = True, 1.0    # only closing: r' > 0
@@ -345,7 +345,7 @@ def simulate(params, t_end, *, rtol=1e-8, atol=None, method='DOP853', x0=(0.0, 0
         else:
             s = mode
 
-            def release(t_, y_):
+            def release(t_, y_, s=s):
                 return pressing(t_, y_[0], y_[1], s)
 
             release.terminal, release.direction = True, -1.0   # pressing -> pulling

@@ -133,7 +133,7 @@ def main(argv=None):
                      and 'ledger=False' in name)
     exact_err = max(ex for name, cpu, ex, et in rows if name.startswith('exact'))
     print(f'\nexact propagator: worst state error {exact_err:.1e} of D/2 at any setting above')
-    for name, cpu, ex, et in rows:
+    for name, cpu, ex, _ in rows:
         if name.startswith('solve_ivp'):
             print(f'  {name}: error {ex:.1e}, cost ratio baseline/exact = '
                   f'{cpu / exact_cost:6.1f}')

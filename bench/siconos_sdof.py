@@ -93,8 +93,8 @@ def run(r, zeta, mu, e, d, periods, scheme='ed', per=400):
                 impacts.append((t, float(np.sign(q[1] - q[0])), abs(pre)))
         else:
             lam = [w.lambda_(1)[0] for w in walls]
-            for k, l in enumerate(lam):
-                if l > 0.0:
+            for k, lam_k in enumerate(lam):
+                if lam_k > 0.0:
                     impacts.append((t, 1.0 if k == 0 else -1.0, float('nan')))
         t_out.append(t)
         x_out.append(q[0])

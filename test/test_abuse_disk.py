@@ -73,7 +73,7 @@ def _small_disk(tmp_path, kib):
             _umount(directory)
         return
     try:
-        import resource   # noqa: F401  (the fallback needs it)
+        import resource  # noqa: F401  (the fallback needs it)
     except ImportError:
         pytest.skip(f'no tmpfs ({why}) and no RLIMIT_FSIZE (no resource module)')
     yield SmallDisk(directory, preexec=lambda: _limit_file_size(kib * 1024),

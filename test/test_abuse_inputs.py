@@ -10,20 +10,18 @@ reproduced the finding first.
 * Two nodes with one fully qualified name each warn, once.
 * docs/node.md states the throttle of the accepted-command log that the node applies.
 """
-import math
 import os
 import re
 
 import pytest
 
-from node_helpers import FakeClock, make_node
-from node_helpers import wake as _wake
-from node_refusal import node_refusal
-
 from impact_damper_sim.scene import loading
 from impact_damper_sim.scene.loading import MAX_SCENE_BYTES, MAX_SCENE_NODES, load_yaml
 from impact_damper_sim.scene.model_budget import MAX_IMPACTORS
 from impact_damper_sim.scene.schema import SceneError
+from node_helpers import FakeClock, make_node
+from node_helpers import wake as _wake
+from node_refusal import node_refusal
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SDOF = os.path.join(ROOT, 'config', 'scenes', 'sdof.yaml')

@@ -9,11 +9,10 @@
 import os
 import subprocess
 import sys
-import time
 
 import pytest
-from node_helpers import call_service
 
+from node_helpers import call_service
 
 # --- GetParameters with an unset parameter ------------------------------------------------
 

@@ -9,10 +9,18 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from impact_damper_sim.dampers.analytic import (
-    NoSymmetricOrbit, linear_steady_amplitude, orbit_state, phase_equation_roots,
-    symmetric_two_impact_orbit, symmetric_two_impact_orbits)
+    NoSymmetricOrbit,
+    linear_steady_amplitude,
+    orbit_state,
+    phase_equation_roots,
+    symmetric_two_impact_orbit,
+    symmetric_two_impact_orbits,
+)
 from impact_damper_sim.dampers.analytic_checks import (
-    orbit_residuals, symmetric_half_map, symmetric_half_map_jacobian)
+    orbit_residuals,
+    symmetric_half_map,
+    symmetric_half_map_jacobian,
+)
 
 # Non-unit SI values so that unit or scaling slips show up.
 M = 2.0          # kg
@@ -153,7 +161,7 @@ def test_orbit_with_interior_extremum_and_rejected_root():
     assert np.abs(orbit_residuals(orbit)).max() < 1e-10
     t0, y0 = start_on(orbit)
     impacts, _ = simulate(p, t0, y0, 4)   # unstable (|lambda| ~ 5): two cycles only
-    for k, (te, wall, _, post) in enumerate(impacts, start=1):
+    for k, (te, wall, _, _) in enumerate(impacts, start=1):
         assert wall == (-1) ** k
         assert te == pytest.approx(t0 + k * orbit.half_period, rel=1e-7)
 

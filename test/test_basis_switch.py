@@ -14,7 +14,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from impact_damper_sim.studies.analysis import refined_peak, stuck_fraction
 from impact_damper_sim.dampers.impactors import Impactor
 from impact_damper_sim.fem.system import AssembledSystem
 from impact_damper_sim.integrate.basis_switch import BasisSwitch
@@ -25,6 +24,7 @@ from impact_damper_sim.integrate.model import LinearModel
 from impact_damper_sim.modal import StuckTransforms, modal_reduction, stuck_basis
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.schema import SceneError
+from impact_damper_sim.studies.analysis import refined_peak, stuck_fraction
 
 STICK = EVENT_KINDS.index('stick')
 RELEASE = EVENT_KINDS.index('release')

@@ -14,7 +14,6 @@ import pytest
 from impact_damper_sim.cli.study import main
 from impact_damper_sim.modal.stability import state_matrix
 from impact_damper_sim.scene.build import load
-
 from test_whirl import DISK, JEFFCOTT, C, K, M
 
 WHIRL_FIELDS = {'mode', 'frequency_hz', 'direction', 'log_dec', 'damping_ratio',

@@ -10,8 +10,12 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.live.channel import SPEC_KEYS, SensorChannel
-from impact_damper_sim.live.channel_design import (analog_resonance, design_resonance,
-                                                   rotation_matrix, transverse_matrix)
+from impact_damper_sim.live.channel_design import (
+    analog_resonance,
+    design_resonance,
+    rotation_matrix,
+    transverse_matrix,
+)
 from impact_damper_sim.live.filters import StreamingDecimator, StreamingLowpass
 from impact_damper_sim.scene.channel_spec import preset_channel
 

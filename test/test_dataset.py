@@ -83,6 +83,7 @@ def test_tick_period_is_a_run_input_and_a_manifest_column(tmp_path):
     50 ms of samples), listed after duration_s in both manifests, and part of the run id."""
     import yaml
     from mcap.reader import make_reader
+
     from test_record import _messages
     text = 'scene: sdof\nduration: 100 ms\ntick_period: 50 ms\ngrid:\n  impactors.0.cor: [0.6]\n'
     spec = _write(tmp_path, text)

@@ -6,12 +6,12 @@ No ROS command line needed: test/test_ros2_tools.py runs the real tools.
 import ast
 import importlib.metadata
 import os
-from pathlib import Path
 import re
 import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
 
@@ -49,7 +49,7 @@ def _req_name(spec):
 def _setup():
     """setup.py's keywords, read by setuptools without running a command."""
     pytest.importorskip('setuptools')
-    import distutils.core   # setuptools' copy (its distutils shim)
+    import distutils.core  # setuptools' copy (its distutils shim)
     cwd = os.getcwd()
     try:
         os.chdir(ROOT)

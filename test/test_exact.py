@@ -4,13 +4,13 @@ import pytest
 import scipy.linalg as sla
 
 from exact_cases import harmonic, planar_model, sdof_model, three_mode_model
-from impact_damper_sim.studies.analysis import refined_peak
 from impact_damper_sim.dampers.analytic import orbit_state, symmetric_two_impact_orbit
 from impact_damper_sim.dampers.impactors import Impactor
 from impact_damper_sim.integrate.events import EVENT_KINDS
 from impact_damper_sim.integrate.exact import ExactPropagator
 from impact_damper_sim.integrate.forcing import Forcing, Harmonic, Ramp
 from impact_damper_sim.integrate.model import LinearModel
+from impact_damper_sim.studies.analysis import refined_peak
 
 IMPACT = EVENT_KINDS.index('impact')
 STICK = EVENT_KINDS.index('stick')

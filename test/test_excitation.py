@@ -6,12 +6,17 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from impact_damper_sim.scene.excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
-                                          PiecewiseLinearSpeed, UnbalanceForce,
-                                          unbalance_forcing)
 from impact_damper_sim.integrate.exact import ExactPropagator
 from impact_damper_sim.integrate.forcing import Forcing
 from impact_damper_sim.integrate.model import LinearModel
+from impact_damper_sim.scene.excitation import (
+    CommandedSpeed,
+    ConstantSpeed,
+    PaperRamp,
+    PiecewiseLinearSpeed,
+    UnbalanceForce,
+    unbalance_forcing,
+)
 
 
 def _commanded():

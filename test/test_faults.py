@@ -12,8 +12,15 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.live.channel import SPEC_KEYS, SensorChannel
-from impact_damper_sim.live.fault_spec import (FAULT, KINDS, FaultError, FaultSpec,
-                                               parse_command, parse_fault, parse_faults)
+from impact_damper_sim.live.fault_spec import (
+    FAULT,
+    KINDS,
+    FaultError,
+    FaultSpec,
+    parse_command,
+    parse_fault,
+    parse_faults,
+)
 from impact_damper_sim.live.faults import OPEN_OVERDRIVE, FaultInjector, channel_rail
 from impact_damper_sim.scene.containers import ListOf, Section
 from impact_damper_sim.scene.schema import Quantity, SceneError, validate

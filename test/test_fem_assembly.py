@@ -9,8 +9,15 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from impact_damper_sim.fem import (beam_mass, beam_stiffness, FEModel, GeneralSection,
-                                   is_symmetric, SolidCircular, STEEL)
+from impact_damper_sim.fem import (
+    STEEL,
+    FEModel,
+    GeneralSection,
+    SolidCircular,
+    beam_mass,
+    beam_stiffness,
+    is_symmetric,
+)
 
 SECTION = SolidCircular(0.05)
 

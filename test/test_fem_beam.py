@@ -10,10 +10,22 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import brentq
 
-from impact_damper_sim.fem import (beam_local_mass, beam_local_stiffness, beam_mass,
-                                   beam_rotation, beam_stiffness, cowper_hollow_circle,
-                                   dense_symmetric_part, FEModel, GeneralSection, HollowCircular,
-                                   Material, shear_parameters, SolidCircular, STEEL)
+from impact_damper_sim.fem import (
+    STEEL,
+    FEModel,
+    GeneralSection,
+    HollowCircular,
+    Material,
+    SolidCircular,
+    beam_local_mass,
+    beam_local_stiffness,
+    beam_mass,
+    beam_rotation,
+    beam_stiffness,
+    cowper_hollow_circle,
+    dense_symmetric_part,
+    shear_parameters,
+)
 
 LENGTH = 1.0  # m
 DIAMETER = 0.05  # m

@@ -25,8 +25,18 @@ import pytest
 from impact_damper_sim.dampers.analytic import orbit_state
 from impact_damper_sim.integrate.exact import ExactPropagator
 from impact_damper_sim.studies.attractor import (
-    FORCE, MASS, STIFFNESS, capture_period, first_divergence, min_wall_distance,
-    orbit_deviation, reference_impacts, run_from_rest, sdof_system, stable_orbit)
+    FORCE,
+    MASS,
+    STIFFNESS,
+    capture_period,
+    first_divergence,
+    min_wall_distance,
+    orbit_deviation,
+    reference_impacts,
+    run_from_rest,
+    sdof_system,
+    stable_orbit,
+)
 
 #: (r, zeta, mu, e, d = D K/F0): undamped, stable orbit with |multiplier| 0.916, whose
 #: transient from rest is chaotic with a grazing contact at impact 53 (t = 1.2404 s).

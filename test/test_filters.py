@@ -93,9 +93,9 @@ def test_own_butterworth_equals_scipys(order, fc, fs):
 def test_sosfilt_kernel_and_twin_equal_scipy_across_chunks():
     from scipy.signal import sosfilt
 
-    from impact_damper_sim.live.filters import butter_lowpass_sos
     from impact_damper_sim.integrate.kernels.filters import sosfilt as kernel
     from impact_damper_sim.integrate.kernels.filters import sosfilt_py
+    from impact_damper_sim.live.filters import butter_lowpass_sos
     sos = butter_lowpass_sos(4, 800.0, 10000.0)
     x = np.random.default_rng(3).normal(size=(300, 3))
     ref = sosfilt(sos, x, axis=0)

@@ -45,8 +45,7 @@ rclpy = pytest.importorskip('rclpy')
 
 from rcl_interfaces.msg import Parameter as ParameterMsg  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
-from rcl_interfaces.srv import (GetParameters, SetParameters,  # noqa: E402
-                                SetParametersAtomically)
+from rcl_interfaces.srv import GetParameters, SetParameters, SetParametersAtomically  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -112,7 +111,7 @@ class Stepper:
                     and np.all(np.isfinite(acc))):
                 self.bad.append((float(node.live.t), t.size))
             self.samples += t.size
-            return original(batch)
+            return original(batch, *args)
 
         node._queue_batch = spy
 
@@ -315,7 +314,7 @@ def test_parameters_of_every_type(ros_context, scale):
         python_values = [True, 0, -1, 2**63 - 1, math.nan, math.inf, -0.0, 5e-324, 1e-6, 0.5,
                          999.9999, np.float64(2.5), np.int64(3), '', 'x' * 10_000,
                          [1.0, math.nan], [True], ['a'], [1, 2], b'\x00\xff', (1.5,)]
-        for b in range(20 * scale):
+        for _ in range(20 * scale):
             name = rng.choice(names)
             value = rng.choice(python_values)
             where = f'python {name} = {value!r:.40}'
@@ -352,7 +351,7 @@ def test_parameters_of_every_type(ros_context, scale):
         # 5. reads: one value per declared name asked (unset 'overrides' included, issue 29
         #    'Smaller'), of the value's type; a request naming an undeclared one gets none
         get = _service(node, 'get_parameters')
-        for b in range(10 * scale):
+        for _ in range(10 * scale):
             asked = rng.sample(names, rng.randint(1, len(names)))
             stranger = rng.random() < 0.3
             if stranger:
@@ -512,7 +511,7 @@ def test_command_floods(ros_context, scale):
             pubs = {t: sender.create_publisher(Float64, t, itf.COMMAND_QOS) for t in state}
             _spin(ex, 0.3)
             rejected = node.rejected
-            for k in range(500 * scale):
+            for _ in range(500 * scale):
                 for pub in pubs.values():
                     pub.publish(Float64(data=fz.hostile_double(rng) * -1.0 - 1.0))
             good = {'/' + itf.SPEED_COMMAND: 1234.5, '/' + itf.UNBALANCE_COMMAND: 2.5}
@@ -597,7 +596,7 @@ def test_type_clashing_peers(ros_context, scale):
         assert all(len(seen[t]) >= 2 for t in topics), {t: seen.get(t) for t in topics}
         rejected = node.rejected
         for k in range(20 * scale):
-            for topic, _, pub, _ in clashes:
+            for _, _, pub, _ in clashes:
                 pub.publish(_random_message(rng, pub.msg_type))
             spin(0.01)
             if k % 5 == 0:
@@ -849,14 +848,14 @@ def test_broken_log_files(small_log, tmp_path, capsys, scale):
         where = f'log case {k} ({kind}, first damaged byte {first}, seed {SEED})'
         # RosLog
         try:
-            _bounded(lambda: RosLog(src), 10.0, where)
+            _bounded(lambda src=src: RosLog(src), 10.0, where)
             outcomes['RosLog ok'] += 1
         except LogError as exc:
             assert _one_line(str(exc)) and str(src) in str(exc), f'{where}: {exc}'
             outcomes['RosLog refused'] += 1
         # study report
-        rc, out, err = _bounded(lambda: _study(['report', str(src), '--json'], capsys), 10.0,
-                                where)
+        rc, out, err = _bounded(lambda src=src: _study(['report', str(src), '--json'], capsys),
+                                10.0, where)
         assert rc in (0, 2), f'{where}: report exit {rc}: {err[:500]}'
         if rc == 0:
             json.loads(out)
@@ -868,15 +867,15 @@ def test_broken_log_files(small_log, tmp_path, capsys, scale):
         # replay's planning (every third case)
         if k % 3 == 0:
             try:
-                _bounded(lambda: prepare(src), 10.0, where)
+                _bounded(lambda src=src: prepare(src), 10.0, where)
                 outcomes['prepare ok'] += 1
             except LogError as exc:
                 assert _one_line(str(exc)), f'{where}: {exc}'
                 outcomes['prepare refused'] += 1
         # study recover
         out_path = tmp_path / f'r{k}.mcap'
-        rc, out, err = _bounded(lambda: _study(['recover', str(src), str(out_path), '--json'],
-                                               capsys), 10.0, where)
+        rc, out, err = _bounded(lambda src=src, out_path=out_path: _study(
+            ['recover', str(src), str(out_path), '--json'], capsys), 10.0, where)
         assert rc in (0, 2), f'{where}: recover exit {rc}: {err[:500]}'
         if rc == 0:
             report = json.loads(out)

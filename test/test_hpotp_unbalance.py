@@ -28,10 +28,10 @@ import functools
 import numpy as np
 import pytest
 
-from impact_damper_sim.studies.analysis import G0
-from impact_damper_sim.live.filters import scene_lowpass
 from impact_damper_sim.integrate.exact import TAYLOR_ORDER
+from impact_damper_sim.live.filters import scene_lowpass
 from impact_damper_sim.scene.build import load
+from impact_damper_sim.studies.analysis import G0
 
 DT = 2.5e-4          # 4 kHz sampling (the 800 Hz low-pass is 0.4 Nyquist)
 RAMP_END = 5.0       # s, Eq. (4.3.1)

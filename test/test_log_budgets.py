@@ -4,7 +4,6 @@ import os
 import threading
 import time
 
-
 from impact_damper_sim.recording import Rosbag2McapWriter
 from impact_damper_sim.studies.log_reader import MAX_LOG_SPAN_NS, LogError, RosLog
 

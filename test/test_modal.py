@@ -8,9 +8,14 @@ import pytest
 import scipy.sparse as sp
 
 from impact_damper_sim.fem.system import AssembledSystem
-from impact_damper_sim.modal import (full_harmonic_response, harmonic_response,
-                                     least_damped_eigenvalue, modal_reduction,
-                                     onset_cross_coupling, state_matrix)
+from impact_damper_sim.modal import (
+    full_harmonic_response,
+    harmonic_response,
+    least_damped_eigenvalue,
+    modal_reduction,
+    onset_cross_coupling,
+    state_matrix,
+)
 
 
 def network(masses, springs, dampers=(), dofs=None, extra_k=None):

@@ -5,8 +5,13 @@ import pytest
 import scipy.sparse as sp
 
 from impact_damper_sim.fem.system import AssembledSystem
-from impact_damper_sim.modal import (StuckTransforms, add_point_mass, modal_reduction,
-                                     round_trip_error, stuck_basis)
+from impact_damper_sim.modal import (
+    StuckTransforms,
+    add_point_mass,
+    modal_reduction,
+    round_trip_error,
+    stuck_basis,
+)
 
 
 def network(masses, springs, dofs=None):

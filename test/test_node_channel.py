@@ -6,9 +6,8 @@ import pytest
 
 pytest.importorskip('rclpy')
 
-from node_helpers import make_node  # noqa: E402
-
 from impact_damper_sim.scene.units import G0  # noqa: E402
+from node_helpers import make_node  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -75,7 +75,7 @@ def test_recorded_file_matches_what_was_published(ros_context, tmp_path):
     summary, metadata, msgs, channels = _read(path)
     assert summary is not None   # a finished file, with its summary section
     counts = Counter(m[0] for m in msgs)
-    for topic, (type_name, n) in published.items():
+    for topic, (_, n) in published.items():
         assert counts[topic] == n, topic
         assert channels[topic].message_encoding == 'cdr'
         assert 'offered_qos_profiles' in channels[topic].metadata
@@ -130,7 +130,7 @@ def test_record_service_starts_and_stops(ros_context, tmp_path):
         again = node.on_record_request(SetBool.Request(data=True), SetBool.Response())
         assert not again.success and 'already recording' in again.message
         for _ in range(20):
-            node._wall = (lambda t=time.monotonic() + 100: t)
+            node._wall = (lambda t=time.monotonic() + 100: t)   # noqa: B008 (frozen 100 s on)
             node.live.step(20)
         node.publish_diagnostics()
         res = node.on_record_request(SetBool.Request(data=False), SetBool.Response())

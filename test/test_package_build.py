@@ -17,11 +17,11 @@ import ast
 import configparser
 import filecmp
 import os
-from pathlib import Path
 import shutil
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
 

@@ -5,8 +5,8 @@ import pytest
 
 from impact_damper_sim.modal import least_damped_eigenvalue, onset_cross_coupling
 from impact_damper_sim.scene.build import load
-from impact_damper_sim.studies.validation_setup import PAPER_4_4_1
 from impact_damper_sim.scene.units import parse_quantity
+from impact_damper_sim.studies.validation_setup import PAPER_4_4_1
 
 LBIN = parse_quantity('1 lb/in', 'stiffness')
 PAPER_ONSET = 8250.0 * LBIN
@@ -86,6 +86,7 @@ def test_onset_cross_coupling_matches_the_paper(rbs):
 
 KCC_KEY = 'structure.cross_couplings.0.kcc'
 from impact_damper_sim.studies.validation_setup import RBS_CRITERION  # noqa: E402
+
 MIL = parse_quantity('1 mil', 'length')
 LB = parse_quantity('1 lb', 'mass')
 CRITERION = dict(RBS_CRITERION)   # the validation's (growth_tol 4, see its comment)

@@ -493,10 +493,10 @@ def test_replay_plays_the_recorded_commands_with_clock(ros_context, recorded):
     from rclpy.serialization import deserialize_message
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import Float64
-    from test_replay import run_replay
 
     from impact_damper_sim.ros import interface as itf
     from impact_damper_sim.ros import replay_plan
+    from test_replay import run_replay
     (path, _), _ = recorded
     commands = [m for m in _messages(path) if m[0] in ('/rotor/speed_command',
                                                       '/rotor/unbalance_command')]

@@ -17,8 +17,7 @@ import pytest
 import yaml
 
 from impact_damper_sim.cli.study import main as study_main
-from impact_damper_sim.recording import (AsyncRecorder, RecoveryError, Rosbag2McapWriter,
-                                         recover)
+from impact_damper_sim.recording import AsyncRecorder, RecoveryError, Rosbag2McapWriter, recover
 
 HERE = Path(__file__).resolve().parent
 os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)   # the venv holds the .msg files
@@ -66,8 +65,7 @@ def _samples():
     from builtin_interfaces.msg import Time
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
     from geometry_msgs.msg import WrenchStamped
-    from rclpy.qos import (DurabilityPolicy, QoSProfile, ReliabilityPolicy,
-                           qos_profile_sensor_data)
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Imu, JointState
     from std_msgs.msg import Float64
@@ -288,7 +286,7 @@ def test_rosbag2_metadata_record(tmp_path):
     assert meta['duration'] == {'nanoseconds': max(logs) - min(logs)}
     topics = {t['topic_metadata']['name']: t for t in meta['topics_with_message_count']}
     assert set(topics) == {s[0] for s in samples}
-    for topic, type_name, qos, _ in samples:
+    for topic, type_name, _, _ in samples:
         entry = topics[topic]
         assert entry['message_count'] == 3
         assert entry['topic_metadata']['type'] == type_name
@@ -586,9 +584,11 @@ def test_async_write_leaves_the_encoding_to_the_writer_thread(tmp_path, monkeypa
     MCAP writer's ``write`` runs on the recorder's own thread, none on the caller's. (Its
     caller-side cost, about 3 us per message, is a benchmark figure, not a test.)"""
     import threading
+
     from rclpy.qos import qos_profile_sensor_data
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import Imu
+
     from impact_damper_sim.recording import async_recorder
     threads = []
     original = async_recorder.Rosbag2McapWriter.write

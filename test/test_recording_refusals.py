@@ -2,9 +2,9 @@
 leaves no file behind."""
 import errno
 import os
-from pathlib import Path
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 

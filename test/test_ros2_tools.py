@@ -13,10 +13,8 @@ against live nodes.
 * Without the ROS 2 command line (``make ros2cli``; ``make test`` runs it when
   ``../shared/ros2cli`` exists), or a ROS 2 install, these tests skip and say so.
 """
-from concurrent.futures import ThreadPoolExecutor
 import importlib.util
 import os
-from pathlib import Path
 import pty
 import re
 import shutil
@@ -25,6 +23,8 @@ import subprocess
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import pytest
 

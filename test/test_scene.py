@@ -6,14 +6,13 @@ import textwrap
 import numpy as np
 import pytest
 
-from impact_damper_sim.studies.analysis import refined_peak
-from impact_damper_sim.dampers.analytic import (linear_steady_amplitude,
-                                                symmetric_two_impact_orbit)
+from impact_damper_sim.dampers.analytic import linear_steady_amplitude, symmetric_two_impact_orbit
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.catalog import available_scenes, resolve_scene, scene_dirs
 from impact_damper_sim.scene.keytable import describe
 from impact_damper_sim.scene.schema import SceneError
 from impact_damper_sim.scene.spec import DOF_NAMES, SCHEMA
+from impact_damper_sim.studies.analysis import refined_peak
 
 LBF = 0.45359237 * 9.80665     # N, from the exact definitions
 IN = 0.0254                    # m

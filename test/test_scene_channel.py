@@ -11,7 +11,12 @@ import yaml
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.catalog import available_scenes, resolve_scene
 from impact_damper_sim.scene.channel_spec import (
-    PRESETS, STAGES, accelerometer_channels, channel_of, preset_channel, resonance_problem,
+    PRESETS,
+    STAGES,
+    accelerometer_channels,
+    channel_of,
+    preset_channel,
+    resonance_problem,
 )
 from impact_damper_sim.scene.keytable import describe
 from impact_damper_sim.scene.schema import SceneError

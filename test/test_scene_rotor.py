@@ -4,9 +4,9 @@ import textwrap
 import numpy as np
 import pytest
 
-from impact_damper_sim.scene.excitation import CommandedSpeed, ConstantSpeed, PaperRamp
 from impact_damper_sim.modal.basis import harmonic_response
 from impact_damper_sim.scene.build import load
+from impact_damper_sim.scene.excitation import CommandedSpeed, ConstantSpeed, PaperRamp
 from impact_damper_sim.scene.schema import SceneError
 from impact_damper_sim.scene.units import parse_quantity
 

@@ -7,8 +7,24 @@ from pathlib import Path
 import pytest
 
 from impact_damper_sim.scene import (
-    Boolean, Choice, Integer, KeyInfo, ListOf, MapOf, Optional, Quantity, SceneError, Section,
-    String, Vector, apply_overrides, describe, load_scene, load_yaml, markdown_table, validate,
+    Boolean,
+    Choice,
+    Integer,
+    KeyInfo,
+    ListOf,
+    MapOf,
+    Optional,
+    Quantity,
+    SceneError,
+    Section,
+    String,
+    Vector,
+    apply_overrides,
+    describe,
+    load_scene,
+    load_yaml,
+    markdown_table,
+    validate,
 )
 
 IN = 0.0254

@@ -13,8 +13,12 @@ import pytest
 
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.studies.stability import stability, verification_settings
-from impact_damper_sim.studies.validation_setup import (KCC_KEY, RBS_CRITERION,
-                                                        rbs_cell_overrides, settings)
+from impact_damper_sim.studies.validation_setup import (
+    KCC_KEY,
+    RBS_CRITERION,
+    rbs_cell_overrides,
+    settings,
+)
 
 RBS_KWARGS = {k: v for k, v in RBS_CRITERION.items()}
 HPOTP_BASE = ['structure.cross_couplings=[{node: 4, kcc: 0 lb/in}]', 'rotor=null',

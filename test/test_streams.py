@@ -7,15 +7,26 @@ batch encoder by round trips through rclpy, rosbags and mcap_ros2 readers.
 import numpy as np
 import pytest
 
-from impact_damper_sim.live.filters import (DECIMATION_PASSBAND_FRACTION, DECIMATION_STOPBAND_DB,
-                                       StreamingDecimator)
+from impact_damper_sim.live.filters import (
+    DECIMATION_PASSBAND_FRACTION,
+    DECIMATION_STOPBAND_DB,
+    StreamingDecimator,
+)
 from impact_damper_sim.live.realtime import LiveSimulation
 from impact_damper_sim.live.streams import accelerometers, default_imu_rate, live_scene
-from impact_damper_sim.recording.batches import (ACCEL_FIELDS, ACCEL_POINT_STEP,
-                                                 IMPACT_FIELDS, IMPACT_POINT_STEP,
-                                                 KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP,
-                                                 TACH_FIELDS, TACH_POINT_STEP,
-                                                 BatchEncoder, rows_of, sample_times_ns)
+from impact_damper_sim.recording.batches import (
+    ACCEL_FIELDS,
+    ACCEL_POINT_STEP,
+    IMPACT_FIELDS,
+    IMPACT_POINT_STEP,
+    KEYPHASOR_FIELDS,
+    KEYPHASOR_POINT_STEP,
+    TACH_FIELDS,
+    TACH_POINT_STEP,
+    BatchEncoder,
+    rows_of,
+    sample_times_ns,
+)
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.schema import SceneError
 
@@ -151,7 +162,7 @@ def test_the_ideal_channels_imu_variance_is_the_decimators_share_of_noise_std():
 
 def test_imu_rate_must_divide_the_sample_rate():
     model, target = live_scene('sdof')
-    with pytest.raises(SceneError, match=r"parameter 'imu_rate': .* whole number"):
+    with pytest.raises(SceneError, match=r"imu rate: .* whole number"):
         LiveSimulation(model, sample_rate=2000.0, imu_rate=1500.0)
     assert LiveSimulation(model, sample_rate=2000.0, imu_rate=500.0).imu_rate == 500.0
 

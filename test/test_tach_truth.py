@@ -17,8 +17,12 @@ from impact_damper_sim.live.streams import live_scene
 from impact_damper_sim.recording import node_topics as nt
 from impact_damper_sim.recording.batches import rows_of, sample_times_ns
 from impact_damper_sim.recording.node_messages import NodeMessages
-from impact_damper_sim.scene.excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
-                                                PiecewiseLinearSpeed)
+from impact_damper_sim.scene.excitation import (
+    CommandedSpeed,
+    ConstantSpeed,
+    PaperRamp,
+    PiecewiseLinearSpeed,
+)
 from impact_damper_sim.studies.record import record_log
 
 TWO_PI = 2.0 * math.pi
@@ -359,7 +363,7 @@ def test_a_recorded_log_holds_the_labels_a_detector_is_scored_with(tmp_path):
         assert got['channel']['adc']['bits'] == spec['adc']['bits']
         presets.add(spec['preset'])
     assert result['channel_preset'] == presets.pop() == 'iepe_10mv_500g'
-    from std_msgs.msg import Float64
     from rclpy.serialization import deserialize_message
+    from std_msgs.msg import Float64
     assert [deserialize_message(d, Float64).data
             for d in topics['/rotor/unbalance_command']] == [4.0]

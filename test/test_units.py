@@ -6,7 +6,13 @@ import pytest
 
 from impact_damper_sim.scene import units
 from impact_damper_sim.scene.units import (
-    UNITS, UnitError, allowed_units, format_quantity, normalize_unit, parse_quantity, to_unit,
+    UNITS,
+    UnitError,
+    allowed_units,
+    format_quantity,
+    normalize_unit,
+    parse_quantity,
+    to_unit,
     unit_factor,
 )
 

@@ -14,11 +14,22 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.modal.tracking import campbell, critical_speeds, instability_onset
-from impact_damper_sim.modal.whirl import (OrbitStations, RotorModel, condensed_rotor,
-                                           gyroscopic_matrix, orbit_radii, whirl_modes)
+from impact_damper_sim.modal.whirl import (
+    OrbitStations,
+    RotorModel,
+    condensed_rotor,
+    gyroscopic_matrix,
+    orbit_radii,
+    whirl_modes,
+)
 from impact_damper_sim.scene.build import load
-from impact_damper_sim.studies.campbell import (RPM, campbell_study, describe_whirl,
-                                                rotor_model, scene_speed)
+from impact_damper_sim.studies.campbell import (
+    RPM,
+    campbell_study,
+    describe_whirl,
+    rotor_model,
+    scene_speed,
+)
 
 M, K, KZ, C = 2.0, 1.5e5, 5.0e4, 40.0          # kg, N/m, N/m, N s/m
 ID, IP, KT = 0.5, 0.35, 3.0e4                  # kg m^2, kg m^2, N m/rad

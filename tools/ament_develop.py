@@ -24,9 +24,9 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import os
-from pathlib import Path
 import shutil
 import sys
+from pathlib import Path
 
 PACKAGE = 'impact_damper_sim'
 ROOT = Path(__file__).resolve().parents[1]

@@ -28,7 +28,8 @@ one line on stderr). No worker outlives the command, SIGKILL included
 ``dataset --gather`` (:func:`..studies.dataset_gather.gather_datasets`): 0 when every
 finished run was gathered, 1 when a log did not match its sha256 (or was missing) or two parts
 hold the same run with other bytes, 2 for a part without a readable manifest (nothing
-written), 4 when a disk error in ``--out`` stopped it (one line). Importing this module is cheap: the engine is imported when a command runs.
+written), 4 when a disk error in ``--out`` stopped it (one line). Importing this module is
+cheap: the engine is imported when a command runs.
 """
 from __future__ import annotations
 
@@ -110,8 +111,13 @@ def run_record(args):
     """
     from ..scene.schema import SceneError
     from ..scene.units import UnitError, parse_quantity
-    from ..studies.record import (EXIT_WRITE_FAILED, LogOpenError, LogWriteError,
-                                  parse_tick_period, record_log)
+    from ..studies.record import (
+        EXIT_WRITE_FAILED,
+        LogOpenError,
+        LogWriteError,
+        parse_tick_period,
+        record_log,
+    )
     try:
         duration = parse_quantity(args.duration, 'time', key='--duration')
         noise_std = parse_quantity(args.noise_std, 'acceleration', key='--noise-std')

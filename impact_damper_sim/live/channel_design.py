@@ -334,8 +334,12 @@ class _Fit:
         w_re = np.concatenate([1.0 / self.tol_gain, self.w_above])
         w_im = np.concatenate([1.0 / self.tol_phase, 0.1 * self.w_above])
         p, best = np.array(p0, dtype=float), None
+
+        def residuals(v):
+            return self.residuals(v, nb, w_re, w_im)
+
         for _ in range(lawson):
-            p = _levenberg_marquardt(lambda v: self.residuals(v, nb, w_re, w_im), p)
+            p = _levenberg_marquardt(residuals, p)
             a = _denominator(p)
             b = self.numerator(a, nb, w_re, w_im)[0]
             rel = (self.e[:, :len(b)] @ b) / (self.e[:, :len(a)] @ a) / self.h

@@ -50,8 +50,20 @@ import difflib
 import re
 
 from ..scene.containers import Section
-from ..scene.schema import (_INVALID, Choice, Field, Integer, Quantity, SceneError, String,
-                            _Errors, _got, _interval, _join, _num)
+from ..scene.schema import (
+    _INVALID,
+    Choice,
+    Field,
+    Integer,
+    Quantity,
+    SceneError,
+    String,
+    _Errors,
+    _got,
+    _interval,
+    _join,
+    _num,
+)
 from ..scene.units import UnitError, normalize_unit, unit_factor
 
 #: Fault kinds, in the order their value changes apply within a stage (see :mod:`.faults`).

@@ -49,8 +49,15 @@ import math
 import numpy as np
 
 from .fault_kinds import CLASSES, after_index
-from .fault_spec import (KINDS, MAX_SEED, RANDOM_KINDS, FaultError, FaultSpec,
-                         accelerometer_problem, parse_fault)
+from .fault_spec import (
+    KINDS,
+    MAX_SEED,
+    RANDOM_KINDS,
+    FaultError,
+    FaultSpec,
+    accelerometer_problem,
+    parse_fault,
+)
 
 #: An open connection's default reading, in units of the channel's rail (dimensionless):
 #: anything beyond 1 is clipped to the rail by the limit; 2 says "beyond" plainly.

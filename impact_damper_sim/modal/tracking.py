@@ -211,7 +211,7 @@ def critical_speeds(data, harmonics=(1.0,)):
                 if g1 == 0:
                     crossing = speeds[k + 1]
                 else:
-                    def g(s, reference=reference):
+                    def g(s, reference=reference, h=h):
                         modes, j = _tracked(rotor, s, reference)
                         return modes.eigenvalues[j].imag - h * s
                     crossing = brentq(g, speeds[k], speeds[k + 1],

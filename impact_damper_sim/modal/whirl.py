@@ -514,6 +514,6 @@ def condensed_rotor(system, gyroscopic=None, *, spin_axis=True):
                       stations=orbit_stations(system, cond.recovery), spin_axis=spin_axis)
 
 
-__all__ = ['DIRECTIONS', 'Eigenvalues', 'OrbitStations', 'RotorModel', 'WhirlModes', 'condensed_rotor',
-           'damping_ratio', 'direction', 'gyroscopic_matrix', 'log_decrement', 'modal_rotor',
-           'orbit_radii', 'orbit_stations', 'whirl_index', 'whirl_modes']
+__all__ = ['DIRECTIONS', 'Eigenvalues', 'OrbitStations', 'RotorModel', 'WhirlModes',
+           'condensed_rotor', 'damping_ratio', 'direction', 'gyroscopic_matrix', 'log_decrement',
+           'modal_rotor', 'orbit_radii', 'orbit_stations', 'whirl_index', 'whirl_modes']

@@ -91,8 +91,7 @@ def _share_dir(package):
         raise AmentIndexError(
             f'AMENT_PREFIX_PATH is not set (or empty), so the ROS message definitions '
             f'(share/{package}/msg) cannot be found; {_index_hint(package)}')
-    from ament_index_python.packages import (PackageNotFoundError,
-                                             get_package_share_directory)
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
     try:
         return get_package_share_directory(package)
     except OSError as exc:   # ament_index_python: the variable is unset or empty

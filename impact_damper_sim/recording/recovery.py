@@ -139,7 +139,7 @@ def _parsers():
     """Record parsers by opcode: ``parse(stream, length)`` (mcap's record classes)."""
     from mcap import records as r
     from mcap.opcode import Opcode
-    table = {getattr(Opcode, name): (lambda cls: lambda stream, length: cls.read(stream))(cls)
+    table = {getattr(Opcode, name): (lambda stream, length, cls=cls: cls.read(stream))
              for name, cls in [('ATTACHMENT', r.Attachment), ('ATTACHMENT_INDEX',
                                r.AttachmentIndex), ('CHANNEL', r.Channel), ('CHUNK', r.Chunk),
                                ('CHUNK_INDEX', r.ChunkIndex), ('DATA_END', r.DataEnd),
@@ -362,8 +362,17 @@ def _copy(source, destination, size, overwrite, fallback):
     channel record turned up later in the file, ``(schemas, channels)`` found in the file
     (else None).
     """
-    from mcap.records import (Attachment, Channel, Chunk, Footer, Header, Message,
-                              MessageIndex, Metadata, Schema)
+    from mcap.records import (
+        Attachment,
+        Channel,
+        Chunk,
+        Footer,
+        Header,
+        Message,
+        MessageIndex,
+        Metadata,
+        Schema,
+    )
 
     report = RecoveryReport(source, destination, bytes_total=size)
     fallback_schemas, fallback_channels = fallback

@@ -45,7 +45,8 @@ import time
 from importlib.metadata import PackageNotFoundError, version
 
 from mcap.data_stream import RecordBuilder
-from mcap.records import Channel as ChannelRecord, Schema as SchemaRecord
+from mcap.records import Channel as ChannelRecord
+from mcap.records import Schema as SchemaRecord
 from mcap.writer import CompressionType, Writer
 
 from .. import __version__
@@ -177,8 +178,8 @@ class Rosbag2McapWriter:
       or the file deleted (alone or with its directory) or moved while being written
       (``ENOENT``, ``<path> was deleted while being written ...``, checked at every fsync
       and at close; ``<path> was moved while being written (the file is now ...)``, checked
-      at close: a moved file still takes the data). :attr:`finished` is True exactly when the file is closed with its
-      summary and no error; ``stats()['finished']`` says the same.
+      at close: a moved file still takes the data). :attr:`finished` is True exactly when the
+      file is closed with its summary and no error; ``stats()['finished']`` says the same.
 
     Parameters
     ----------

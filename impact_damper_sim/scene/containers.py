@@ -10,7 +10,16 @@ import copy
 import difflib
 
 from .schema import (
-    _INVALID, REQUIRED, Choice, Field, Integer, Quantity, String, _Errors, _got, _join,
+    _INVALID,
+    REQUIRED,
+    Choice,
+    Field,
+    Integer,
+    Quantity,
+    String,
+    _Errors,
+    _got,
+    _join,
 )
 from .units import SI_UNIT, UNITS, allowed_units
 

@@ -38,10 +38,10 @@ import math
 from ..dampers.law import IMPACT_LAWS
 from ..integrate.events import STICK_RULES
 from ..integrate.simulation import METHODS
-from .units import UNITS
 from .channel_spec import CHANNEL, SENSOR_CHANNEL
 from .containers import ListOf, MapOf, Optional, Section, Vector
 from .schema import Boolean, Choice, Integer, Quantity, String
+from .units import UNITS
 
 __all__ = ['SCHEMA', 'DOF_NAMES', 'TRANSLATIONS', 'ROTATIONS', 'SDOF_KEYS', 'BEAM_KEYS',
            'SECTION_SHAPES', 'SDOF_NODE', 'SPEED_KINDS', 'STUCK_MODELS']

@@ -142,6 +142,7 @@ def load_spec(path):
     import numpy as np
 
     import impact_damper_sim
+
     from ..scene.loading import load_yaml
     from ..scene.units import UnitError, parse_quantity
     from .record import TICK_PERIOD, parse_tick_period
@@ -413,6 +414,7 @@ def write_manifest(out_dir, plan, rows, spec_path, gathered_from=None):
     ``gathered_from``, the part directories of :func:`gather_datasets`, is written to the JSON.
     """
     import impact_damper_sim
+
     from .output import strict_json
     entries = _manifest_rows(plan, rows)
     doc = {'spec': None if spec_path is None else os.path.abspath(spec_path),

@@ -16,8 +16,14 @@ import json
 import os
 import re
 
-from .dataset import (RESULT_COLUMNS, RUN_COLUMNS, DatasetError, _file_sha256,
-                      _manifest_rows, write_manifest)
+from .dataset import (
+    RESULT_COLUMNS,
+    RUN_COLUMNS,
+    DatasetError,
+    _file_sha256,
+    _manifest_rows,
+    write_manifest,
+)
 
 #: the manifest fields of a run that are not a grid or sample key
 _RUN_FIELDS = frozenset((*(column for column, _ in RUN_COLUMNS), *RESULT_COLUMNS))

@@ -26,8 +26,16 @@ import time
 
 from .runner import Point, run_points
 from .validation_doc import plot_frf, plot_hpotp, plot_rbs, rbs_table, render
-from .validation_setup import (HPOTP_BASE, HPOTP_KCC, HPOTP_PHASES, KCC_KEY, RBS_CRITERION,
-                               SDOF_AS_CANTILEVER, rbs_cell_overrides, settings)
+from .validation_setup import (
+    HPOTP_BASE,
+    HPOTP_KCC,
+    HPOTP_PHASES,
+    KCC_KEY,
+    RBS_CRITERION,
+    SDOF_AS_CANTILEVER,
+    rbs_cell_overrides,
+    settings,
+)
 
 
 def onset_task(point):
@@ -114,9 +122,9 @@ def validate(out='docs/validation.md', *, quick=False, workers=None, executor=No
         ``path``, ``plots``, ``wall_time_s``, ``n_points`` and ``failures`` (labels and
         errors of failed points).
     """
+    from ..scene.build import load
     from . import frf as frf_mod
     from . import sweep as sweep_mod
-    from ..scene.build import load
     if executor is None:
         executor = 'serial' if workers == 1 else 'process'
     points, s = make_points(quick, seed)
