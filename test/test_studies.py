@@ -144,3 +144,79 @@ def test_onset_bisection_matches_c_omega():
 def test_split_values_keeps_brackets():
     assert split_values('1 mil, 2 mil') == ['1 mil', '2 mil']
     assert split_values('[1, 2],{value: 2, unit: lb}') == ['[1, 2]', '{value: 2, unit: lb}']
+
+
+# --- sweeps over every impactor ('impactors.*.key', issue 38) -----------------------------------
+
+def test_wildcard_sets_every_impactor_in_the_built_scene():
+    """``impactors.*.clearance`` gives each of hpotp's 12 impactors the point's clearance;
+    ``impactors.0.clearance`` moved only the first."""
+    from impact_damper_sim.scene.build import load
+    from impact_damper_sim.studies.sweep import expand_key, make_points
+    base = load('hpotp', [])
+    keys = expand_key('impactors.*.clearance', base.scene)
+    assert keys == [f'impactors.{k}.clearance' for k in range(12)]
+    points = make_points('hpotp', [('impactors.*.clearance', ['1 mil', '2 mil'])],
+                         expansions={'impactors.*.clearance': keys})
+    grid = [p for p in points if not p.labels['reference']]
+    assert [p.labels['grid'] for p in grid] == [{'impactors.*.clearance': '1 mil'},
+                                                {'impactors.*.clearance': '2 mil'}]
+    for point, mil in zip(grid, (1, 2)):
+        scene = load('hpotp', list(point.overrides))
+        assert [imp['clearance'] for imp in scene.scene['impactors']] == pytest.approx(
+            [mil * 25.4e-6] * 12, rel=1e-12)
+    # the reference keeps the scene without impactors (one, the key is an impactor key)
+    (ref,) = [p for p in points if p.labels['reference']]
+    assert ref.overrides[-1] == 'impactors=[]'
+
+
+@pytest.mark.parametrize('grid, message', [
+    ('forcing.*.amplitude=1 N', "--grid forcing.*.amplitude: '*' matches nothing"),
+    ('impactors.*.bogus=1', '--grid impactors.*.bogus: does not apply'),
+])
+def test_wildcard_that_matches_nothing_or_misses_an_impactor_is_refused(capsys, grid, message):
+    assert main(['sweep', 'hpotp', '--grid', grid, '--executor', 'serial']) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f'study: error: {message}') and err.count('\n') == 1, err
+
+
+def test_sweep_table_says_reduction_in_words(capsys):
+    status = main(['sweep', 'sdof', '--grid', 'impactors.*.cor=0.5,0.6', '--duration', '1 s',
+                   '--executor', 'serial'])
+    out = capsys.readouterr().out
+    assert status == 0
+    header = next(line for line in out.splitlines() if line.startswith('impactors.*.cor'))
+    words = header.split()
+    assert 'red' not in words and words.count('reduction') == 4, header
+    assert 'run displacement (m)' in header and 'steady acceleration (g)' in header
+
+
+def test_sweep_plot_draws_the_level_without_impactors_and_both_phases(tmp_path, monkeypatch):
+    """The reference level is a labelled horizontal line at the no-impactor value (in g);
+    run and steady differ in line style, marker and fill, so coinciding lines both show."""
+    pytest.importorskip('matplotlib')
+    from matplotlib.figure import Figure
+
+    from impact_damper_sim.studies.analysis import G0
+    from impact_damper_sim.studies.sweep import plot
+    figs = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, 'savefig',
+                        lambda self, *a, **k: (figs.append(self), original(self, *a, **k)))
+    rows = [{'impactors.*.clearance': gap, 'impactors.*.clearance_si': si,
+             'run_worst_acceleration_g': 2.0, 'steady_worst_acceleration_g': 2.0,
+             'run_without_acceleration_m_s2': 5 * G0, 'steady_without_acceleration_m_s2': 3 * G0}
+            for gap, si in (('1 mil', 25.4e-6), ('2 mil', 50.8e-6))]
+    plot({'scene': 'hpotp', 'objective': 'acceleration', 'best_over': 'impactors.*.clearance',
+          'grid': [{'key': 'impactors.*.clearance', 'values': ['1 mil', '2 mil']}],
+          'phases': [{'name': 'run'}, {'name': 'steady'}], 'rows': rows}, tmp_path / 's.png')
+    lines = {line.get_label(): line for line in figs[0].axes[0].get_lines()}
+    ref = {k: v for k, v in lines.items() if k.startswith('without impactors')}
+    assert sorted(ref) == ['without impactors (run)', 'without impactors (steady)']
+    assert list(ref['without impactors (run)'].get_ydata()) == pytest.approx([5.0, 5.0])
+    assert list(ref['without impactors (steady)'].get_ydata()) == pytest.approx([3.0, 3.0])
+    run, steady = lines['with impactors (run)'], lines['with impactors (steady)']
+    assert run.get_linestyle() != steady.get_linestyle()
+    assert run.get_marker() != steady.get_marker()
+    assert steady.get_markerfacecolor() == 'none' and steady.get_markersize() > run.get_markersize()
+    assert figs[0].axes[0].get_xlabel() == 'impactors.*.clearance (mil)'

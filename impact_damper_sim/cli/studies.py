@@ -249,10 +249,13 @@ def _check_grid_keys(scene, grid, overrides):
     """Refuse, before any run, a grid key the scene cannot take (exit 2, one line)."""
     from ..scene.catalog import validated
     from ..scene.schema import SceneError
-    validated(scene, overrides)   # the scene and the other options: their own error
+    from ..studies.sweep import expand_key
+    base, _ = validated(scene, overrides)   # the scene and the other options: their own error
     for key, vals in grid:
+        # 'impactors.*.mass': every impactor must take it (ValueError: '*' matches nothing)
+        lines = [f'{k}={vals[0]}' for k in expand_key(key, base)]
         try:
-            validated(scene, list(overrides) + [f'{key}={vals[0]}'])
+            validated(scene, list(overrides) + lines)
         except SceneError as exc:
             first = str(exc).strip().splitlines()[-1].strip()
             raise _Usage(f'--grid {key}: does not apply to scene {scene!r} ({first})') from exc
@@ -263,7 +266,8 @@ def _print_sweep(r):
     phases = [p['name'] for p in r['phases']]
     header = list(keys)
     for p in phases:
-        header += [f'{p} disp (m)', 'red', f'{p} acc (g)', 'red', 'impacts/s']
+        header += [f'{p} displacement (m)', 'reduction', f'{p} acceleration (g)', 'reduction',
+                   f'{p} impacts/s']
     rows = []
     for row in r['rows']:
         cells = [row[k] for k in keys]
@@ -274,14 +278,14 @@ def _print_sweep(r):
                       _g(row[f'{p}_acceleration_reduction'], 3),
                       _g(row[f'{p}_impacts_per_second'], 4)]
         rows.append(cells)
-    print(f"sweep of {r['scene']} ({r['source']}); worst case over the sensors; red = "
-          'reduction without/with impactors')
+    print(f"sweep of {r['scene']} ({r['source']}); worst case over the sensors; reduction = "
+          'worst case without impactors / with them (> 1: the impactors help)')
     print(_table(header, rows))
     diverged = sorted({row['without_diverged_at_s'] for row in r['rows']
                        if row.get('without_diverged_at_s') is not None})
     if diverged:
         print(f"without impactors the run diverged (at t = {_g(diverged[0], 4)} s first): the "
-              "structure is unbounded without them, so 'red' is n/a (unbounded)")
+              "structure is unbounded without them, so the reduction is n/a (unbounded)")
     if r['best']:
         from ..studies.analysis import G0
         disp = r['objective'] == 'displacement'

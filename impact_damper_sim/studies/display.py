@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import re
 
-_INDEX_RE = re.compile(r'\.(\d+)(?=\.|$)|\[\d+\]')
+# a list index, or the sweep's '*' (every element)
+_INDEX_RE = re.compile(r'\.(\d+|\*)(?=\.|$)|\[(\d+|\*)\]')
 
 
 def key_dimension(key):
@@ -17,7 +18,7 @@ def key_dimension(key):
     Parameters
     ----------
     key : str
-        Dotted scene key, list indices as ``.0`` or ``[0]``.
+        Dotted scene key, list indices as ``.0``, ``[0]`` or ``*``.
     """
     from ..scene.keytable import describe
     from ..scene.spec import SCHEMA

@@ -8,6 +8,10 @@ the sensors of the peak displacement and of the peak mean acceleration (impacts 
 reported, with reduction ratios reference / with-impactors (> 1: the damper helps), as the
 paper's "Reduct" columns.
 
+A ``*`` in place of a list index sets the key in every element of that list at once:
+``--grid 'impactors.*.clearance=0.5 mil,0.85 mil'`` gives all twelve hpotp impactors the same
+clearance per point (``impactors.0.clearance`` moves one of them only).
+
 Phases default to ``run`` (the whole run, start-up transient included) and ``steady`` (the
 trailing ``simulation.window``). A scene with a speed ramp adds its own, e.g.
 ``criticals=0:5`` and ``full_speed=5:6`` (s), without changing the tasks.
@@ -15,12 +19,15 @@ trailing ``simulation.window``). A scene with a speed ramp adds its own, e.g.
 from __future__ import annotations
 
 import itertools
+import re
 import time
 
 from .frf import failure, point_record
 from .runner import Point, point_seed, run_points
 
 OBJECTIVES = ('acceleration', 'displacement')
+WILDCARD = '*'
+_KEY_TOKEN_RE = re.compile(r'[^.\[\]]+')
 DEFAULT_PHASES = (('run', 0.0, None), ('steady', None, None))
 
 
@@ -50,6 +57,69 @@ def is_impactor_key(key):
     return key.split('.', 1)[0].split('[', 1)[0] == 'impactors'
 
 
+def has_wildcard(key):
+    """bool: ``key`` has a ``*`` list index (``impactors.*.clearance``, ``impactors[*].cor``)."""
+    return WILDCARD in _KEY_TOKEN_RE.findall(key)
+
+
+def expand_key(key, scene_dict):
+    """The concrete keys a wildcard key stands for in one scene.
+
+    Parameters
+    ----------
+    key : str
+        Dotted scene key; a ``*`` token stands for every index of the list at that place.
+    scene_dict : dict
+        A validated scene (its lists say how many elements each wildcard covers).
+
+    Returns
+    -------
+    list of str
+        ``[key]`` without a wildcard, otherwise one dotted key per list element
+        (``impactors.0.clearance``, ``impactors.1.clearance``, ...).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``key`` when a wildcard matches nothing (an empty list, or a place
+        in the scene that is not a list).
+    """
+    tokens = _KEY_TOKEN_RE.findall(key)
+    if WILDCARD not in tokens:
+        return [key]
+    paths = [([], scene_dict)]
+    for i, token in enumerate(tokens):
+        nxt = []
+        for prefix, node in paths:
+            if token == WILDCARD:
+                if not isinstance(node, list) or not node:
+                    where = '.'.join(tokens[:i]) or 'the scene'
+                    what = 'an empty list' if isinstance(node, list) else 'not a list'
+                    raise ValueError(f"--grid {key}: '*' matches nothing ({where} is {what} "
+                                     'in this scene)')
+                nxt += [(prefix + [str(k)], item) for k, item in enumerate(node)]
+            elif isinstance(node, dict):
+                nxt.append((prefix + [token], node.get(token)))
+            elif isinstance(node, list) and token.isdigit() and int(token) < len(node):
+                nxt.append((prefix + [token], node[int(token)]))
+            else:   # a key past the wildcard that the scene lacks: validation names it
+                nxt.append((prefix + [token], None))
+        paths = nxt
+    return ['.'.join(prefix) for prefix, _ in paths]
+
+
+def lookup_key(scene_dict, key):
+    """The SI value at ``key``; for a wildcard key the common value (a list if they differ)."""
+    from .measure import lookup
+    values = [lookup(scene_dict, k) for k in expand_key(key, scene_dict)]
+    return values[0] if all(v == values[0] for v in values) else values
+
+
+def key_overrides(key, value, expansions):
+    """``key=value`` override lines, one per concrete key of a wildcard ``key``."""
+    return [f'{k}={value}' for k in expansions.get(key, [key])]
+
+
 def peaks(point):
     """Task: worst-case responses of one run, per phase.
 
@@ -65,8 +135,9 @@ def peaks(point):
     dict
         ``phases``: per phase, per sensor ``peak_displacement_m`` (refined peak ``|x|``),
         ``peak_acceleration_m_s2`` (largest mean acceleration per sample period, impacts
-        included, through the sensor's ``lowpass`` if it has one) and ``rms_displacement_m``; the worst case over the sensors
-        (``worst_displacement_m``, ``worst_acceleration_m_s2``, with the sensor names) and
+        included, through the sensor's ``lowpass`` if it has one) and
+        ``rms_displacement_m``; the worst case over the sensors (``worst_displacement_m``,
+        ``worst_acceleration_m_s2``, with the sensor names) and
         ``impacts_per_second`` per impactor. ``resolved``: the ``keys``' SI values. With
         ``params['divergence_is_result']`` (the no-impactor references), a run that diverges
         returns ``phases`` None, ``diverged_at_s`` (s) and ``divergence`` (what).
@@ -75,7 +146,7 @@ def peaks(point):
 
     from .analysis import refined_peak
     from ..live.filters import scene_lowpass
-    from .measure import load_point, lookup, start, window_impact_rates
+    from .measure import load_point, start, window_impact_rates
     from ..integrate.divergence import Divergence
     scene = load_point(point)
     cfg = scene.scene['simulation']
@@ -90,7 +161,7 @@ def peaks(point):
         # a reference without impactors that grows without bound (a linearly unstable
         # structure) is a result: the reduction the impactors give is unbounded
         return {'phases': None, 'diverged_at_s': exc.t, 'divergence': exc.what,
-                'resolved': {k: lookup(scene.scene, k) for k in point.params.get('keys', ())}}
+                'resolved': {k: lookup_key(scene.scene, k) for k in point.params.get('keys', ())}}
     acc = lowpass.apply(sim.mean_acceleration(samples, v0))
     events = sim.take_events()
     t, x = samples.t, samples.displacement
@@ -114,12 +185,12 @@ def peaks(point):
             phase[f'worst_{what}_sensor'] = worst
         phase['impacts_per_second'] = window_impact_rates(events, sim.impactor_names, t0, t1)
         out[name] = phase
-    resolved = {k: lookup(scene.scene, k) for k in point.params.get('keys', ())}
+    resolved = {k: lookup_key(scene.scene, k) for k in point.params.get('keys', ())}
     return {'phases': out, 'resolved': resolved}
 
 
 def make_points(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, has_impactors=True,
-                seed=0):
+                seed=0, expansions=None):
     """Points of a grid sweep and of its no-impactor references.
 
     Parameters
@@ -136,6 +207,8 @@ def make_points(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, has_impacto
         False: the scene has no impactors, so no reference runs are added.
     seed : int
         Study seed.
+    expansions : dict of str to list of str, optional
+        Concrete keys per wildcard grid key (see :func:`expand_key`); each point sets all.
 
     Returns
     -------
@@ -143,11 +216,13 @@ def make_points(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, has_impacto
         Grid points (``labels['reference']`` False) then references (True).
     """
     keys = [k for k, _ in grid]
+    expansions = expansions or {}
     params = {'phases': [tuple(p) for p in phases], 'keys': keys}
     points, refs = [], {}
     for combo in itertools.product(*[list(v) for _, v in grid]):
         values = dict(zip(keys, combo))
-        ov = list(overrides) + [f'{k}={v}' for k, v in values.items()]
+        ov = list(overrides) + [line for k, v in values.items()
+                                for line in key_overrides(k, v, expansions)]
         points.append(Point(peaks, scene, tuple(ov), point_seed(seed, '\n'.join([scene] + ov)),
                             params, {'grid': values, 'reference': False}))
         if has_impactors:
@@ -171,7 +246,8 @@ def sweep(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, best_over=None,
     scene : str
         Scene name or path.
     grid : sequence of (str, sequence of str)
-        Scene keys and their values.
+        Scene keys and their values; a ``*`` list index sets every element
+        (``impactors.*.clearance``, see :func:`expand_key`).
     overrides : sequence of str
         Base overrides.
     phases : sequence of (str, float or None, float or None)
@@ -210,8 +286,10 @@ def sweep(scene, grid, overrides=(), *, phases=DEFAULT_PHASES, best_over=None,
     base = load(scene, list(overrides))
     from .measure import check_memory
     check_memory(base)
+    expansions = {k: expand_key(k, base.scene) for k in keys if has_wildcard(k)}
     points = make_points(scene, grid, overrides, phases=phases,
-                         has_impactors=bool(base.scene['impactors']), seed=seed)
+                         has_impactors=bool(base.scene['impactors']), seed=seed,
+                         expansions=expansions)
     start = time.perf_counter()
     results = run_points(points, executor, workers=workers, dask_address=dask_address,
                          progress=progress)
@@ -289,8 +367,19 @@ def best(rows, keys, phase_names, best_over, objective):
     return out
 
 
+#: Per phase: line style, marker, marker face (None: filled) and size (points), so that the
+#: run and steady lines stay visible where they coincide (open squares around filled dots).
+PHASE_STYLES = (('-', 'o', None, 4.5), ('--', 's', 'none', 8.0), (':', '^', 'none', 10.0))
+#: Line styles of the no-impactor reference levels, per phase.
+REFERENCE_STYLES = ((0, (6, 2)), (0, (2, 2)), (0, (6, 2, 1, 2)))
+
+
 def plot(result, path):
     """Plot the objective's worst case versus the best-over key (or the point index).
+
+    One colour per combination of the other grid keys, one line style and marker per phase
+    (open markers on the later phases, so coinciding phases both show), and per phase the
+    level without impactors as a labelled horizontal grey line.
 
     Parameters
     ----------
@@ -302,32 +391,54 @@ def plot(result, path):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+
+    from .analysis import G0
     from .display import axis_unit
     obj = result['objective']
     # the table's units: displacement in m, acceleration in g
     field, ylabel = (('m', 'm') if obj == 'displacement' else ('g', 'g'))
+    to_unit = 1.0 if obj == 'displacement' else 1.0 / G0
+    without_field = 'm' if obj == 'displacement' else 'm_s2'
     keys = [g['key'] for g in result['grid']]
     xkey = result['best_over'] or keys[0]
     others = [k for k in keys if k != xkey]
     given = next(g['values'] for g in result['grid'] if g['key'] == xkey)
     xunit, xfactor = axis_unit(xkey, given)
+    phases = [p['name'] for p in result['phases']]
     fig, ax = plt.subplots(figsize=(7, 4.5), dpi=120)
     groups = {}
     for row in result['rows']:
         groups.setdefault(tuple(row[k] for k in others), []).append(row)
-    numeric = True
+    numeric, references, xs_all = True, {}, []
     for g, (group, rows) in enumerate(groups.items()):
         xs = [row[f'{xkey}_si'] for row in rows]
         if any(x is None or not isinstance(x, (int, float)) for x in xs):
             xs, numeric = list(range(len(rows))), False
         else:
             xs = [x / xfactor for x in xs]
+        xs_all += xs
         label = ', '.join(f'{k}={v}' for k, v in zip(others, group)) or 'with impactors'
-        for phase, style in zip([p['name'] for p in result['phases']], ('-o', '--s', ':^')):
+        for k, phase in enumerate(phases):
+            line, marker, face, size = PHASE_STYLES[k % len(PHASE_STYLES)]
             ys = [row[f'{phase}_worst_{obj}_{field}'] for row in rows]
-            # one colour per group, one line style per phase
-            ax.plot(xs, [float('nan') if y is None else y for y in ys], style, ms=4,
-                    color=f'C{g % 10}', label=f'{label} ({phase})')
+            # one colour per group, one line style and marker per phase
+            ax.plot(xs, [float('nan') if y is None else y for y in ys], linestyle=line,
+                    marker=marker, ms=size, mfc=face, mew=1.2, color=f'C{g % 10}',
+                    label=f'{label} ({phase})', zorder=3 + len(phases) - k)
+            # the level without impactors depends only on the non-impactor keys
+            ref_group = tuple(f'{o}={v}' for o, v in zip(others, group)
+                              if not is_impactor_key(o))
+            for row in rows:
+                level = row.get(f'{phase}_without_{obj}_{without_field}')
+                if level is not None:
+                    references[(ref_group, k)] = level * to_unit
+    if references and xs_all:
+        lo, hi = min(xs_all), max(xs_all)
+        for (ref_group, k), level in references.items():
+            where = f", {', '.join(ref_group)}" if ref_group else ''
+            ax.plot([lo, hi], [level, level], color='0.35', lw=1.3,
+                    linestyle=REFERENCE_STYLES[k % len(REFERENCE_STYLES)], zorder=2,
+                    label=f'without impactors ({phases[k]}{where})')
     ax.set_xlabel(f'{xkey} ({xunit})' if numeric and xunit else
                   xkey if numeric else f'{xkey} (point index)')
     ax.set_ylabel(f'worst {obj} over the sensors ({ylabel})')
