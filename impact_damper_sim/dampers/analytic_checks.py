@@ -8,14 +8,25 @@ part of it.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from .analytic import _N_GRID, NoSymmetricOrbit, _half_map_jacobian, _impact, _osc_of, _root
+from .analytic import (
+    _N_GRID,
+    NoSymmetricOrbit,
+    SymmetricTwoImpactOrbit,
+    _half_map_jacobian,
+    _impact,
+    _osc_of,
+    _Oscillator,
+    _root,
+)
 
 __all__ = ['orbit_residuals', 'symmetric_half_map', 'symmetric_half_map_jacobian']
 
 
-def orbit_residuals(orbit):
+def orbit_residuals(orbit: SymmetricTwoImpactOrbit) -> np.ndarray:
     """Dimensionless residuals of the orbit's defining conditions.
 
     Evaluated with the closed-form flow and the impact law directly (not with the reduced
@@ -46,7 +57,8 @@ def orbit_residuals(orbit):
                      ((-w0 + V1) - orbit.relative_velocity_pre) / V])
 
 
-def _next_impact(osc, D, t0, x0, v0, w0, h):
+def _next_impact(osc: _Oscillator, D: float, t0: float, x0: float, v0: float, w0: float,
+                 h: float) -> tuple[float, float]:
     """First wall contact after a post-impact state on the ``+`` wall (time, wall sign)."""
     n = 8 * _N_GRID
     t = t0 + np.linspace(0.0, 4.0 * h, n)
@@ -61,13 +73,14 @@ def _next_impact(osc, D, t0, x0, v0, w0, h):
     wall = -1 if idx_lo <= idx_hi else +1
     i = min(idx_lo, idx_hi)
 
-    def gap(s):
+    def gap(s: float) -> float:
         return x0 + D / 2.0 + w0 * (s - t0) - osc.flow(t0, x0, v0, s)[0] - wall * D / 2.0
 
     return _root(gap, t[i], t[i + 1]), wall
 
 
-def symmetric_half_map(orbit, state):
+def symmetric_half_map(orbit: SymmetricTwoImpactOrbit,
+                       state: Sequence[float] | np.ndarray) -> np.ndarray:
     """Closed-form half-cycle impact map ``S G`` (for finite-difference checks).
 
     Parameters
@@ -93,7 +106,7 @@ def symmetric_half_map(orbit, state):
     return np.array([t1 - orbit.half_period, -x1, -vp, -wp])
 
 
-def symmetric_half_map_jacobian(orbit):
+def symmetric_half_map_jacobian(orbit: SymmetricTwoImpactOrbit) -> np.ndarray:
     """Analytic Jacobian of :func:`symmetric_half_map` at the orbit's fixed point.
 
     Parameters

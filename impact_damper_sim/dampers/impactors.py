@@ -53,10 +53,10 @@ class Impactor:
     clearance: float
     rows: np.ndarray
     housing_mass: float = 0.0
-    position: np.ndarray = field(default=None)
-    velocity: np.ndarray = field(default=None)
+    position: np.ndarray | None = field(default=None)
+    velocity: np.ndarray | None = field(default=None)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.kind not in (SDOF, PLANAR):
             raise ValueError(f'impactor {self.name!r}: kind must be "sdof" or "planar", '
                              f'got {self.kind!r}')
@@ -88,16 +88,16 @@ class Impactor:
         object.__setattr__(self, 'velocity', vel)
 
     @property
-    def dim(self):
+    def dim(self) -> int:
         """int: 1 for SDOF, 2 for planar."""
         return self.rows.shape[0]
 
     @property
-    def limit(self):
+    def limit(self) -> float:
         """float: largest allowed ``|r|`` (m): ``D/2`` for SDOF, ``c`` for planar."""
         return self.clearance / 2 if self.kind == SDOF else self.clearance
 
-    def with_rows(self, rows, housing_mass=None):
+    def with_rows(self, rows: np.ndarray, housing_mass: float | None = None) -> Impactor:
         """Return a copy bound to other rows (e.g. another coordinate system)."""
         return Impactor(self.name, self.kind, self.mass, self.cor, self.clearance, rows,
                         self.housing_mass if housing_mass is None else housing_mass,

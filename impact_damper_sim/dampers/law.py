@@ -27,13 +27,14 @@ modal model ``G = sum_k phi_k^2``, the inverse of the driving-point effective ma
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 EFFECTIVE_MASS = 'effective_mass'
 LUMPED_MASS = 'lumped_mass'
 IMPACT_LAWS = (EFFECTIVE_MASS, LUMPED_MASS)
 
 
-def law_mobility(mobility, housing_mass, law):
+def law_mobility(mobility: npt.ArrayLike, housing_mass: float, law: str) -> np.ndarray:
     """Return the mobility matrix the chosen impact law uses (1/kg).
 
     Parameters
@@ -59,7 +60,7 @@ def law_mobility(mobility, housing_mass, law):
     raise ValueError(f'impact law must be one of {IMPACT_LAWS}, got {law!r}')
 
 
-def normal_impulse(v_n, mass, mobility_nn, cor):
+def normal_impulse(v_n: float, mass: float, mobility_nn: float, cor: float) -> float:
     """Impulse magnitude of a restitution impact (N s).
 
     Parameters
@@ -81,12 +82,12 @@ def normal_impulse(v_n, mass, mobility_nn, cor):
     return (1.0 + cor) * v_n / (1.0 / mass + mobility_nn)
 
 
-def normal_impact_loss(v_n, mass, mobility_nn, cor):
+def normal_impact_loss(v_n: float, mass: float, mobility_nn: float, cor: float) -> float:
     """Energy lost in a restitution impact (J): ``0.5 (1 - e^2) v_n^2 / (1/m + n^T G n)``."""
     return 0.5 * (1.0 - cor * cor) * v_n * v_n / (1.0 / mass + mobility_nn)
 
 
-def lock_impulse(v_rel, mass, mobility):
+def lock_impulse(v_rel: np.ndarray, mass: float, mobility: np.ndarray) -> np.ndarray:
     """Housing impulse vector that makes the relative velocity vanish (N s).
 
     Parameters
@@ -107,7 +108,9 @@ def lock_impulse(v_rel, mass, mobility):
     return np.linalg.solve(np.eye(v_rel.size) / mass + mobility, v_rel)
 
 
-def apply_normal_impact(v_i, v_h, normal, mass, mobility, cor):
+def apply_normal_impact(v_i: np.ndarray, v_h: np.ndarray, normal: np.ndarray, mass: float,
+                        mobility: np.ndarray,
+                        cor: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Post-impact impactor and housing velocities for a lone two-body check.
 
     This is the law evaluated on velocities only (no model): useful to check restitution

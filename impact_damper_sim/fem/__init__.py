@@ -5,12 +5,26 @@ SI units throughout. Build a :class:`FEModel`, call :meth:`FEModel.assemble` to 
 :meth:`AssembledSystem.condense` to remove the massless DOFs statically.
 """
 from .assembly import FEModel
-from .beam import (beam_local_mass, beam_local_stiffness, beam_mass, beam_rotation,
-                   beam_stiffness, beam_transformation, shear_parameters)
-from .materials import Material, STEEL
-from .sections import cowper_hollow_circle, GeneralSection, HollowCircular, SolidCircular
-from .system import (AssembledSystem, component_index, Condensation, DOF_NAMES, DOFS_PER_NODE,
-                     dense_symmetric_part, is_symmetric)
+from .beam import (
+    beam_local_mass,
+    beam_local_stiffness,
+    beam_mass,
+    beam_rotation,
+    beam_stiffness,
+    beam_transformation,
+    shear_parameters,
+)
+from .materials import STEEL, Material
+from .sections import GeneralSection, HollowCircular, SolidCircular, cowper_hollow_circle
+from .system import (
+    DOF_NAMES,
+    DOFS_PER_NODE,
+    AssembledSystem,
+    Condensation,
+    component_index,
+    dense_symmetric_part,
+    is_symmetric,
+)
 
 __all__ = ['AssembledSystem', 'Condensation', 'DOF_NAMES', 'DOFS_PER_NODE', 'FEModel',
            'GeneralSection', 'HollowCircular', 'Material', 'STEEL', 'SolidCircular',

@@ -8,19 +8,22 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Collection, Iterable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 from .beam import beam_mass, beam_stiffness
 from .materials import Material
-from .system import AssembledSystem, DOF_NAMES, DOFS_PER_NODE, component_index
+from .sections import Section
+from .system import DOF_NAMES, DOFS_PER_NODE, AssembledSystem, component_index
 
 _SYMMETRY_RTOL = 1e-10  # relative asymmetry tolerated in user-given symmetric matrices
 _SECTION_FIELDS = ('A', 'Iy', 'Iz', 'J', 'Ip', 'shear_coefficients')
 
 
-def _real(name, value, unit, *, lower=None):
+def _real(name: str, value: float, unit: str, *, lower: float | None = None) -> float:
     """Return ``value`` as a finite float (>= ``lower`` if given), or raise ValueError."""
     ok = isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
     x = float(value) if ok else math.nan
@@ -31,14 +34,14 @@ def _real(name, value, unit, *, lower=None):
     return x
 
 
-def _component(name, component):
+def _component(name: str, component: int | str) -> int:
     try:
         return component_index(component)
     except (ValueError, TypeError) as exc:
         raise ValueError(f'{name}: {exc}') from None
 
 
-def _symmetric_matrix(name, matrix, n, unit):
+def _symmetric_matrix(name: str, matrix: npt.ArrayLike, n: int, unit: str) -> np.ndarray:
     a = np.asarray(matrix) if _is_numeric(matrix) else None
     if a is None:
         raise ValueError(f'{name} must be a real numeric ({n}, {n}) matrix ({unit})')
@@ -73,25 +76,27 @@ class FEModel:
     6
     """
 
-    def __init__(self):
-        self._nodes = {}
-        self._blocks = {'K': [], 'M': [], 'C': []}  # lists of (full-DOF keys, dense block)
-        self._clamped = set()
+    def __init__(self) -> None:
+        self._nodes: dict[int, np.ndarray] = {}
+        # lists of (full-DOF keys, dense block)
+        self._blocks: dict[str, list[tuple[list[tuple[int, int]], np.ndarray]]] = {
+            'K': [], 'M': [], 'C': []}
+        self._clamped: set[tuple[int, int]] = set()
         self._n_beams = 0
 
     # ----------------------------------------------------------------------------- queries
     @property
-    def nodes(self):
+    def nodes(self) -> dict[int, tuple[float, ...]]:
         """dict: ``{node_id: (x, y, z)}`` coordinates (m), a copy."""
         return {k: tuple(float(x) for x in v) for k, v in self._nodes.items()}
 
     @property
-    def clamped(self):
+    def clamped(self) -> list[tuple[int, int]]:
         """list of tuple: Clamped ``(node, component)`` DOFs, sorted."""
         return sorted(self._clamped)
 
     # ------------------------------------------------------------------------------ nodes
-    def add_node(self, node_id, xyz):
+    def add_node(self, node_id: int, xyz: npt.ArrayLike) -> None:
         """Add a node.
 
         Parameters
@@ -112,7 +117,7 @@ class FEModel:
             raise ValueError(f'xyz must be 3 finite coordinates (m); got {xyz!r}')
         self._nodes[node_id] = p
 
-    def _node(self, name, node):
+    def _node(self, name: str, node: int) -> int:
         if isinstance(node, numbers.Integral) and not isinstance(node, (bool, np.bool_)) \
                 and int(node) in self._nodes:
             return int(node)
@@ -120,8 +125,9 @@ class FEModel:
                        f'(defined ids: {_id_range(self._nodes)})')
 
     # --------------------------------------------------------------------------- elements
-    def add_beam(self, node_i, node_j, material, section, *, shear=True, rotary_inertia=False,
-                 orientation=None):
+    def add_beam(self, node_i: int, node_j: int, material: Material, section: Section, *,
+                 shear: bool = True, rotary_inertia: bool = False,
+                 orientation: npt.ArrayLike | None = None) -> int:
         """Add a two-node Timoshenko beam with a lumped mass.
 
         Parameters
@@ -164,7 +170,8 @@ class FEModel:
         self._n_beams += 1
         return self._n_beams - 1
 
-    def add_point_mass(self, node, mass, inertia=None):
+    def add_point_mass(self, node: int, mass: float,
+                       inertia: npt.ArrayLike | None = None) -> None:
         """Add a rigid lumped mass at a node.
 
         Parameters
@@ -197,7 +204,7 @@ class FEModel:
                              f'got {inertia!r}')
         self._blocks['M'].append(([(node, c) for c in range(3, 6)], a))
 
-    def add_spring(self, node, component, stiffness):
+    def add_spring(self, node: int, component: int | str, stiffness: float) -> None:
         """Add a grounded spring on one DOF.
 
         Parameters
@@ -213,7 +220,7 @@ class FEModel:
         value = _real('stiffness', stiffness, 'N/m or N m/rad', lower=0.0)
         self._blocks['K'].append(([key], np.array([[value]])))
 
-    def add_damper(self, node, component, damping):
+    def add_damper(self, node: int, component: int | str, damping: float) -> None:
         """Add a grounded viscous damper on one DOF.
 
         Parameters
@@ -229,7 +236,9 @@ class FEModel:
         value = _real('damping', damping, 'N s/m or N m s/rad', lower=0.0)
         self._blocks['C'].append(([key], np.array([[value]])))
 
-    def add_super_element(self, dofs, stiffness, damping=None):
+    def add_super_element(self, dofs: Sequence[tuple[int, int | str]],
+                          stiffness: npt.ArrayLike,
+                          damping: npt.ArrayLike | None = None) -> None:
         """Add a general symmetric stiffness (and damping) on a set of DOFs.
 
         Parameters
@@ -255,7 +264,8 @@ class FEModel:
         if damping is not None:
             self._blocks['C'].append((keys, _symmetric_matrix('damping', damping, n, 'N s/m')))
 
-    def add_cross_coupling(self, node, kcc, components=('uy', 'uz')):
+    def add_cross_coupling(self, node: int, kcc: float,
+                           components: tuple[int | str, int | str] = ('uy', 'uz')) -> None:
         """Add a cross-coupled (circulatory) stiffness at a node.
 
         ``K[a, b] += kcc`` and ``K[b, a] -= kcc`` with ``(a, b) = components``; this makes
@@ -285,7 +295,8 @@ class FEModel:
         self._blocks['K'].append(([(node, a), (node, b)], np.array([[0.0, kcc], [-kcc, 0.0]])))
 
     # --------------------------------------------------------------- boundary conditions
-    def clamp(self, node, components=None):
+    def clamp(self, node: int,
+              components: int | str | Sequence[int | str] | None = None) -> None:
         """Fix DOFs of a node to zero (they are removed from the assembled system).
 
         Parameters
@@ -296,16 +307,17 @@ class FEModel:
             DOFs to fix (``0..5`` or ``'ux'`` ... ``'rz'``); None fixes all six.
         """
         node = self._node('node', node)
+        comps: Iterable[int]
         if components is None:
             comps = range(DOFS_PER_NODE)
-        elif isinstance(components, (str, numbers.Integral)):
+        elif isinstance(components, (str, int, numbers.Integral)):
             comps = [_component('components', components)]
         else:
             comps = [_component('components', c) for c in components]
         self._clamped.update((node, c) for c in comps)
 
     # ------------------------------------------------------------------------- assembly
-    def assemble(self):
+    def assemble(self) -> AssembledSystem:
         """Assemble sparse ``M``, ``C``, ``K`` over the unclamped DOFs.
 
         Returns
@@ -365,7 +377,8 @@ class FEModel:
         return AssembledSystem(M=M, C=C, K=K, dofs=dofs)
 
     @staticmethod
-    def _sparse(blocks, position, node_pos, n):
+    def _sparse(blocks: list[tuple[list[tuple[int, int]], np.ndarray]], position: np.ndarray,
+                node_pos: dict[int, int], n: int) -> sp.csr_matrix:
         rows, cols, vals = [], [], []
         for keys, block in blocks:
             idx = position[[node_pos[k] * DOFS_PER_NODE + c for k, c in keys]]
@@ -380,14 +393,14 @@ class FEModel:
         return coo.tocsr()  # sums the duplicate (row, column) entries
 
 
-def _is_numeric(value):
+def _is_numeric(value: object) -> bool:
     try:
         return np.asarray(value).dtype.kind in 'iuf'
     except (TypeError, ValueError):
         return False
 
 
-def _id_range(nodes):
+def _id_range(nodes: Collection[int]) -> str:
     if not nodes:
         return 'none'
     ids = sorted(nodes)

@@ -19,11 +19,15 @@ Reference: J. S. Przemieniecki, *Theory of Matrix Structural Analysis*, McGraw-H
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
+
+from .materials import Material
+from .sections import Section
 
 _PARALLEL_SIN = 1e-6  # sin of the angle below which a reference vector counts as parallel
 
 
-def _point(name, xyz, unit='m'):
+def _point(name: str, xyz: npt.ArrayLike, unit: str = 'm') -> np.ndarray:
     try:
         p = np.asarray(xyz, dtype=float)
     except (TypeError, ValueError):
@@ -33,13 +37,13 @@ def _point(name, xyz, unit='m'):
     return p
 
 
-def _flag(name, value):
+def _flag(name: str, value: object) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f'{name} must be True or False; got {value!r}')
     return bool(value)
 
 
-def _length(length):
+def _length(length: float | np.floating) -> float:
     try:
         value = float(length)
     except (TypeError, ValueError):
@@ -49,7 +53,8 @@ def _length(length):
     return value
 
 
-def shear_parameters(material, section, length, *, shear=True):
+def shear_parameters(material: Material, section: Section, length: float | np.floating, *,
+                     shear: bool = True) -> tuple[float, float]:
     """Return the shear-deformation parameters ``(Phi_y, Phi_z)``.
 
     Parameters
@@ -79,7 +84,7 @@ def shear_parameters(material, section, length, *, shear=True):
             12.0 * material.E * section.Iy / (kappa_z * gal2))
 
 
-def _bending_block(ei, phi, length, sign):
+def _bending_block(ei: float, phi: float, length: float, sign: float) -> np.ndarray:
     """4x4 bending stiffness on (v_i, theta_i, v_j, theta_j) in N/m, N/rad, N m/rad.
 
     ``sign`` is +1 in the x-y plane (theta_z = +dv/dx) and -1 in the x-z plane
@@ -96,7 +101,8 @@ def _bending_block(ei, phi, length, sign):
                          [s, b, -s, a]])
 
 
-def beam_local_stiffness(material, section, length, *, shear=True):
+def beam_local_stiffness(material: Material, section: Section, length: float | np.floating, *,
+                         shear: bool = True) -> np.ndarray:
     """Return the 12x12 element stiffness in the local frame.
 
     Parameters
@@ -143,7 +149,8 @@ def beam_local_stiffness(material, section, length, *, shear=True):
     return k
 
 
-def beam_local_mass(material, section, length, *, rotary_inertia=False):
+def beam_local_mass(material: Material, section: Section, length: float | np.floating, *,
+                    rotary_inertia: bool = False) -> np.ndarray:
     """Return the 12x12 lumped element mass in the local frame (diagonal).
 
     Parameters
@@ -177,13 +184,15 @@ def beam_local_mass(material, section, length, *, rotary_inertia=False):
     half = 0.5 * material.rho * length
     m = half * section.A
     if _flag('rotary_inertia', rotary_inertia):
+        assert section.Ip is not None   # GeneralSection.__post_init__ fills in Iy + Iz
         rot = [half * section.Ip, half * section.Iy, half * section.Iz]
     else:
         rot = [0.0, 0.0, 0.0]
     return np.diag(np.tile([m, m, m, *rot], 2))
 
 
-def beam_rotation(xyz_i, xyz_j, orientation=None):
+def beam_rotation(xyz_i: npt.ArrayLike, xyz_j: npt.ArrayLike,
+                  orientation: npt.ArrayLike | None = None) -> np.ndarray:
     """Return the rotation ``R`` (rows = local x, y, z in global coordinates).
 
     Parameters
@@ -222,7 +231,7 @@ def beam_rotation(xyz_i, xyz_j, orientation=None):
     return np.vstack([ex, ey, np.cross(ex, ey)])
 
 
-def beam_transformation(rotation):
+def beam_transformation(rotation: npt.ArrayLike) -> np.ndarray:
     """Return ``T = blockdiag(R, R, R, R)`` (12x12, dimensionless), ``u_local = T u_global``.
 
     Parameters
@@ -233,7 +242,9 @@ def beam_transformation(rotation):
     return np.kron(np.eye(4), np.asarray(rotation, dtype=float))
 
 
-def beam_stiffness(xyz_i, xyz_j, material, section, *, shear=True, orientation=None):
+def beam_stiffness(xyz_i: npt.ArrayLike, xyz_j: npt.ArrayLike, material: Material,
+                   section: Section, *, shear: bool = True,
+                   orientation: npt.ArrayLike | None = None) -> np.ndarray:
     """Return the 12x12 element stiffness in the global frame.
 
     Parameters
@@ -260,7 +271,9 @@ def beam_stiffness(xyz_i, xyz_j, material, section, *, shear=True, orientation=N
     return T.T @ beam_local_stiffness(material, section, length, shear=shear) @ T
 
 
-def beam_mass(xyz_i, xyz_j, material, section, *, rotary_inertia=False, orientation=None):
+def beam_mass(xyz_i: npt.ArrayLike, xyz_j: npt.ArrayLike, material: Material,
+              section: Section, *, rotary_inertia: bool = False,
+              orientation: npt.ArrayLike | None = None) -> np.ndarray:
     """Return the 12x12 lumped element mass in the global frame.
 
     Parameters

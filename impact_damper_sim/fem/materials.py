@@ -1,13 +1,13 @@
 """Isotropic linear-elastic materials (SI units: Pa, kg/m^3)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 NU_RANGE = (-1.0, 0.5)
 
 
-def _positive(name, value, unit):
+def _positive(name: str, value: float, unit: str) -> float:
     """Return ``value`` as a float, or raise ValueError unless it is finite and > 0.
 
     Parameters
@@ -33,7 +33,7 @@ def _positive(name, value, unit):
     return x
 
 
-def _poisson(nu):
+def _poisson(nu: float) -> float:
     """Return ``nu`` as a float, or raise ValueError unless -1 < nu < 0.5 (dimensionless)."""
     try:
         ok = NU_RANGE[0] < float(nu) < NU_RANGE[1]
@@ -69,7 +69,7 @@ class Material:
     G: float
     rho: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         # Store plain floats so equality and hashing do not depend on the caller's types.
         object.__setattr__(self, 'E', _positive('E', self.E, 'Pa'))
         object.__setattr__(self, 'G', _positive('G', self.G, 'Pa'))
@@ -80,7 +80,7 @@ class Material:
                 f'nu = E/(2G) - 1 lies in {NU_RANGE}; got G={self.G!r} (nu={self.nu:.6g})')
 
     @classmethod
-    def from_poisson(cls, E, nu, rho):
+    def from_poisson(cls, E: float, nu: float, rho: float) -> Material:
         """Build a material from Young's modulus and Poisson's ratio.
 
         Parameters
@@ -102,7 +102,7 @@ class Material:
         return cls(E=E, G=E / (2.0 * (1.0 + nu)), rho=rho)
 
     @property
-    def nu(self):
+    def nu(self) -> float:
         """float: Poisson's ratio ``E/(2G) - 1`` (dimensionless)."""
         return self.E / (2.0 * self.G) - 1.0
 

@@ -12,13 +12,13 @@ Every section exposes, in the element's local frame (x along the axis):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 from .materials import _poisson, _positive
 
 
-def cowper_hollow_circle(nu, m):
+def cowper_hollow_circle(nu: float, m: float) -> float:
     """Cowper's shear coefficient of a circular tube.
 
     Parameters
@@ -57,35 +57,35 @@ class SolidCircular:
 
     diameter: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, 'diameter', _positive('diameter', self.diameter, 'm'))
 
     @property
-    def A(self):
+    def A(self) -> float:
         """float: Area (m^2)."""
         return math.pi * self.diameter ** 2 / 4.0
 
     @property
-    def Iy(self):
+    def Iy(self) -> float:
         """float: Second moment of area about local y (m^4)."""
         return math.pi * self.diameter ** 4 / 64.0
 
     @property
-    def Iz(self):
+    def Iz(self) -> float:
         """float: Second moment of area about local z (m^4)."""
         return self.Iy
 
     @property
-    def J(self):
+    def J(self) -> float:
         """float: Torsion constant (m^4); equals ``Ip`` for a circle."""
         return self.Ip
 
     @property
-    def Ip(self):
+    def Ip(self) -> float:
         """float: Polar second moment of area (m^4)."""
         return math.pi * self.diameter ** 4 / 32.0
 
-    def shear_coefficients(self, nu):
+    def shear_coefficients(self, nu: float) -> tuple[float, float]:
         """Return Cowper's ``(kappa_y, kappa_z) = 6(1+nu)/(7+6nu)`` twice (dimensionless).
 
         Parameters
@@ -112,7 +112,7 @@ class HollowCircular:
     outer_diameter: float
     inner_diameter: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         do = _positive('outer_diameter', self.outer_diameter, 'm')
         try:
             di = float(self.inner_diameter)
@@ -125,31 +125,31 @@ class HollowCircular:
         object.__setattr__(self, 'inner_diameter', di)
 
     @property
-    def A(self):
+    def A(self) -> float:
         """float: Area (m^2)."""
         return math.pi * (self.outer_diameter ** 2 - self.inner_diameter ** 2) / 4.0
 
     @property
-    def Iy(self):
+    def Iy(self) -> float:
         """float: Second moment of area about local y (m^4)."""
         return math.pi * (self.outer_diameter ** 4 - self.inner_diameter ** 4) / 64.0
 
     @property
-    def Iz(self):
+    def Iz(self) -> float:
         """float: Second moment of area about local z (m^4)."""
         return self.Iy
 
     @property
-    def J(self):
+    def J(self) -> float:
         """float: Torsion constant (m^4); equals ``Ip`` for a circular tube."""
         return self.Ip
 
     @property
-    def Ip(self):
+    def Ip(self) -> float:
         """float: Polar second moment of area (m^4)."""
         return math.pi * (self.outer_diameter ** 4 - self.inner_diameter ** 4) / 32.0
 
-    def shear_coefficients(self, nu):
+    def shear_coefficients(self, nu: float) -> tuple[float, float]:
         """Return Cowper's thick-tube ``(kappa_y, kappa_z)`` (dimensionless).
 
         Parameters
@@ -191,7 +191,7 @@ class GeneralSection:
     kappa_y: float | None = None
     kappa_z: float | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ('A', 'Iy', 'Iz', 'J'):
             unit = 'm^2' if name == 'A' else 'm^4'
             object.__setattr__(self, name, _positive(name, getattr(self, name), unit))
@@ -202,7 +202,7 @@ class GeneralSection:
             if value is not None:
                 object.__setattr__(self, name, _positive(name, value, 'dimensionless'))
 
-    def shear_coefficients(self, nu):
+    def shear_coefficients(self, nu: float) -> tuple[float, float]:
         """Return ``(kappa_y, kappa_z)`` (dimensionless), ``inf`` where not given.
 
         Parameters
@@ -211,7 +211,11 @@ class GeneralSection:
             Poisson's ratio (dimensionless), in (-1, 0.5); only validated.
         """
         _poisson(nu)
-        return tuple(math.inf if k is None else k for k in (self.kappa_y, self.kappa_z))
+        return (math.inf if self.kappa_y is None else self.kappa_y,
+                math.inf if self.kappa_z is None else self.kappa_z)
 
 
-__all__ = ['SolidCircular', 'HollowCircular', 'GeneralSection', 'cowper_hollow_circle']
+# any of the section classes: what the beam element and FEModel.add_beam take
+Section = SolidCircular | HollowCircular | GeneralSection
+
+__all__ = ['Section', 'SolidCircular', 'HollowCircular', 'GeneralSection', 'cowper_hollow_circle']

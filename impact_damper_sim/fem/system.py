@@ -10,18 +10,23 @@ Conventions
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import numbers
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+# a dense array_like or a scipy.sparse matrix (scipy has no type information: Any)
+MatrixLike = Any
 
 DOF_NAMES = ('ux', 'uy', 'uz', 'rx', 'ry', 'rz')
 DOFS_PER_NODE = 6
 
 
-def component_index(component):
+def component_index(component: int | str) -> int:
     """Return the component number (0..5) of a DOF name or number.
 
     Parameters
@@ -81,11 +86,11 @@ class Condensation:
     _position: np.ndarray = field(repr=False)
 
     @property
-    def K_sym(self):
+    def K_sym(self) -> np.ndarray:
         """ndarray: Symmetric part of the condensed stiffness (N/m)."""
         return 0.5 * (self.K + self.K.T)
 
-    def recovery(self, active_rows):
+    def recovery(self, active_rows: npt.ArrayLike) -> np.ndarray:
         """Return ``R`` such that ``u[active_rows] = R @ u_master``.
 
         Parameters
@@ -132,9 +137,9 @@ class AssembledSystem:
     K: sp.csr_matrix
     dofs: np.ndarray
     # not an init field: dataclasses.replace() would otherwise share (and mutate) the dict
-    _lookup: dict = field(init=False, repr=False, compare=False)
+    _lookup: dict[tuple[int, int], int] = field(init=False, repr=False, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         n = self.dofs.shape[0]
         for name in ('M', 'C', 'K'):
             shape = getattr(self, name).shape
@@ -144,11 +149,11 @@ class AssembledSystem:
                            {(int(a), int(b)): k for k, (a, b) in enumerate(self.dofs)})
 
     @property
-    def n_dof(self):
+    def n_dof(self) -> int:
         """int: Number of active DOFs."""
         return self.dofs.shape[0]
 
-    def index(self, node, component):
+    def index(self, node: int, component: int | str) -> int:
         """Return the active index of DOF ``component`` at ``node``.
 
         Parameters
@@ -171,17 +176,17 @@ class AssembledSystem:
                 f'DOF {DOF_NAMES[key[1]]} at node {key[0]} is clamped or does not exist'
             ) from None
 
-    def skew_part(self):
+    def skew_part(self) -> sp.csr_matrix:
         """Return the skew-symmetric part ``(K - K^T)/2`` of the stiffness (N/m), sparse."""
         return ((self.K - self.K.T) * 0.5).tocsr()
 
-    def massless(self, rtol=1e-14):
+    def massless(self, rtol: float = 1e-14) -> np.ndarray:
         """Return a boolean mask of DOFs whose mass row is zero (to ``rtol`` of the largest)."""
         row_max = abs(self.M).max(axis=1).toarray().ravel()
         scale = row_max.max() if row_max.size else 0.0
         return row_max <= rtol * scale
 
-    def condense(self):
+    def condense(self) -> Condensation:
         """Condense the massless DOFs statically.
 
         Returns
@@ -225,13 +230,13 @@ class AssembledSystem:
                             K=np.asarray(Kc), T=T, n_active=n, _position=position)
 
 
-def dense_symmetric_part(matrix):
+def dense_symmetric_part(matrix: MatrixLike) -> np.ndarray:
     """Return the symmetric part ``(A + A^T)/2`` of a dense or sparse matrix, dense."""
     a = matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix, dtype=float)
     return 0.5 * (a + a.T)
 
 
-def is_symmetric(matrix, rtol=1e-12):
+def is_symmetric(matrix: MatrixLike, rtol: float = 1e-12) -> bool:
     """Return True if ``matrix`` equals its transpose to ``rtol`` of its largest entry."""
     a = matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix)
     scale = np.abs(a).max() if a.size else 0.0

@@ -61,6 +61,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import zlib
+from typing import Any
 
 import numpy as np
 
@@ -485,7 +486,7 @@ class SensorChannel:
                    'lift_error': float(d.lift_error), 'sos': d.sos.tolist(),
                    'b': [float(v) for v in d.b], 'a': [float(v) for v in d.a]}
         adc = None
-        if s['adc'] is not None:
+        if s['adc'] is not None and self._adc is not None:
             adc = {**s['adc'], 'lsb': float(self._adc[0])}
         bias = None
         if s['bias'] is not None:
@@ -566,7 +567,7 @@ def _resolved(spec, msg):
         s['noise_density'] = positive('noise_density', s['noise_density'], True)
     if s['bias'] is not None:
         b = dict(s['bias'])
-        out = {'turn_on': None, 'gauss_markov': None, 'random_walk': None}
+        out: dict[str, Any] = {'turn_on': None, 'gauss_markov': None, 'random_walk': None}
         extra = sorted(set(b) - set(out))
         if extra:
             raise ValueError(msg(f"unknown spec key(s) {', '.join(f'bias.{k}' for k in extra)}"

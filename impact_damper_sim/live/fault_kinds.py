@@ -59,7 +59,7 @@ class _Fault:
         self.all_axes = spec.axes == 'xyz'
         self.cleared_at = None
         self.params = dict(spec.params)
-        self.rng = None
+        self.rng: np.random.Generator | None = None
         if seed is not None:   # own stream: kind and accelerometer in it, so one seed on two
             self.rng = np.random.default_rng(np.random.SeedSequence(   # sensors is two streams
                 [seed, zlib.crc32(spec.kind.encode()), zlib.crc32(spec.accelerometer.encode())]))
@@ -84,6 +84,13 @@ class _Fault:
 
     def after(self, x, n0, valid):
         pass
+
+    @property
+    def random(self) -> np.random.Generator:
+        """The fault's own generator (the random kinds: their spec or injector gives a seed)."""
+        if self.rng is None:
+            raise RuntimeError(f'fault kind {self.spec.kind!r} has no random stream')
+        return self.rng
 
     def invalid(self, n):
         """Samples ``n`` (absolute indices) this fault leaves out; None if it leaves none."""
@@ -131,8 +138,8 @@ class _Spikes(_Fault):
     def _extend(self, end):
         """Draw arrivals until one starts at or after sample ``end``."""
         while self.lo + math.floor(self._carry) < end:
-            gaps = self.rng.exponential(self._scale, BLOCK)
-            signs = self.rng.integers(0, 2, BLOCK)
+            gaps = self.random.exponential(self._scale, BLOCK)
+            signs = self.random.integers(0, 2, BLOCK)
             pos = self._carry + np.cumsum(gaps)
             self._carry = float(pos[-1])
             # an arrival in [j, j + 1) samples after lo starts at sample lo + j
@@ -180,7 +187,7 @@ class _Intermittent(_Fault):
         """Draw open/connected periods until the next open one starts at or after ``end``."""
         while self.lo + math.ceil(self._carry) < end:
             bounds = self._carry + np.cumsum(
-                (self.rng.exponential(1.0, (BLOCK, 2)) * self._means).ravel())
+                (self.random.exponential(1.0, (BLOCK, 2)) * self._means).ravel())
             begin = np.concatenate([[self._carry], bounds[1:-1:2]])
             self._carry = float(bounds[-1])
             # a sample is open when its index lies in an open period: [ceil(begin), ceil(end))
@@ -254,7 +261,9 @@ class _Stuck(_Fault):
     def after(self, x, n0, valid):
         a, b = self.span(n0, len(x))
         if a < b:
-            self._set(x, a, b, self.hold if self.all_axes else self.hold[self.cols])
+            hold = self.hold
+            assert hold is not None   # capture() keeps the last reading before the span
+            self._set(x, a, b, hold if self.all_axes else hold[self.cols])
 
 
 class _Dropout(_Fault):

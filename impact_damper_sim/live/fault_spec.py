@@ -250,11 +250,11 @@ class FaultSpec:
 
     kind: str
     accelerometer: str
-    name: str = None
-    onset: float = None
-    duration: float = None
+    name: str | None = None
+    onset: float | None = None
+    duration: float | None = None
     axes: str = 'xyz'
-    seed: int = None
+    seed: int | None = None
     params: dict = dataclasses.field(default_factory=dict)
 
     def as_dict(self):
@@ -419,8 +419,8 @@ class FaultCommand:
     """
 
     action: str
-    spec: FaultSpec = None
-    name: str = None
+    spec: FaultSpec | None = None
+    name: str | None = None
 
 
 def parse_command(text, accelerometers=None, *, key='fault'):

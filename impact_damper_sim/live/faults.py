@@ -124,7 +124,7 @@ class FaultInjector:
         if not all(r is None or (math.isfinite(r) and r > 0) for r in self.rails):
             raise ValueError(f'rails must be finite and > 0 m/s^2 (or None), got {rails!r}')
         self._faults = []                              # every fault, in the order added
-        self._by_acc = [[] for _ in self.names]        # per accelerometer, in applying order
+        self._by_acc: list[list] = [[] for _ in self.names]   # per accelerometer, in order
         self._done = [None] * len(self.names)          # next sample index (None: none yet)
         self._last = [None] * len(self.names)          # last value read (after the limit)
 
@@ -211,11 +211,12 @@ class FaultInjector:
         fault = CLASSES[spec.kind](spec, name, acc, max(lo, nxt), hi, fs, seed)
         if spec.kind == 'intermittent' and fault.params['off'] == 'rail':
             if fault.params['level'] is None:
-                if self.rails[acc] is None:
+                rail = self.rails[acc]
+                if rail is None:
                     raise FaultError(f"key '{key}.level': accelerometer {spec.accelerometer!r}"
                                      ' has no range or ADC to rail at; give level (the '
                                      'reading while open, m/s^2) or off: dropout')
-                fault.params['level'] = OPEN_OVERDRIVE * self.rails[acc]
+                fault.params['level'] = OPEN_OVERDRIVE * rail
         self._faults.append(fault)
         order = [KINDS.index(f.spec.kind) for f in self._by_acc[acc]]
         self._by_acc[acc].insert(int(np.searchsorted(order, KINDS.index(spec.kind),

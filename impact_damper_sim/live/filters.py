@@ -283,7 +283,8 @@ class SensorLowpass:
     def __init__(self, sensors, dt, order=4, source=None):
         from ..scene.schema import SceneError
         rate = 1.0 / float(dt)
-        groups, errors = {}, []
+        groups: dict[float, list[int]] = {}
+        errors: list[str] = []
         for i, s in enumerate(sensors):
             fc = s.get('lowpass')
             if fc is None:

@@ -202,7 +202,7 @@ class Player:
         PlaybackStats
         """
         s, stats = self.schedule, PlaybackStats()
-        late = collections.deque(maxlen=LATENESS_WINDOW)
+        late: collections.deque[float] = collections.deque(maxlen=LATENESS_WINDOW)
         worst, tick, last_log = -math.inf, 0, None
         t0 = self._now()
         try:

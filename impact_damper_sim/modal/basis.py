@@ -21,6 +21,7 @@ complete modal model no longer reproduces the physical harmonic response exactly
 """
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass, field
 
@@ -508,7 +509,7 @@ def _check_f_max(f_max):
         return
     if isinstance(f_max, bool) or not isinstance(f_max, numbers.Real):
         raise ValueError(f'f_max must be a frequency in Hz, got {f_max!r}')
-    if not (np.isfinite(f_max) and f_max > 0):
+    if not (math.isfinite(float(f_max)) and float(f_max) > 0):
         raise ValueError(f'f_max={f_max!r} Hz must be finite and > 0')
 
 
@@ -533,7 +534,7 @@ def _check_overrides(overrides, n):
     for mode, ratio in overrides.items():
         if isinstance(mode, bool) or not isinstance(mode, numbers.Integral):
             raise ValueError(f'zeta_overrides: mode index {mode!r} is not an integer')
-        if not 0 <= mode < n:
+        if not 0 <= int(mode) < n:
             raise ValueError(f'zeta_overrides: mode index {mode} out of range 0..{n - 1} '
                              f'({n} retained modes)')
         checked[int(mode)] = _check_ratio(f'zeta_overrides[{mode}]', ratio)

@@ -16,6 +16,7 @@ loses a little (see :meth:`StuckTransforms.switch_loss`).
 """
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass, replace
 
@@ -45,7 +46,7 @@ def add_point_mass(system, active_indices, mass):
         Same ``C``, ``K`` and ``dofs``; ``M`` with the mass added.
     """
     if isinstance(mass, bool) or not isinstance(mass, numbers.Real) or not (
-            np.isfinite(mass) and mass > 0):
+            math.isfinite(float(mass)) and float(mass) > 0):
         raise ValueError(f'mass={mass!r} kg must be finite and > 0')
     idx = np.atleast_1d(np.asarray(active_indices))
     if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer):

@@ -108,7 +108,7 @@ def campbell(rotor, speeds):
         raise ValueError('speeds must be strictly increasing (rad/s)')
     per_speed = [whirl_modes(rotor, s) for s in speeds]
     n = rotor.n
-    columns = []          # per branch: list of (speed index, mode index)
+    columns: list[list[tuple[int, int]]] = []   # per branch: list of (speed index, mode index)
     last = np.empty((n, 0), dtype=complex)   # each branch's latest shape
     for k, modes in enumerate(per_speed):
         m = modes.eigenvalues.size

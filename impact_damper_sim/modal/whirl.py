@@ -143,6 +143,8 @@ class Eigenvalues:
     """Mixin: what an attribute ``eigenvalues`` (1/s) gives: frequencies, log decrements,
     damping ratios (shared with :class:`~.tracking.Campbell`)."""
 
+    eigenvalues: np.ndarray   # provided by the class it is mixed into
+
     @property
     def frequency_hz(self):
         """ndarray: Damped natural frequencies ``Im(lambda) / (2 pi)`` (Hz)."""
@@ -428,7 +430,7 @@ def orbit_stations(system, recovery):
     mass = np.asarray(system.M.diagonal(), dtype=float)
     active = {(int(n), int(c)) for n, c in system.dofs}
     nodes = sorted({int(n) for n, _ in system.dofs})
-    found = {'translation': [], 'tilt': []}
+    found: dict[str, list[tuple]] = {'translation': [], 'tilt': []}
     for node in nodes:
         if (node, 1) in active and (node, 2) in active:
             found['translation'].append((node, system.index(node, 'uy'),

@@ -45,7 +45,7 @@ def scene_dirs():
         dirs.append(Path(get_package_share_directory('impact_damper_sim')) / 'config' / 'scenes')
     except Exception:   # no ROS, AMENT_PREFIX_PATH unset, or package not installed
         pass
-    out = []
+    out: list[Path] = []
     for d in dirs:
         if d.is_dir() and d.resolve() not in [o.resolve() for o in out]:
             out.append(d)

@@ -435,7 +435,7 @@ def _scene(scene_model):
 
 
 def _by_node(scene):
-    nodes = {}
+    nodes: dict[int, list[tuple[int, dict]]] = {}
     for i, s in enumerate(scene['sensors']):
         nodes.setdefault(s['node'], []).append((i, s))
     return nodes
@@ -523,11 +523,11 @@ def accelerometer_problems(scene):
         first = stated[0] if stated else None
         conflict = False
         for i, s in stated[1:]:
-            a, b = first[1]['channel'], s['channel']
+            a, b = stated[0][1]['channel'], s['channel']
             if not _same(a, b):
                 key = next(k for k in a if not _same(a[k], b[k]))
                 problems.append(('sensors', f"node {node} has sensors with different channels: "
-                                 f"sensors[{first[0]}].channel ({_label(a, key)}) and "
+                                 f"sensors[{stated[0][0]}].channel ({_label(a, key)}) and "
                                  f'sensors[{i}].channel ({_label(b, key)}); one node is one '
                                  'triaxial accelerometer: give its sensors one channel'))
                 conflict = True
