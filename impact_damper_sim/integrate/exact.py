@@ -11,16 +11,22 @@ from __future__ import annotations
 
 import numpy as np
 
+from .base import IntegratorBase
+from .events import EVENT_DTYPE, Samples
+from .flow import build_flow
 from .kernels import event_loop as kernels
 from .kernels import flow_eval as flow_kernels
 from .kernels import ledger as ledger_kernels
 from .kernels.prefetch import prefetch
 from .kernels.quadrature import phi1_real
-from .base import IntegratorBase
-from .events import EVENT_DTYPE, Samples, STICK_RULES
-from .flow import build_flow
-from .memory import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS, cache_limit,
-                     configuration_bytes)
+from .memory import (
+    MAX_CACHED_CONFIGURATIONS,
+    MAX_TABLE_BYTES,
+    MAX_TABLE_SLOTS,
+    cache_limit,
+    configuration_bytes,
+)
+
 
 class MassUpdate:
     """Stuck impactors add their mass to the housing rows of the free coordinates.
@@ -189,31 +195,18 @@ class ExactPropagator(IntegratorBase):
     def __init__(self, model, forcing, dt, *, law='effective_mass', stick_rule='paper',
                  stick_fraction=0.002, max_events_per_step=64, ledger=True, q0=None, qd0=None,
                  t0=0.0, event_capacity=4096, configurations=None, taylor_order=TAYLOR_ORDER):
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f'dt must be a positive time in s, got {dt}')
-        if stick_rule not in STICK_RULES:
-            raise ValueError(f'stick_rule must be one of {STICK_RULES}, got {stick_rule!r}')
-        if not (0 < stick_fraction < 1):
-            raise ValueError(f'stick_fraction must be in (0, 1), got {stick_fraction}')
-        if forcing.n_inputs != model.n_inputs:
-            raise ValueError(f'forcing has {forcing.n_inputs} inputs, model has {model.n_inputs}')
+        super().__init__(model, forcing, dt, law=law, stick_rule=stick_rule,
+                         stick_fraction=stick_fraction, max_events_per_step=max_events_per_step,
+                         ledger=ledger, t0=t0)
         if int(taylor_order) != taylor_order or not 2 <= taylor_order <= 12:
             raise ValueError(f'taylor_order must be an integer in [2, 12], got {taylor_order}')
         if len(model.impactors):   # a cold cache compiles the event search while the rest is set up
             prefetch()
-        self.model = model
         self.configurations = MassUpdate(model) if configurations is None else configurations
-        self.forcing = forcing
-        self.dt = float(dt)
-        self.law = law
-        self.stick_rule = stick_rule
-        self.max_events_per_step = int(max_events_per_step)
-        self.ledger_on = bool(ledger)
         self.taylor_order = int(taylor_order)
         self._omegas, self._amps = forcing.harmonic_table()
         n = model.n
         ni = len(model.impactors)
-        self.t = float(t0)
         q = np.zeros(n) if q0 is None else np.asarray(q0, dtype=float).copy()
         qd = np.zeros(n) if qd0 is None else np.asarray(qd0, dtype=float).copy()
         self._imp_rep, self._imp_group, sizes = _interchangeable_groups(model)
@@ -231,38 +224,22 @@ class ExactPropagator(IntegratorBase):
         self._n_slots = n_keys if self._table_mode else 1
         self._flows = {}      # configuration key -> (FlowConfig, LinearModel)
         self._tables = {}     # table key -> _Table
-        self._stuck = np.zeros(ni, dtype=np.int64)
         self._slot_state = np.zeros(1, dtype=np.int64)
         cfg = self._config()
         # highest retained mode sets the paper's sticking time
         omega_max = float(np.max(np.abs(cfg.lam))) if cfg.lam.size else 1.0
         self.stick_time = stick_fraction * 2 * np.pi / omega_max
         self._yh = cfg.to_state(q, qd) - self._particular(cfg, self.t)
-        self._imp_dim = np.array([imp.dim for imp in model.impactors], dtype=np.int64)
-        self._imp_mass = np.array([imp.mass for imp in model.impactors], dtype=float)
-        self._imp_cor = np.array([imp.cor for imp in model.impactors], dtype=float)
-        self._imp_limit = np.array([imp.limit for imp in model.impactors], dtype=float)
-        self._imp_z = np.zeros((ni, 2))
-        self._imp_v = np.zeros((ni, 2))
-        for j, imp in enumerate(model.impactors):
-            self._imp_z[j, :imp.dim] = imp.rows @ q + imp.position
-            self._imp_v[j, :imp.dim] = imp.velocity
-        self._imp_normal = np.zeros((ni, 2))
-        self._imp_last_t = np.full(ni, -np.inf)
-        self._imp_rel = np.zeros((ni, 2))
+        self._place_impactors(q)
         self._imp_grace = np.zeros(ni, dtype=np.int64)
         self._count_step = np.zeros(ni, dtype=np.int64)
-        self._ledger = np.zeros(5)
         self._c_pattern = None
         self._info = np.zeros(4, dtype=np.int64)
         self.counters = np.zeros(kernels.N_COUNTERS, dtype=np.int64)
         self._work = None        # the kernel's work arrays, (sizes, tuple); see _work_arrays
         self._cap = int(event_capacity)
-        self._events = []
         self._python_switches = 0
-        self.grazing_undecided = 0
-        self.max_impacts_per_step = 0
-        self._initial_energy = sum(self._energy_now())
+        self._start_ledger()
         if self._table_mode and self._n_slots <= PREBUILD_SLOTS:
             for slot in range(self._n_slots):
                 try:

@@ -30,10 +30,10 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..dampers.law import law_mobility, IMPACT_LAWS
+from ..dampers.law import IMPACT_LAWS, law_mobility
 from ..modal.basis import lanczos_start
 from .base import IntegratorBase
-from .events import EVENT_DTYPE, Samples, STICK_RULES
+from .events import EVENT_DTYPE, Samples
 from .kernels import newmark_step as kernels
 from .newmark_events import NewmarkEventsMixin
 
@@ -178,34 +178,22 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
     def __init__(self, model, forcing, dt, *, impacts='located', law='effective_mass',
                  stick_rule='paper', stick_fraction=0.002, max_events_per_step=64, ledger=True,
                  q0=None, qd0=None, t0=0.0, substeps=1, solver='auto', stick_time=None):
-        if not (np.isfinite(dt) and dt > 0):
-            raise ValueError(f'dt must be a positive time in s, got {dt}')
+        super().__init__(model, forcing, dt, law=law, stick_rule=stick_rule,
+                         stick_fraction=stick_fraction, max_events_per_step=max_events_per_step,
+                         ledger=ledger, t0=t0)
         if impacts not in IMPACT_MODES:
             raise ValueError(f'impacts must be one of {IMPACT_MODES}, got {impacts!r}')
         if law not in IMPACT_LAWS:
             raise ValueError(f'law must be one of {IMPACT_LAWS}, got {law!r}')
-        if stick_rule not in STICK_RULES:
-            raise ValueError(f'stick_rule must be one of {STICK_RULES}, got {stick_rule!r}')
-        if not (0 < stick_fraction < 1):
-            raise ValueError(f'stick_fraction must be in (0, 1), got {stick_fraction}')
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f'substeps must be an integer >= 1, got {substeps}')
         if int(max_events_per_step) < 1:
             raise ValueError(f'max_events_per_step must be >= 1, got {max_events_per_step}')
         if solver not in SOLVERS:
             raise ValueError(f'solver must be one of {SOLVERS}, got {solver!r}')
-        if forcing.n_inputs != model.n_inputs:
-            raise ValueError(f'forcing has {forcing.n_inputs} inputs, model has {model.n_inputs}')
-        self.model = model
-        self.forcing = forcing
-        self.dt = float(dt)
         self.substeps = int(substeps)
         self.h = self.dt / self.substeps
         self.impacts = impacts
-        self.law = law
-        self.stick_rule = stick_rule
-        self.max_events_per_step = int(max_events_per_step)
-        self.ledger_on = bool(ledger)
         n = model.n
         if solver == 'auto':
             fill = np.count_nonzero((model.M != 0) | (model.C != 0) | (model.K != 0)) / n ** 2
@@ -222,11 +210,6 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         self._rows = np.zeros((ni, 2, n))
         for j, imp in enumerate(model.impactors):
             self._rows[j, :imp.dim] = imp.rows
-        self._imp_dim = np.array([imp.dim for imp in model.impactors], dtype=np.int64)
-        self._imp_mass = np.array([imp.mass for imp in model.impactors], dtype=float)
-        self._imp_cor = np.array([imp.cor for imp in model.impactors], dtype=float)
-        self._imp_limit = np.array([imp.limit for imp in model.impactors], dtype=float)
-        self._stuck = np.zeros(ni, dtype=np.int64)
         self._configs = {}
         if stick_time is None:
             stick_time = stick_fraction * 2 * np.pi / _omega_max(model.M, model.C, model.K,
@@ -244,19 +227,11 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
                 f'track impacts: it must be at most 1/{MIN_STEPS_PER_PERIOD} of the period of '
                 f'the highest retained mode ({1.0 / period:.5g} Hz), {h_max:.4g} s; lower '
                 'simulation.dt, retain fewer modes, or use method exact')
-        self.t = float(t0)
         self._q = np.zeros(n) if q0 is None else np.array(q0, dtype=float).reshape(n)
         self._v = np.zeros(n) if qd0 is None else np.array(qd0, dtype=float).reshape(n)
         self._f = self._force_at(self.t)
         self._a = self._accel(self._config(), self._f)
-        self._imp_z = np.zeros((ni, 2))
-        self._imp_v = np.zeros((ni, 2))
-        for j, imp in enumerate(model.impactors):
-            self._imp_z[j, :imp.dim] = imp.rows @ self._q + imp.position
-            self._imp_v[j, :imp.dim] = imp.velocity
-        self._imp_normal = np.zeros((ni, 2))
-        self._imp_last_t = np.full(ni, -np.inf)
-        self._imp_rel = np.zeros((ni, 2))
+        self._place_impactors(self._q)
         self._count = np.zeros(ni, dtype=np.int64)
         self._count_index = -1
         # just released: the wall it leaves is shifted out by 1e-9 of the clearance until
@@ -264,14 +239,8 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         # at a vanishing contact force cannot be undone by round-off at the same instant
         self._grace = np.zeros(ni, dtype=bool)
         self._out_done = 0            # output steps completed since t0
-        self._ledger = np.zeros(5)
-        self._events = []
-        self.n_config_changes = 0
-        self.max_impacts_per_step = 0
-        self.grazing_undecided = 0    # interface parity with ExactPropagator (no scan here)
-        self._info = np.zeros(2, dtype=np.int64)
-        structure, impactors = self._energy_now()
-        self._initial_energy = structure + impactors
+        self._info = np.zeros(2, dtype=np.int64)   # grazing_undecided stays 0: no scan here
+        self._start_ledger()
 
     # -- configuration and dynamics ----------------------------------------------------------
     def _config(self):

@@ -312,7 +312,7 @@ class NewmarkEventsMixin:
             self._ledger[1] += lock_loss
             self._record(t, j, _EV_STICK, nrm, float(n_ @ vr), float(np.sqrt(P @ P)), lock_loss,
                          float(n_ @ (self._imp_v[j, :d] - vh_l)), float(n_ @ (vh_l - vh)))
-            self.n_config_changes += 1
+            self._config_changes += 1
         elif project:
             self._imp_z[j, :d] = R @ self._q + n_ * L
         self._a = self._accel(self._config(), self._f)
@@ -336,5 +336,5 @@ class NewmarkEventsMixin:
         self._imp_last_t[j] = t
         self._grace[j] = True
         self._record(t, j, _EV_RELEASE, self._imp_normal[j], 0.0, 0.0, 0.0, 0.0, 0.0)
-        self.n_config_changes += 1
+        self._config_changes += 1
         self._a = self._accel(self._config(), self._f)
