@@ -497,7 +497,7 @@ def test_json_schema(synthetic, capsys):
     assert set(r) == {'file', 'profile', 'library', 'start_time_ns', 'end_time_ns',
                       'duration_s', 'message_count', 'time_origin_s', 'stamped_span_s',
                       'topics', 'sensors', 'rotor_speed', 'impacts', 'impactor_state',
-                      'metadata', 'warnings'}
+                      'commands', 'metadata', 'warnings'}
     assert r['profile'] == 'ros2'
     assert set(r['topics'][0]) == {'topic', 'type', 'count', 'rate_hz', 'frequency_hz'}
     s = r['sensors'][0]
@@ -647,3 +647,108 @@ def test_nan_samples_are_named_without_runtime_warnings(tmp_path, capsys, fmt):
     else:
         assert re.search(said, captured.out), captured.out
     assert plot.exists()
+
+
+# --- issue 38: totals labelled, waterfall axis by the speed profile, commands marked -----------
+
+def test_per_impactor_numbers_are_labelled_totals(synthetic, capsys):
+    assert study(['report', str(synthetic[0])]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith('impacts '))
+    # 8 impacts, imp_a 5 and imp_b 3 of them; the peak is a rate: 5 in the bin 1-2 s
+    assert line == ('impacts /impacts: 8 in total, mean 4/s, peak 5/s; '
+                    'totals per impactor: imp_a 5, imp_b 3'), line
+
+
+def test_waterfall_axis_follows_the_speed_profile():
+    from impact_damper_sim.studies.report_signals import waterfall_axis
+    ramp = np.linspace(0, 600, 41)
+    assert waterfall_axis(ramp[:-1], ramp[1:]) == ('speed', 1.0)
+    # two held speeds, 2 of 40 slices ramping between them: against time
+    held = np.r_[np.full(20, 100.0), [150.0, 250.0], np.full(18, 300.0)]
+    ends = np.r_[np.full(19, 100.0), [150.0, 250.0, 300.0], np.full(18, 300.0)]
+    axis, fraction = waterfall_axis(held, ends)
+    assert axis == 'time' and fraction == pytest.approx(3 / 40)
+    # a constant speed: against time (no speed range to read against)
+    assert waterfall_axis(np.full(10, 50.0), np.full(10, 50.0)) == ('time', 0.0)
+
+
+def _held_speed_log(path):
+    """8 s of a 1x tone at 1 kHz, the speed held at 100 then (after a 0.2 s ramp from 3.9 s)
+    at 300 rad/s, a speed command at 3.9 s and an unbalance command (x3) at 6 s."""
+    log = Log(path)
+    fs, n = 1000.0, 8000
+    t = np.arange(n) / fs
+
+    def speed(x):
+        return np.interp(x, [0, 3.9, 4.1, 8.0], [100.0, 100.0, 300.0, 300.0])
+    amp = np.where(t < 6.0, 0.2, 0.6)
+    phase = np.cumsum(speed(t)) / fs
+    events = [(k * 1_000_000, '/accel/s1', 'sensor_msgs/msg/Imu',
+               _imu(k * 1_000_000, 0.0, float(amp[k] * math.sin(phase[k])), 0.0))
+              for k in range(n)]
+    events += [(k * 10_000_000, '/rotor/speed', 'geometry_msgs/msg/Vector3Stamped',
+                {'header': {'stamp': stamp(k * 10_000_000), 'frame_id': 'rig_rotor'},
+                 'vector': {'x': float(speed(k * 0.01))}}) for k in range(800)]
+    events += [(3_900_000_000, '/rotor/speed_command', 'std_msgs/msg/Float64', {'data': 300.0}),
+               (6_000_000_000, '/rotor/unbalance_command', 'std_msgs/msg/Float64',
+                {'data': 3.0})]
+    for t_ns, topic, rtype, msg in sorted(events, key=lambda e: e[0]):
+        log.write(topic, rtype, msg, t_ns)
+    log.close()
+
+
+def test_held_speed_log_is_plotted_against_time_with_the_commands(tmp_path, capsys,
+                                                                 monkeypatch):
+    from matplotlib.figure import Figure
+    path = tmp_path / 'held.mcap'
+    _held_speed_log(path)
+    report, _ = analyze(path)
+    wf = report['sensors'][0]['waterfall']
+    assert wf['axis'] == 'time' and wf['sweeping_fraction'] < 0.1
+    # command times in stamp time (log_time - the fixture's T0 + LATENCY), within 1 ns
+    assert [(c['time_s'], c['what']) for c in report['commands']] == [
+        (pytest.approx(3.9, abs=1e-9), 'speed 300 rad/s (2864.8 rpm)'),
+        (pytest.approx(6.0, abs=1e-9), 'unbalance x3')]
+    figs = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, 'savefig',
+                        lambda self, *a, **k: (figs.append(self), original(self, *a, **k)))
+    assert study(['report', str(path), '--plot', str(tmp_path / 'h.png')]) == 0
+    out = capsys.readouterr().out
+    assert 'plotted against time' in out and '3.9 s  speed 300 rad/s' in out
+    assert '6 s  unbalance x3' in out
+    ax = figs[0].axes[0]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ('time (s)', 'frequency (Hz)')
+    marks = sorted(line.get_xdata()[0] for line in ax.get_lines()
+                   if line.get_linestyle() == ':')
+    assert marks == pytest.approx([3.9, 6.0])
+    labels = [t.get_text().strip() for t in ax.texts]
+    assert labels == ['speed 300 rad/s', 'unbalance x3']
+
+
+def test_ramp_log_is_plotted_against_speed(tmp_path, monkeypatch):
+    """The run-up of test_waterfall_follows_rotor_speed sweeps all along: against speed."""
+    from matplotlib.figure import Figure
+    path = tmp_path / 'ramp.mcap'
+    log = Log(path)
+    fs, n = 1000.0, 4000
+    t = np.arange(n) / fs
+    w = 60 + 540 * t / t[-1]
+    phase = np.cumsum(w) / fs
+    events = [(k * 1_000_000, '/accel/s1', 'sensor_msgs/msg/Imu',
+               _imu(k * 1_000_000, 0.0, 0.0, 0.3 * math.sin(phase[k]))) for k in range(n)]
+    events += [(k * 10_000_000, '/rotor/speed', 'geometry_msgs/msg/Vector3Stamped',
+                {'header': {'stamp': stamp(k * 10_000_000)},
+                 'vector': {'x': float(60 + 540 * (k * 0.01) / t[-1])}}) for k in range(400)]
+    for t_ns, topic, rtype, msg in sorted(events, key=lambda e: e[0]):
+        log.write(topic, rtype, msg, t_ns)
+    log.close()
+    report, _ = analyze(path)
+    assert report['sensors'][0]['waterfall']['axis'] == 'speed'
+    figs = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, 'savefig',
+                        lambda self, *a, **k: (figs.append(self), original(self, *a, **k)))
+    assert study(['report', str(path), '--plot', str(tmp_path / 'r.png')]) == 0
+    ax = figs[0].axes[0]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ('frequency (Hz)', 'rotor speed (rpm)')

@@ -15,8 +15,9 @@ installation beyond the Python packages. The report gives
   signal, many samples a message; and every ``sensor_msgs/Imu`` topic, one sample a message,
   except the decimated ``accel/<name>`` of a sensor whose batches are in the log): peak and
   RMS of the linear acceleration in g (G0 = 9.80665 m/s^2) per axis and of its magnitude,
-  and a Welch spectrum with its dominant frequency; when the log has ``rotor/speed`` with a
-  speed range, a waterfall (spectrum per slice of time against the rotor speed) as well;
+  and a Welch spectrum with its dominant frequency; when the log has ``rotor/speed``, a
+  waterfall as well (a spectrum per slice of time), against the rotor speed when the speed
+  sweeps through most of the log, else against time;
 * the impact rate over time: impact stamps counted in 1 s bins, from ``impacts`` batches
   (``sensor_msgs/PointCloud2``, one row per impact with its impactor's index, named through
   the ``impactor_state`` joint names ``<impactor>/<dof>`` in impactor order, else
@@ -24,6 +25,9 @@ installation beyond the Python packages. The report gives
   impactor the last component of its frame_id);
 * the stuck fraction of each impactor: ``impactor_state`` effort flags, time-weighted (each
   state holds until the next message, the last one until the end of the log);
+* the commands (``rotor/speed_command``, ``rotor/unbalance_command``,
+  ``accel/fault_command``, ``/parameter_events``) at their times, marked on the plots' time
+  axes;
 * the metadata records (``impact_damper_sim``: scene, overrides, software version;
   ``rosbag2``: the bag metadata).
 
@@ -56,11 +60,19 @@ IMU = 'sensor_msgs/msg/Imu'
 WRENCH_STAMPED = 'geometry_msgs/msg/WrenchStamped'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
+FLOAT64 = 'std_msgs/msg/Float64'
+STRING = 'std_msgs/msg/String'
+PARAMETER_EVENT = 'rcl_interfaces/msg/ParameterEvent'
 # topic names of ros.interface (relative there; matched here under any namespace)
 ACCEL_PREFIX = 'accel/'
 IMPACTS = 'impacts'
 IMPACTOR_STATE = 'impactor_state'
 ROTOR_SPEED = 'rotor/speed'
+#: command topics (kind, topic name, message type) marked on the time axes of the report
+COMMANDS = (('speed', 'rotor/speed_command', FLOAT64),
+            ('unbalance', 'rotor/unbalance_command', FLOAT64),
+            ('fault', 'accel/fault_command', STRING),
+            ('parameter', 'parameter_events', PARAMETER_EVENT))
 
 
 # --- analysis ---------------------------------------------------------------------------------
@@ -112,6 +124,8 @@ class _Series:
 
     def __init__(self):
         self.t, self.values, self.labels, self.starts, self.failed = [], [], [], [], 0
+        # (log_time, header stamp) per message (ns): maps a command's log_time to a stamp
+        self.clock = []
 
     def join(self, kind):
         """Turn a batch topic's per-message arrays into one array each."""
@@ -144,7 +158,8 @@ def analyze(path):
         ``start_time_ns``/``end_time_ns`` (log_time), ``duration_s``, ``message_count``,
         ``time_origin_s``/``stamped_span_s`` (header stamps), ``topics``, ``sensors``
         (:func:`sensor_report`), ``rotor_speed``, ``impacts`` (:func:`impact_rate`),
-        ``impactor_state`` (:func:`stuck_fractions`), ``metadata`` and ``warnings``.
+        ``impactor_state`` (:func:`stuck_fractions`), ``commands``, ``metadata`` and
+        ``warnings``.
         Accelerations in g, times in s, rates in 1/s, frequencies in Hz, speeds in rad/s
         and rpm.
     series : dict
@@ -193,7 +208,13 @@ def analyze(path):
             continue
         s = series[cid]
         try:
-            _collect(wanted[cid], decoders[cid](msg.data), s)
+            decoded = decoders[cid](msg.data)
+            if wanted[cid].startswith('command:'):   # no header: its log_time tells when
+                s.t.append(t)
+                s.values.append(_command_value(wanted[cid], decoded))
+            else:
+                _collect(wanted[cid], decoded, s)
+                s.clock.append((t, _stamp_ns(decoded)))
         except Exception:   # a damaged payload: skip it, say how many
             s.failed += 1
     for cid, s in series.items():
@@ -221,7 +242,27 @@ def _kind(topic, rtype):
         return 'state'
     if rtype == VECTOR3_STAMPED and _ends_with(topic, ROTOR_SPEED):
         return 'speed'
+    for kind, name, ctype in COMMANDS:
+        if rtype == ctype and _ends_with(topic, name):
+            return f'command:{kind}'
     return None
+
+
+def _command_value(kind, m):
+    """What a command message says, as text (``'1200 rad/s'``, ``'x3'``, the fault text)."""
+    if kind == 'command:speed':
+        return f'speed {m.data:.6g} rad/s ({m.data * 30 / math.pi:.5g} rpm)'
+    if kind == 'command:unbalance':
+        return f'unbalance x{m.data:.6g}'
+    if kind == 'command:fault':
+        return f"fault {' '.join(str(m.data).split())}"
+    changed = []
+    for p in m.changed_parameters:
+        v = p.value
+        value = {1: v.bool_value, 2: v.integer_value, 3: v.double_value,
+                 4: v.string_value}.get(v.type, '?')
+        changed.append(f'{p.name}={str(value).lower() if v.type == 1 else value}')
+    return 'set ' + ', '.join(changed) if changed else None
 
 
 def _collect(kind, m, s):
@@ -261,7 +302,8 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
         topics.append({'topic': ch.topic, 'type': log.type_of(ch), 'count': n,
                        'rate_hz': n / duration if duration > 0 else None,
                        'frequency_hz': (n - 1) / span if n > 1 and span > 0 else None})
-    stamps = [x for x in (series[cid].stamps() for cid in wanted) if x.size]
+    stamps = [x for x in (series[cid].stamps() for cid in wanted
+                          if not wanted[cid].startswith('command:')) if x.size]
     origin = min(int(x.min()) for x in stamps) if stamps else 0
     end = max(int(x.max()) for x in stamps) if stamps else 0
     plot = {'origin_ns': origin, 'sensors': {}, 'impacts': {}, 'states': {}}
@@ -270,7 +312,9 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
               'message_count': sum(counts.values()), 'time_origin_s': origin * 1e-9,
               'stamped_span_s': (end - origin) * 1e-9, 'topics': topics, 'sensors': [],
               'rotor_speed': [], 'impacts': [], 'impactor_state': [],
+              'commands': _commands(log, wanted, series, origin),
               'metadata': log.metadata, 'warnings': warnings}
+    plot['commands'] = report['commands']
     speeds = {}
     for cid in sorted(c for c, k in wanted.items() if k == 'speed'):
         topic = log.channels[cid].topic
@@ -318,6 +362,30 @@ def _assemble(log, wanted, series, counts, first, last, warnings):
         report['impactor_state'].append({'topic': topic, 'impactors': impactors})
         plot['states'][topic] = steps
     return report, plot
+
+
+def _commands(log, wanted, series, origin):
+    """The commands in the log in time order: ``time_s`` (stamp time from the origin), the
+    ``topic`` and ``what`` (text).
+
+    A command has no header; its log_time is turned into stamp time with the offset between
+    log_time and header stamp of the stamped message received last before it (the first one
+    for a command before every stamped message): equal for ``study record`` and the node's
+    recorder (log_time = sim time), and right for ``ros2 bag record`` (receive time).
+    """
+    clock = sorted(pair for cid in wanted for pair in series[cid].clock)
+    logs = np.array([c[0] for c in clock], dtype=np.int64)
+    offsets = np.array([c[1] - c[0] for c in clock], dtype=np.int64)
+    out = []
+    for cid in sorted(c for c, k in wanted.items() if k.startswith('command:')):
+        topic = log.channels[cid].topic
+        for t, what in zip(series[cid].t, series[cid].values):
+            if what is None:
+                continue
+            at = max(int(np.searchsorted(logs, t, side='right')) - 1, 0)
+            stamp = t + (int(offsets[at]) if offsets.size else 0)
+            out.append({'time_s': (stamp - origin) * 1e-9, 'topic': topic, 'what': what})
+    return sorted(out, key=lambda c: c['time_s'])
 
 
 def _first_names(states):

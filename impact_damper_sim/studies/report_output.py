@@ -83,6 +83,9 @@ def plot(report, series, path):
     axes = list(axes[:, 0])
     for s in sensors:
         ax, arrays = axes.pop(0), series['sensors'][s['topic']]
+        if s['waterfall'] and s['waterfall'].get('axis') == 'time':
+            _time_waterfall(fig, ax, s, arrays, report.get('commands', ()))
+            continue
         if s['waterfall']:
             freq, amp = arrays['waterfall_freq_hz'], arrays['waterfall_amp_g']
             rpm = arrays['waterfall_speed_rad_s'] * 30 / math.pi
@@ -143,6 +146,7 @@ def plot(report, series, path):
                     ax.stairs([r], [s0, s0 + w], color=color, alpha=0.5, ls=':',
                               baseline=None,
                               label=f'{imp["topic"]} last {w:.2g} s (partial bin)')
+        mark_commands(ax, report.get('commands', ()))
         ax.set_xlabel('time (s)')
         ax.set_ylabel('impacts/s')
         ax.set_ylim(bottom=0)
@@ -172,6 +176,8 @@ def plot(report, series, path):
         for label, k in zip(ax.get_yticklabels(), range(len(lanes))):
             label.set_color(colors(k % colors.N))
         ax.set_ylim(-0.3, max(level - 0.2, 0.9))
+        # lines only: the labels are on the panels above, here they would cover the lanes
+        mark_commands(ax, report.get('commands', ()), labelled=False)
         ax.set_title('stuck state (a lane per impactor: low = free, high = stuck)')
     for ax in axes:   # a log with nothing to plot
         ax.text(0.5, 0.5, 'no sensor, impact or impactor-state topics', ha='center',
@@ -182,9 +188,70 @@ def plot(report, series, path):
     plt.close(fig)
 
 
+def _time_waterfall(fig, ax, s, arrays, commands):
+    """A waterfall against time (the speed is held most of the log): frequency up, time
+    across, the rotor frequency (1x) dashed and the commands marked."""
+    freq, amp = arrays['waterfall_freq_hz'], arrays['waterfall_amp_g']
+    times = arrays['waterfall_time_s']
+    db = 20 * np.log10(amp + 1e-12)
+    top = float(np.nanmax(db)) if db.size else 0.0
+    # 80 dB of range, as against speed
+    mesh = ax.pcolormesh(times, freq, db.T, shading='nearest', cmap='viridis',
+                         vmin=top - 80.0, vmax=top)
+    ax.plot(times, arrays['waterfall_speed_rad_s'] / (2 * math.pi), 'w--', lw=0.8, label='1x')
+    fig.colorbar(mesh, ax=ax, label='amplitude (dB re 1 g)')
+    ax.set_ylim(freq[0], freq[-1])
+    ax.set_xlim(times[0], times[-1])
+    mark_commands(ax, commands, color='w')
+    ax.set_xlabel('time (s)')
+    ax.set_ylabel('frequency (Hz)')
+    # against time: the speed is held most of the log (a plot against speed would squeeze
+    # each held stretch into a thin band)
+    ax.set_title(f"waterfall {s['topic']} (speed held: against time)")
+    ax.legend(fontsize=8, loc='upper left')
+
+
+def _command_label(what):
+    """A short plot label of a command's text (``'speed 1200 rad/s'``, ``'unbalance x3'``)."""
+    return what.split(' (')[0] if what.startswith('speed') else _short(what, 28)
+
+
+def mark_commands(ax, commands, color='k', labelled=True):
+    """Mark each command inside the time axis: a dotted vertical line, labelled at the top
+    (unless not ``labelled``).
+
+    Labels that would come closer than 4 % of the axis width to the previous one are left
+    out (the text report lists every command).
+    """
+    lo, hi = ax.get_xlim()
+    last = None
+    for c in commands:
+        t = c['time_s']
+        if not lo <= t <= hi:
+            continue
+        ax.axvline(t, color=color, lw=0.9, ls=':', alpha=0.9)
+        if labelled and (last is None or t - last > 0.04 * (hi - lo)):
+            ax.text(t, 0.97, ' ' + _command_label(c['what']), transform=ax.get_xaxis_transform(),
+                    rotation=90, ha='left', va='top', fontsize=8, color=color)
+            last = t
+
+
 def _short(value, width=70):
     text = ' '.join(str(value).split())
     return text if len(text) <= width else text[:width - 3] + '...'
+
+
+def impacts_line(imp):
+    """The text of an impacts topic: count, mean and peak rate, then each impactor's total.
+
+    The per-impactor numbers are counts over the whole log, not rates: they are labelled so
+    (``'peak 54115/s; totals per impactor: imp01 53350, ...'``).
+    """
+    from .output import fmt as _g
+    per = ', '.join(f'{k} {v}' for k, v in imp['per_impactor'].items())
+    return (f"\nimpacts {imp['topic']}: {imp['count']} in total, mean "
+            f"{_g(imp['mean_rate_hz'])}/s, peak {_g(imp['peak_rate_hz'])}/s"
+            + (f'; totals per impactor: {per}' if per else ''))
 
 
 def print_report(r):
@@ -219,16 +286,17 @@ def print_report(r):
         for s in r['sensors']:
             w = s['waterfall']
             if w:
+                against = ('speed (the speed sweeps)' if w.get('axis') == 'speed' else
+                           'time (the speed is held most of the log)')
                 print(f"waterfall {s['sensor']}: {w['slices']} slices of {w['segment_samples']}"
                       f" samples ({_g(w['resolution_hz'], 3)} Hz), "
-                      f"{_g(min(w['speed_rpm']), 5)} to {_g(max(w['speed_rpm']), 5)} rpm")
+                      f"{_g(min(w['speed_rpm']), 5)} to {_g(max(w['speed_rpm']), 5)} rpm, "
+                      f'plotted against {against}')
     for sp in r['rotor_speed']:
         print(f"\nrotor speed {sp['topic']}: {_g(sp['min_rpm'], 5)} to {_g(sp['max_rpm'], 5)} "
               f"rpm ({sp['samples']} samples)")
     for imp in r['impacts']:
-        per = ', '.join(f'{k} {v}' for k, v in imp['per_impactor'].items())
-        print(f"\nimpacts {imp['topic']}: {imp['count']}, mean {_g(imp['mean_rate_hz'])}/s, "
-              f"peak {_g(imp['peak_rate_hz'])}/s" + (f' ({per})' if per else ''))
+        print(impacts_line(imp))
         full = [b for b in imp['bins'] if b['width_s'] >= imp['bin_s'] - 1e-9]
         part = [b for b in imp['bins'] if b['width_s'] < imp['bin_s'] - 1e-9]
         print(f"  impacts/s per full {_g(imp['bin_s'])} s bin: "
@@ -236,6 +304,10 @@ def print_report(r):
               + (' ...' if len(full) > 60 else ''))
         for b in part:   # a short last bin is not comparable: its count, not a rate
             print(f"  last {_g(b['width_s'], 3)} s (partial bin): {b['count']} impact(s)")
+    if r.get('commands'):
+        print('\ncommands (s from the first stamp):')
+        for c in r['commands']:
+            print(f"  {_g(c['time_s'], 6)} s  {_short(c['what'], 100)}  ({c['topic']})")
     for st in r['impactor_state']:
         print(f"\nstuck fraction ({st['topic']}, time-weighted):")
         print(_table(['impactor', 'stuck fraction', 'stuck (s)', 'observed (s)', 'stick events'],
@@ -244,4 +316,4 @@ def print_report(r):
                       for name, v in st['impactors'].items()]))
 
 
-__all__ = ['csv_rows', 'plot', 'print_report', 'write_csv']
+__all__ = ['csv_rows', 'impacts_line', 'plot', 'print_report', 'write_csv']

@@ -11,8 +11,13 @@ import math
 
 import numpy as np
 
-#: a rotor speed range wider than this fraction of the top speed gives a waterfall
+#: a rotor speed range wider than this fraction of the top speed is plotted against speed,
+#: if the speed also sweeps through most of the log (see :func:`waterfall_axis`)
 WATERFALL_MIN_SPAN = 0.1
+#: a slice sweeps when its speed changes by more than this fraction of the top speed in it
+SWEEPING_SLICE_CHANGE = 0.005
+#: the waterfall is against speed when at least this fraction of the slices sweep
+SWEEPING_FRACTION = 0.5
 #: slices per waterfall (fewer when the record is short)
 WATERFALL_SLICES = 40
 BIN_S = 1.0   # impact-rate bin width (s)
@@ -30,8 +35,9 @@ def sensor_report(t_ns, a_g, origin_ns=0, speed=None):
     origin_ns : int
         Time origin of the slice times (ns).
     speed : tuple of numpy.ndarray, optional
-        Rotor speed stamps (ns, sorted) and speeds (rad/s); a waterfall is computed when the
-        speed spans more than ``WATERFALL_MIN_SPAN`` of its largest magnitude.
+        Rotor speed stamps (ns, sorted) and speeds (rad/s); with it a waterfall (a spectrum
+        per slice of time) is computed, to be read against the speed where the speed sweeps
+        and against time where it is held (:func:`waterfall_axis`).
 
     Returns
     -------
@@ -40,8 +46,9 @@ def sensor_report(t_ns, a_g, origin_ns=0, speed=None):
         (``x``, ``y``, ``z``, ``magnitude``; g), ``spectrum`` (``method``,
         ``segment_samples``, ``resolution_hz``, ``dominant_hz`` per axis and ``total``; None
         with fewer than 16 samples) and ``waterfall`` (None, or ``slices``,
-        ``segment_samples``, ``resolution_hz``, and per slice ``time_s``, ``speed_rad_s``,
-        ``speed_rpm``, ``dominant_hz``, ``amplitude_g``).
+        ``segment_samples``, ``resolution_hz``, ``axis`` ('speed' or 'time'),
+        ``sweeping_fraction`` and per slice ``time_s``, ``speed_rad_s``, ``speed_rpm``,
+        ``dominant_hz``, ``amplitude_g``).
     arrays : dict
         Spectrum (``freq_hz``, ``psd_g2_hz`` shape (3, m)) and waterfall arrays for the plot.
     """
@@ -139,10 +146,41 @@ def _segment(n):
     return int(min(n, max(256, 2 ** int(math.floor(math.log2(max(n / 4, 1)))))))
 
 
+def waterfall_axis(start_speeds, end_speeds):
+    """What a waterfall is read against: ``'speed'`` while the rotor sweeps, else ``'time'``.
+
+    A log that holds the speed for most of its length (a run-up, then 26 s at two speeds)
+    plotted against speed shrinks those stretches to thin bands and hides what happened in
+    them (an unbalance step); against time every second keeps its height.
+
+    Parameters
+    ----------
+    start_speeds, end_speeds : numpy.ndarray
+        Rotor speed at the start and at the end of each slice (rad/s).
+
+    Returns
+    -------
+    axis : str
+        ``'speed'`` when the speed spans more than ``WATERFALL_MIN_SPAN`` of its top and at
+        least ``SWEEPING_FRACTION`` of the slices sweep, else ``'time'``.
+    fraction : float
+        The fraction of slices whose speed changes by more than ``SWEEPING_SLICE_CHANGE`` of
+        the top speed.
+    """
+    start, end = np.asarray(start_speeds, float), np.asarray(end_speeds, float)
+    both = np.concatenate([start, end])
+    top = float(np.max(np.abs(both))) if both.size else 0.0
+    if top <= 0 or start.size == 0:
+        return 'time', 0.0
+    fraction = float(np.mean(np.abs(end - start) > SWEEPING_SLICE_CHANGE * top))
+    span = float(both.max() - both.min())
+    sweeps = span > WATERFALL_MIN_SPAN * top and fraction >= SWEEPING_FRACTION
+    return ('speed' if sweeps else 'time'), fraction
+
+
 def _waterfall(t_ns, a_g, fs, speed, origin_ns):
     st, w = speed
-    top = float(np.max(np.abs(w))) if w.size else 0.0
-    if w.size < 2 or top <= 0 or float(w.max() - w.min()) <= WATERFALL_MIN_SPAN * top:
+    if w.size < 1:
         return None, {}
     # up to WATERFALL_SLICES slices, but not shorter than 256 samples while 4 slices fit
     seg = max(min(256, t_ns.size // 4), t_ns.size // WATERFALL_SLICES, 16)
@@ -151,7 +189,7 @@ def _waterfall(t_ns, a_g, fs, speed, origin_ns):
         return None, {}
     window = np.hanning(seg)
     freq = np.fft.rfftfreq(seg, 1.0 / fs)
-    rows, times, speeds = [], [], []
+    rows, times, speeds, ends = [], [], [], []
     for k in range(n_slices):
         part = slice(k * seg, (k + 1) * seg)
         x = a_g[part] - a_g[part].mean(axis=0)
@@ -160,16 +198,21 @@ def _waterfall(t_ns, a_g, fs, speed, origin_ns):
         rows.append(np.sqrt(np.sum(np.abs(spec) ** 2, axis=1)) * 2 / window.sum())
         ts = t_ns[part]
         times.append((float(ts.mean()) - origin_ns) * 1e-9)
-        speeds.append(float(np.mean(np.interp(ts.astype(float), st.astype(float), w))))
+        inside = np.interp(ts.astype(float), st.astype(float), w)
+        speeds.append(float(np.mean(inside)))
+        ends.append((float(inside[0]), float(inside[-1])))
     amp = np.array(rows)
     dom = freq[1 + np.argmax(amp[:, 1:], axis=1)]
+    axis, fraction = waterfall_axis([a for a, _ in ends], [b for _, b in ends])
     entry = {'slices': n_slices, 'segment_samples': int(seg), 'resolution_hz': fs / seg,
+             'axis': axis, 'sweeping_fraction': fraction,
              'time_s': times, 'speed_rad_s': speeds,
              'speed_rpm': [s * 30 / math.pi for s in speeds],
              'dominant_hz': [float(f) for f in dom],
              'amplitude_g': [float(a) for a in amp[:, 1:].max(axis=1)]}
     return entry, {'waterfall_freq_hz': freq, 'waterfall_amp_g': amp,
-                   'waterfall_speed_rad_s': np.array(speeds)}
+                   'waterfall_speed_rad_s': np.array(speeds),
+                   'waterfall_time_s': np.array(times)}
 
 
 def impact_rate(t_ns, impactors, origin_ns, end_ns):
