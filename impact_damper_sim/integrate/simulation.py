@@ -9,8 +9,8 @@ Everything is in SI units. Typical use::
     sim.energy()                         # energy ledger (J)
 
 :meth:`Simulation.advance` checks every chunk of :data:`CHECK_EVERY` samples: a run that
-diverges raises :class:`~impact_damper_sim.integrate.divergence.Divergence` at once (what, when), and
-a request whose samples would not fit in memory raises
+diverges raises :class:`~impact_damper_sim.integrate.divergence.Divergence` at once (what,
+when), and a request whose samples would not fit in memory raises
 :class:`~impact_damper_sim.integrate.memory.TooLarge` before anything is allocated.
 """
 from __future__ import annotations
@@ -21,6 +21,7 @@ from .divergence import check_samples, check_state, from_engine_error
 from .events import EVENT_KINDS, Samples
 from .memory import check_allocation
 
+#: The integration methods of a run (:func:`make_integrator`), defined here only.
 METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
 
 #: Samples per divergence check: a blow-up is caught within this many samples of its start

@@ -24,9 +24,9 @@ import numpy as np
 from .catalog import validated
 from .channel_spec import accelerometer_problems
 from .modes import MIN_SAMPLES_PER_REVOLUTION, _build_basis, excitation_frequencies
-from .schema import SceneError
+from .schema import SceneError, _Errors
 from .spec import STUCK_MODELS
-from .structure import _Errors, _build_fe, _has_node
+from .structure import _build_fe, _has_node
 
 __all__ = ['SceneModel', 'build', 'load']
 

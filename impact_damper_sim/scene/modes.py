@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .structure import _Errors
+from .schema import _Errors
 
 __all__ = ['MIN_SAMPLES_PER_REVOLUTION', 'auto_cutoff', 'excitation_frequencies']
 

@@ -94,19 +94,37 @@ class SceneError(ValueError):
 
 
 class _Errors:
-    """Collects ``(path, message)`` pairs so that every problem is reported at once."""
+    """Collects ``(path, message)`` pairs so that every problem of a scene is reported at
+    once: the schema's, the structure's and the model's (:mod:`.structure`, :mod:`.modes`,
+    :mod:`.build`), one ``scene key 'path': message`` line each."""
 
     def __init__(self):
         self.items = []
 
     def add(self, path, message):
+        """Record ``message`` for the scene key ``path`` (``''``: the scene as a whole)."""
         self.items.append((path, message))
 
     def __len__(self):
         return len(self.items)
 
     def lines(self):
+        """The problems, one line each, in the order found (list of str)."""
         return [f"scene key '{p}': {m}" if p else f'scene: {m}' for p, m in self.items]
+
+    def call(self, path, fn, *args, **kwargs):
+        """Return ``fn(*args, **kwargs)``; a ValueError, KeyError or TypeError becomes a
+        problem of ``path`` instead, and the result ``None``."""
+        try:
+            return fn(*args, **kwargs)
+        except (ValueError, KeyError, TypeError) as exc:
+            self.add(path, exc.args[0] if exc.args else str(exc))
+            return None
+
+    def raise_if_any(self, source=None):
+        """Raise :class:`SceneError` with every problem so far, if there is one."""
+        if self.items:
+            raise SceneError(self.lines(), source=source)
 
 
 def _join(path, key):

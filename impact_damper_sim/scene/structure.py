@@ -4,7 +4,8 @@
 :class:`~impact_damper_sim.fem.FEModel` and its assembled system: an SDOF mass on a spring, or
 beams (nodes, generated lines, elements) with point masses, springs, dampers, super elements,
 clamps and cross-couplings. Each problem becomes one ``scene key 'path': message`` line of
-:class:`_Errors`, which :mod:`.modes` and :class:`~.build.SceneModel` report through too.
+the scene's error collector (:class:`~.schema._Errors`), which :mod:`.modes` and
+:class:`~.build.SceneModel` report through too.
 Kept apart from :mod:`.build` because it reads the ``structure`` section only and knows
 nothing of modes, forcing, sensors or impactors.
 """
@@ -12,33 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .units import UNITS
-from .schema import SceneError
+from .schema import _Errors
 from .spec import DOF_NAMES, ROTATIONS, SDOF_NODE
-
-
-# --- errors -------------------------------------------------------------------------------
-
-class _Errors:
-    """Collects model problems as ``scene key 'path': message`` lines."""
-
-    def __init__(self):
-        self.lines = []
-
-    def add(self, path, message):
-        self.lines.append(f"scene key '{path}': {message}")
-
-    def call(self, path, fn, *args, **kwargs):
-        """Call ``fn``; a ValueError/KeyError becomes a problem of ``path``."""
-        try:
-            return fn(*args, **kwargs)
-        except (ValueError, KeyError, TypeError) as exc:
-            self.add(path, exc.args[0] if exc.args else str(exc))
-            return None
-
-    def raise_if_any(self, source):
-        if self.lines:
-            raise SceneError(self.lines, source=source)
+from .units import UNITS
 
 
 def _has_node(fe, node, path, errors):

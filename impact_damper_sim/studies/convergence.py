@@ -35,10 +35,9 @@ import time
 
 import numpy as np
 
+from ..integrate.simulation import METHODS
 from .frf import failure, point_record
 from .runner import Point, point_seed, run_points
-
-METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
 
 
 def run_case(point):

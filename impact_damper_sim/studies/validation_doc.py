@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import datetime
 
-from ..scene.units import G0  # standard gravity (m/s^2)
+from ..scene.units import G0, MIL  # standard gravity (m/s^2), one mil (m)
 from .validation_setup import (
     F0_OVER_K,
     LB_IN,
-    MIL,
     PAPER_4_3_1,
     PAPER_4_3_2,
     PAPER_4_4_1,

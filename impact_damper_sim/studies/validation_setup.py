@@ -8,9 +8,10 @@ other.
 """
 from __future__ import annotations
 
-LBF = 4.4482216152605          # N
-MIL = 25.4e-6                  # m
-LB_IN = LBF / 0.0254           # N/m per lb/in
+from ..scene.units import INCH
+from ..scene.units import POUND_FORCE as LBF
+
+LB_IN = LBF / INCH             # N/m per lb/in
 
 
 # --- paper numbers (docs/paper/impact-dampers-mdof.md) --------------------------------

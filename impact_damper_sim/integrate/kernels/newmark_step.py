@@ -27,12 +27,13 @@ Event screening inside :func:`run_steps` (the event logic itself is in Python,
 from __future__ import annotations
 
 import numpy as np
-from . import kernel
 
-# status codes returned by run_steps()
-DONE = 0
+from . import kernel
+from .codes import DONE, NONFINITE
+
+# status codes returned by run_steps(): DONE and NONFINITE are the exact kernels' (.codes);
+# FLAGGED, a step handed back to Python for its event (the exact loop's 1 is CONFIG_CHANGE)
 FLAGGED = 1
-NONFINITE = 3
 
 
 def step_py(Sinv, C, K, f1, h, q0, v0, a0, q1, v1, a1, work):
