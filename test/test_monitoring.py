@@ -5,6 +5,7 @@ exactly ``W fs`` of them (the one stamped ``now - W`` is outside).
 """
 from dataclasses import astuple
 import doctest
+import math
 
 import numpy as np
 import pytest
@@ -312,3 +313,27 @@ def test_impactor_stuck_flags_groups_joint_names():
 
 def test_docstring_examples():
     assert doctest.testmod(monitoring).failed == 0
+
+
+# --- the monitor's words (issue 38) ------------------------------------------------------------
+
+def test_waiting_for_the_first_sample_is_info_then_warn():
+    from impact_damper_sim.live.monitoring import FIRST_SAMPLE_GRACE_S, waiting_text
+    assert waiting_text('accel/s1', 0.0) == (False, 'waiting for the first sample on accel/s1')
+    assert waiting_text('accel/s1', FIRST_SAMPLE_GRACE_S)[0] is False
+    assert waiting_text('accel/s1', 7.5) == (
+        True, 'no valid sample received on accel/s1 in 7.5 s')
+    assert waiting_text('accel/s1', 1.0, grace_s=0.5)[0] is True
+
+
+def test_impacts_text_says_dampers_off_and_never_nan():
+    from impact_damper_sim.live.monitoring import dampers_off, impacts_text
+    # the node's -1 efforts: dampers off, which 'stuck fraction 0 (0 of 12)' hid
+    assert dampers_off([-1.0] * 24) and not dampers_off([0.0, -1.0]) and not dampers_off([])
+    off = impacts_text(0.0, 0.0, 0, 12, off=True)
+    assert off == 'impacts: 0 /s, dampers off: no impactor can stick'
+    start = impacts_text(math.nan, math.nan, 0, 0)
+    assert start == 'impacts: no impacts received yet, no impactor_state received yet'
+    on = impacts_text(12345.6, 0.25, 3, 12)
+    assert on == 'impacts: 1.235e+04 /s, stuck fraction 0.25 (3 of 12 impactors stuck now)'
+    assert not any('nan' in t for t in (off, start, on))

@@ -37,7 +37,9 @@ Diagnostics (all values as text; units in the key names):
     ``samples_per_s``, ``samples_in_window``, ``rejected_samples`` (since start),
     ``stamp_lag_s`` (newest stamp on any topic minus the sensor's newest, sim s),
     ``last_sample_age_s`` (node-clock s since a valid sample last arrived), ``window_s``,
-    ``window_end_s`` (sim s). WARN when no valid sample arrived yet, when ``stamp_lag_s`` or
+    ``window_end_s`` (sim s). OK with 'waiting for the first sample on <topic>' for the
+    first ``FIRST_SAMPLE_GRACE_S`` (5 s) of node clock, then WARN while no valid sample
+    arrived; WARN when ``stamp_lag_s`` or
     ``last_sample_age_s`` exceeds two windows (stale), or when samples were rejected since
     the previous report.
 ``monitor: <namespace>/impacts`` (hardware_id: the frame of the impacts: a batch's
@@ -64,7 +66,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
-from ..live.monitoring import AXES, impactor_stuck_flags, RollingVibrationStats
+from ..live.monitoring import (AXES, dampers_off, FIRST_SAMPLE_GRACE_S, impactor_stuck_flags,
+                               impacts_text, RollingVibrationStats, waiting_text)
 from ..recording.batches import BATCH_SUFFIX, rows_of, sample_times_ns
 from .interface import (ACCEL_PREFIX, accel_topic, BATCH_QOS, DIAGNOSTICS, DIAGNOSTICS_QOS,
                         EVENT_QOS, IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS)
@@ -192,6 +195,8 @@ class VibrationMonitor(Node):
         self._stats = RollingVibrationStats(window)
         self._window = window
         self._last_arrival = {}     # sensor -> node-clock time of its latest valid sample (s)
+        self._watched_since = {}    # sensor -> node-clock time it was first reported (s)
+        self._dampers_off = False   # the latest impactor_state says the dampers are off
         self._rejected_reported = {}
         self._rejected_states_reported = 0
         # shared with the callbacks, under _queue (callbacks never wait on the core)
@@ -350,7 +355,7 @@ class VibrationMonitor(Node):
         self.message_counts['impactor_state'] += 1
         try:
             _, stuck = impactor_stuck_flags(msg.name, msg.effort)
-            state = (_stamp_s(msg.header.stamp), stuck)
+            state = (_stamp_s(msg.header.stamp), stuck, dampers_off(msg.effort))
         except ValueError as error:
             state = None
             self.get_logger().warning(f'{IMPACTOR_STATE} rejected: {error}',
@@ -448,7 +453,8 @@ class VibrationMonitor(Node):
                 if state is None:
                     self._stats.reject_state()
                 else:
-                    self._stats.update_stuck(*state)
+                    self._stats.update_stuck(*state[:2])
+                    self._dampers_off = state[2]
             report_due |= job.report
         if not report_due:
             return None
@@ -501,8 +507,13 @@ class VibrationMonitor(Node):
         new_rejects = stats.rejected_samples - self._rejected_reported.get(sensor, 0)
         self._rejected_reported[sensor] = stats.rejected_samples
         problems = []
+        waiting = None
         if arrival is None:
-            problems.append('no valid sample received')
+            # a start-up takes a while: INFO 'waiting ...' first, WARN after the grace period
+            waited = clock_s - self._watched_since.setdefault(sensor, clock_s)
+            warn, text = waiting_text(accel_topic(sensor), waited, FIRST_SAMPLE_GRACE_S)
+            (problems.append if warn else lambda t: None)(text)
+            waiting = None if warn else text
         elif age > stale_after:
             problems.append(f'stale: no sample for {age:.3g} s')
         elif lag > stale_after:
@@ -522,7 +533,7 @@ class VibrationMonitor(Node):
                    ('window_s', window), ('window_end_s', report.t)]
         return DiagnosticStatus(
             level=DiagnosticStatus.WARN if problems else DiagnosticStatus.OK,
-            name=self._status_name(sensor), message='; '.join(problems) or 'ok',
+            name=self._status_name(sensor), message='; '.join(problems) or waiting or 'ok',
             hardware_id=self._frames.get(sensor, ''),
             values=[KeyValue(key=key, value=_text(v)) for key, v in values])
 
@@ -530,7 +541,7 @@ class VibrationMonitor(Node):
         new_rejects = report.rejected_states - self._rejected_states_reported
         self._rejected_states_reported = report.rejected_states
         problems = []
-        if math.isnan(report.stuck_fraction):
+        if math.isnan(report.stuck_fraction) and not self._dampers_off:
             problems.append(f'no {IMPACTOR_STATE} received')
         if new_rejects:
             problems.append(f'{new_rejects} {IMPACTOR_STATE} messages rejected')
@@ -555,7 +566,8 @@ class VibrationMonitor(Node):
         for sensor, status in zip(report.sensors, array.status):
             s = report.sensors[sensor]
             if s.samples == 0:
-                logger.warning(f'{accel_topic(sensor)}: {status.message}')
+                (logger.info if status.level == DiagnosticStatus.OK else logger.warning)(
+                    f'{accel_topic(sensor)}: {status.message}')
                 continue
             line = (f'{accel_topic(sensor)}: rms {s.rms_g:.4g} g (x {s.rms_g_axes[0]:.3g}, '
                     f'y {s.rms_g_axes[1]:.3g}, z {s.rms_g_axes[2]:.3g}), '
@@ -565,9 +577,8 @@ class VibrationMonitor(Node):
                 logger.info(line)
             else:
                 logger.warning(f'{line}: {status.message}')
-        line = (f'{IMPACTS}: {report.impacts_per_s:.4g} /s, stuck fraction '
-                f'{report.stuck_fraction:.3g} ({report.stuck_impactors} of '
-                f'{report.impactors} impactors stuck now)')
+        line = impacts_text(report.impacts_per_s, report.stuck_fraction,
+                            report.stuck_impactors, report.impactors, self._dampers_off)
         if array.status[-1].level == DiagnosticStatus.OK:
             logger.info(line)
         else:
