@@ -515,8 +515,17 @@ def test_main_plays_and_exits_0(ros_context, mixed_log, monkeypatch, capfd):
     path, entries, _ = mixed_log
     assert replay.main([str(path), '--rate', '50', '--no-clock', '--ros-args', '-r',
                         '__node:=replay_main']) == 0
-    err = capfd.readouterr().err   # rclpy logs from C, to file descriptor 2
-    assert f'replayed {len(entries)} messages (1 pass(es))' in err and 'Traceback' not in err
+    out, err = capfd.readouterr()
+    assert 'Traceback' not in err
+    # what plays, before it plays; what played, at the end (issue 38: it printed nothing)
+    lines = out.splitlines()
+    n_imu = sum(topic == '/accel/s1' for _, topic, _ in entries)
+    assert lines[0].startswith(f'replay: playing {path}: {len(entries)} messages on 2 topic(s)')
+    assert 'at rate 50 (real_time_factor 50' in lines[0]
+    assert lines[1].split() == ['/accel/s1', 'sensor_msgs/msg/Imu', str(n_imu)]
+    assert lines[2].split() == ['/impacts', 'geometry_msgs/msg/WrenchStamped',
+                                str(len(entries) - n_imu)]
+    assert lines[-1].startswith(f'replay: played {len(entries)} messages (1 pass(es)) in ')
 
 
 @pytest.mark.ros
@@ -557,3 +566,18 @@ def test_process_loops_until_sigint(ros_context, tmp_path):
     first = ids.index(0)
     assert ids[first:first + 20] == list(range(10)) * 2
     assert proc.returncode == 0 and 'Traceback' not in err, err
+
+
+def test_describe_names_file_topics_counts_duration_and_rate(mixed_log):
+    from impact_damper_sim.ros.replay_plan import describe, prepare
+    path, entries, _ = mixed_log
+    plan = prepare(path, remaps=['/impacts:=/hits'], rate=2.0, start_offset=0.1)
+    lines = describe(plan)
+    span = (entries[-1][0] - entries[0][0]) * 1e-9 - 0.1   # s of log time after the offset
+    head = lines[0]
+    assert head.startswith(f'replay: playing {path}: {len(entries)} messages on 2 topic(s), ')
+    assert f'{span:.6g} s of log time, at rate 2 (real_time_factor 2: {span / 2:.6g} s' in head
+    assert head.endswith(', from 0.1 s on')
+    n_impacts = sum(topic == '/impacts' for _, topic, _ in entries)
+    assert lines[2].split() == ['/impacts', 'geometry_msgs/msg/WrenchStamped', str(n_impacts),
+                                '->', '/hits']

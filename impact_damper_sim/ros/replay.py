@@ -13,8 +13,10 @@ replay costs no decoding. Messages go out in log_time order, each at
 
     wall deadline = (log_time - (log start + start offset)) / rate
 
-after playback starts; a message that is late is published at once (never dropped), and the
-achieved lateness is logged at the end. ``/clock`` (``rosgraph_msgs/Clock``, reliable, keep
+after playback starts; a message that is late is published at once (never dropped). On
+stdout, replay prints what it plays before the first message (the file, each topic with its
+type and message count, the log time it spans, the rate) and a line at the end (messages
+played, passes, wall time, the achieved lateness). ``/clock`` (``rosgraph_msgs/Clock``, reliable, keep
 last 1) carries the log time every ``1/--clock-hz`` s of wall time; a tick that is already late
 is skipped rather than sent in a burst. With ``--loop`` the log plays again and again; a pass
 starts one mean inter-message interval (of log time) after the previous one ended, and
@@ -55,7 +57,7 @@ from rclpy.node import Node
 from ..live.playback import Player
 from ..studies.log_reader import LogError
 from .interface import CLOCK, CLOCK_QOS
-from .replay_plan import prepare
+from .replay_plan import describe, finished_line, prepare
 from .wire import freeze_start_up_heap, ignore_further_interrupts, settle_interrupt, \
     shutdown_quietly
 
@@ -236,16 +238,15 @@ def main(args=None):
         executor.add_node(node)
         spinner = threading.Thread(target=_spin_quietly, args=(executor,), daemon=True)
         spinner.start()
+        # on stdout: what plays, before the first message, and what played at the end
+        print('\n'.join(describe(plan)), flush=True)
         if options.delay and node._stop.wait(options.delay):
             raise ExternalShutdownException()
         stats = node.play()
         if stats.stopped and not rclpy.ok():
             raise ExternalShutdownException()
         node.wait_for_acks(1.0)
-        node.get_logger().info(
-            f'replayed {stats.messages} messages ({stats.passes} pass(es)) in '
-            f'{stats.wall_s:.3f} s; lateness median {stats.median_lateness_s * 1e3:.3f} ms, '
-            f'max {stats.max_lateness_s * 1e3:.3f} ms')
+        print(finished_line(stats), flush=True)
     except (KeyboardInterrupt, ExternalShutdownException):
         ignore_further_interrupts()
         settle_interrupt()

@@ -259,6 +259,52 @@ def _rosbag2_offers(metadata):
         return {}
 
 
+def describe(plan):
+    """What a replay is about to play, as the lines ``replay`` prints at start.
+
+    Parameters
+    ----------
+    plan : Plan
+        Output of :func:`prepare`.
+
+    Returns
+    -------
+    list of str
+        ``'replay: playing <file>: <n> messages on <k> topics, <d> s of log time, at rate
+        <x> (real_time_factor <x>)'`` (with the offset and ``looping`` when given), then one
+        line per topic: its name, type and message count (``-> <topic>`` when remapped).
+    """
+    log, sched = plan.log, plan.schedule
+    counts = {tr.channel_id: log.counts.get(tr.channel_id) for tr in plan.tracks}
+    total = sum(c for c in counts.values() if c is not None)
+    span = max(sched.end_ns - sched.begin_ns, 0) * 1e-9
+    extra = (f', from {(sched.begin_ns - log.start_ns) * 1e-9:.6g} s on'
+             if sched.begin_ns != log.start_ns else '') + (', looping' if sched.loop else '')
+    lines = [f'replay: playing {log.path}: {total} messages on {len(plan.tracks)} topic(s), '
+             f'{span:.6g} s of log time, at rate {sched.rate:g} (real_time_factor '
+             f'{sched.rate:g}: {span / sched.rate:.6g} s of wall time a pass){extra}']
+    width = max(len(tr.topic) for tr in plan.tracks)
+    for tr in plan.tracks:
+        n = counts[tr.channel_id]
+        remap = f' -> {tr.out_topic}' if tr.out_topic != tr.topic else ''
+        lines.append(f"  {tr.topic:{width}}  {tr.type}  {'?' if n is None else n}{remap}")
+    return lines
+
+
+def finished_line(stats):
+    """The line ``replay`` prints at the end: messages, passes, wall time and lateness.
+
+    Parameters
+    ----------
+    stats : PlaybackStats
+        What :meth:`Player.run` returns (``messages``, ``passes``, ``wall_s`` in s,
+        ``median_lateness_s`` and ``max_lateness_s`` in s).
+    """
+    return (f'replay: played {stats.messages} messages ({stats.passes} pass(es)) in '
+            f'{stats.wall_s:.3f} s of wall time; lateness median '
+            f'{stats.median_lateness_s * 1e3:.3f} ms, max {stats.max_lateness_s * 1e3:.3f} ms')
+
+
 def prepare(path, topics=(), remaps=(), rate=1.0, start_offset=0.0, loop=False):
     """Open and check a log and plan its replay (no ROS context needed).
 
