@@ -121,7 +121,7 @@ def hpotp_run():
 def test_tach_is_the_angle_whose_derivative_is_the_published_speed(hpotp_run):
     live, topics, batches, _ = hpotp_run
     rows, t_ns, msgs, _ = _rows(topics[nt.ROTOR_TACH])
-    assert all(m.header.frame_id == '' and m.point_step == 24 for m in msgs)
+    assert all(m.header.frame_id == 'hpotp_rotor' and m.point_step == 24 for m in msgs)
     assert [f.name for f in msgs[0].fields] == ['t', 'angle', 'speed']
     # the accelerometer batch's sample times, every one once
     _, batch_ns, _, _ = _rows(topics[nt.accel_batch_topic(live.accelerometers[0].name)])
