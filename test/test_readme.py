@@ -43,7 +43,7 @@ def test_simulation_api_example_runs():
 def test_node_parameter_table_is_the_declared_one():
     pytest = __import__('pytest')
     pytest.importorskip('rclpy')
-    from impact_damper_sim.ros.vibration_node import parameters_markdown
+    from impact_damper_sim.ros.parameters import parameters_markdown
     assert region('node-params').strip() == parameters_markdown()
 
 
@@ -53,7 +53,7 @@ def test_params_file_holds_every_parameter_default():
     import yaml
     from rclpy.parameter import Parameter
 
-    from impact_damper_sim.ros.vibration_node import PARAMETERS
+    from impact_damper_sim.ros.parameters import PARAMETERS
     params = yaml.safe_load((README.parent / 'config' / 'vibration_node.yaml').read_text())
     params = params['/**']['ros__parameters']
     for name, (default, *_rest) in PARAMETERS.items():
@@ -201,3 +201,76 @@ def test_docs_links_resolve():
                 continue
             assert (page.parent / target).exists(), (page.name, target)
     assert '../shared/' not in README.read_text()
+
+
+def _cli_lines():
+    """README sh-block lines that talk to a running node or write and read a log: the
+    ``ros2 topic pub`` / ``param set`` / ``service call`` and ``study record``/``report`` ones."""
+    lines = [ln.split('  #')[0].strip()
+             for block in re.findall(r'```sh\n(.*?)```', README.read_text(), flags=re.S)
+             for ln in block.splitlines()]
+    return [ln for ln in lines
+            if re.match(r'ros2 (topic pub|param set|service call) |'
+                        r'\.venv/bin/impact_damper_study (record|report) ', ln)]
+
+
+def test_readme_cli_commands_run_as_written(tmp_path):
+    """Steering and recording, as the README's first screens type them, against a live node
+    (default scene) on a domain of its own: each exits 0, the recording lands in the
+    directory the node runs in, and ``study report`` reads the log ``study record`` wrote."""
+    pytest.importorskip('rclpy')
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    from conftest import next_domain_id
+    bindir = os.path.dirname(sys.executable)
+    if not os.path.exists(os.path.join(bindir, 'ros2')):
+        pytest.skip('the ROS 2 command line is not installed (make ros2cli)')
+    lines = _cli_lines()
+    assert sum(ln.startswith('ros2 ') for ln in lines) >= 5, lines
+    (tmp_path / '.venv').symlink_to(README.parent / '.venv')   # `.venv/bin/...` as written
+    env = dict(os.environ, ROS_DOMAIN_ID=str(next_domain_id()),
+               AMENT_PREFIX_PATH=os.environ.get('AMENT_PREFIX_PATH', os.path.dirname(bindir)),
+               PATH=bindir + os.pathsep + os.environ['PATH'])
+    node = subprocess.Popen([os.path.join(bindir, 'vibration_node')], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            start_new_session=True)
+    out = []
+    threading.Thread(target=lambda: out.extend(node.stdout), daemon=True).start()
+    try:
+        end = time.monotonic() + 180.0
+        while time.monotonic() < end and node.poll() is None \
+                and 'accelerometers at' not in ''.join(out):
+            time.sleep(0.2)
+        assert 'accelerometers at' in ''.join(out), ''.join(out)
+        for _ in range(60):   # as a user would: the CLI's graph has to know the node first
+            listed = subprocess.run(['ros2', 'node', 'list'], env=env, capture_output=True,
+                                    text=True, timeout=60)
+            if '/vibration_node' in listed.stdout.split():
+                break
+            time.sleep(1.0)
+        for line in lines:
+            done = subprocess.run(['bash', '-c', line], cwd=tmp_path, env=env, timeout=120,
+                                  capture_output=True, text=True)
+            assert done.returncode == 0, (line, done.stdout, done.stderr)
+        assert len(list(tmp_path.glob('hpotp_*.mcap'))) == 1, sorted(tmp_path.iterdir())
+        assert 'accelerations in g' in done.stdout      # the last line: study report
+        time.sleep(1.0)
+        text = ''.join(out)
+        for said in ('rotor/speed_command 1200 accepted', 'rotor/unbalance_command 10 accepted',
+                     'recording to hpotp_', 'recorded '):
+            assert said in text, (said, text)
+    finally:
+        if node.poll() is None:
+            os.killpg(node.pid, signal.SIGINT)
+            try:
+                node.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(node.pid, signal.SIGKILL)
+                node.wait()
+        subprocess.run([os.path.join(bindir, 'ros2'), 'daemon', 'stop'], env=env,
+                       capture_output=True, timeout=60)
