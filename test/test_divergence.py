@@ -6,13 +6,18 @@ import numpy as np
 import pytest
 
 from impact_damper_sim.cli.study import main
-from impact_damper_sim.integrate.divergence import (EXIT_DIVERGED, MAX_DISPLACEMENT, Divergence,
-                                                   check_samples, from_engine_error)
-from impact_damper_sim.integrate.memory import TooLarge, check_allocation, sample_bytes
-from impact_damper_sim.scene.advice import scene_advice
+from impact_damper_sim.integrate.divergence import (
+    EXIT_DIVERGED,
+    MAX_DISPLACEMENT,
+    Divergence,
+    check_samples,
+    from_engine_error,
+)
 from impact_damper_sim.integrate.events import Samples
-from impact_damper_sim.scene.build import load
+from impact_damper_sim.integrate.memory import TooLarge, check_allocation, sample_bytes
 from impact_damper_sim.integrate.simulation import CHECK_EVERY
+from impact_damper_sim.scene.advice import scene_advice
+from impact_damper_sim.scene.build import load
 
 HUGE_FORCE = 'forcing.0.amplitude=1e300 N'
 

@@ -291,7 +291,7 @@ def test_ledger_closed_form_equals_fine_gauss_quadrature(rng, lam_top, tau, y_sc
     # twin to 1e-14, and its flow factors equal the propagator's.
     n, nf = 4, 3
     n_series = n_closed = 0
-    for trial in range(8):
+    for _trial in range(8):
         args = _ledger_case(rng, n, nf, nh, 'modal', lam_top, tau)
         args = (args[0] * y_scale,) + args[1:]
         (yh, lam, W, w0, ws, pp, pm, omegas, amps, u0, us, t, tau, Vq, Vv, C, Kskew, B) = args
@@ -394,6 +394,7 @@ def test_kernels_compile_without_reference_counting():
     # cannot compile; the same function with ``_nrt=True`` runs.
     from numba import config
     from numba.core.errors import TypingError
+
     from impact_damper_sim.integrate.kernels import KERNEL_OPTIONS, event_loop, kernel
     if config.DISABLE_JIT:
         pytest.skip('the kernels run as Python')

@@ -13,17 +13,20 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from node_refusal import node_refusal
-
 from impact_damper_sim.cli.study import main as study
 from impact_damper_sim.integrate import memory
 from impact_damper_sim.integrate.memory import memory_limit
-from impact_damper_sim.scene.model_budget import (MAX_IMPACTORS, ModelTooLarge, check_model,
-                                                  model_estimate)
 from impact_damper_sim.scene import build as build_mod
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.catalog import available_scenes, validated
+from impact_damper_sim.scene.model_budget import (
+    MAX_IMPACTORS,
+    ModelTooLarge,
+    check_model,
+    model_estimate,
+)
 from impact_damper_sim.scene.schema import SceneError
+from node_refusal import node_refusal
 
 SDOF = Path(__file__).resolve().parents[1] / 'config' / 'scenes' / 'sdof.yaml'
 
@@ -112,8 +115,9 @@ def test_samples_share_the_limit_with_the_model(tmp_path, capsys, monkeypatch):
 def test_the_configurations_a_run_keeps_are_bounded(monkeypatch):
     """Switching through Python, at most ``cache_limit`` configurations are kept, the least
     recently used dropped and rebuilt: the same events as without a bound."""
-    import impact_damper_sim.integrate.exact as exact_mod
     import tempfile
+
+    import impact_damper_sim.integrate.exact as exact_mod
     with tempfile.TemporaryDirectory() as tmp:
         # six impactors of different masses: 64 stuck sets, each its own configuration (42
         # of them reached in 1 s)

@@ -5,13 +5,12 @@ import time
 
 import pytest
 
-from node_refusal import node_refusal
-
 from impact_damper_sim.scene import loading
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.loading import MAX_SCENE_BYTES, MAX_SCENE_DEPTH, load_yaml
 from impact_damper_sim.scene.model_budget import MAX_IMPACTORS
 from impact_damper_sim.scene.schema import SceneError
+from node_refusal import node_refusal
 
 BOMB = """a: &a [x, x, x, x, x, x, x, x, x, x]
 b: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a, *a]

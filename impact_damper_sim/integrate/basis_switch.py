@@ -37,9 +37,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .memory import MAX_CACHED_CONFIGURATIONS
 from ..modal.basis import modal_reduction
 from ..modal.stuck import add_point_mass
+from .memory import MAX_CACHED_CONFIGURATIONS
 from .model import LinearModel
 
 __all__ = ['BasisSwitch']

@@ -10,8 +10,14 @@ configurations it keeps) are :mod:`impact_damper_sim.integrate.memory`.
 from __future__ import annotations
 
 from ..integrate import memory
-from ..integrate.memory import (MAX_CACHED_CONFIGURATIONS, MAX_TABLE_BYTES, MAX_TABLE_SLOTS,
-                                cache_limit, configuration_bytes, gib)
+from ..integrate.memory import (
+    MAX_CACHED_CONFIGURATIONS,
+    MAX_TABLE_BYTES,
+    MAX_TABLE_SLOTS,
+    cache_limit,
+    configuration_bytes,
+    gib,
+)
 
 #: Most impactors in a scene. Every step scans each impactor and every change of the stuck
 #: set costs time and memory in proportion to their number: interchangeable impactors on

@@ -20,7 +20,6 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernel
-
 from .codes import EV_IMPACT, EV_STICK, STICK_ACCUMULATION, STICK_PAPER
 from .flow_eval import add_particular
 from .scan import FN_WALL_POS

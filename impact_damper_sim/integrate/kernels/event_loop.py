@@ -20,15 +20,30 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernel
-
-from .codes import (BUFFER_FULL, CHATTER, CNT_EVALS, CNT_LEDGER_CLOSED, CNT_LEDGER_PANELS,
-                    CNT_QUIET, CNT_STEPS, CNT_SWITCHES, CNT_TAYLOR, CONFIG_CHANGE, DONE,
-                    EV_RELEASE, N_COUNTERS, NONFINITE, STICK_ACCUMULATION, STICK_NONE,
-                    STICK_PAPER)
+from .codes import (
+    BUFFER_FULL,
+    CHATTER,
+    CNT_EVALS,
+    CNT_LEDGER_CLOSED,
+    CNT_LEDGER_PANELS,
+    CNT_QUIET,
+    CNT_STEPS,
+    CNT_SWITCHES,
+    CNT_TAYLOR,
+    CONFIG_CHANGE,
+    DONE,
+    EV_RELEASE,
+    N_COUNTERS,
+    NONFINITE,
+    STICK_ACCUMULATION,
+    STICK_NONE,
+    STICK_PAPER,
+)
 from .contact import impact, record, release_normals, switch_slot
 from .flow_eval import point_eval, row_derivs
 from .ledger import ledger_closed, ledger_modal, ledger_taylor
-from .quadrature import N_TERMS as LEDGER_TERMS, harmonic_factors, piece_factors
+from .quadrature import N_TERMS as LEDGER_TERMS
+from .quadrature import harmonic_factors, piece_factors
 from .scan import FN_RELEASE
 from .search import quiet_window, search
 

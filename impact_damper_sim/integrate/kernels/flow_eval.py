@@ -12,7 +12,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from . import kernel
+
 
 def cabs_py(z):
     """``|z|`` of a complex number without glibc's ``hypot`` (several times slower here)."""

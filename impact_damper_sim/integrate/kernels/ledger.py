@@ -15,11 +15,21 @@ import numpy as np
 from numba import types
 
 from . import kernel
-
 from .flow_eval import cabs, point_eval, propagate
-from .quadrature import (N_TERMS, PANEL_RADIUS, _HILBERT, _INV, damping_row, dense_row_sums,
-                         hilbert_dot, input_series, panel_plan, phi1_ledger, row_series,
-                         taylor_degree)
+from .quadrature import (
+    _HILBERT,
+    _INV,
+    N_TERMS,
+    PANEL_RADIUS,
+    damping_row,
+    dense_row_sums,
+    hilbert_dot,
+    input_series,
+    panel_plan,
+    phi1_ledger,
+    row_series,
+    taylor_degree,
+)
 
 
 def ledger_panel_py(yh, lam, W, w0, ws, part_plus, part_minus, omegas, amps, u0, us, t_cur,

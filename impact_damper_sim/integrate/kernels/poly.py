@@ -6,6 +6,7 @@ A polynomial is an array of normalized Taylor coefficients ``a[m]``, ``p(s) = su
 from __future__ import annotations
 
 import numpy as np
+
 from . import kernel
 
 #: 1/6 rounded up: the cubic term of a lower bound may only grow by rounding
@@ -295,7 +296,7 @@ def certified_first_root_py(a, n, K, Kd, S, s_start, work, out):
         return ROOT_UNDECIDED
     eta = 2.0 * K * r ** m / (-slope) + 4e-16 * S
     deriv = scratch  # reuse: p' coefficients, degree n - 1
-    for attempt in range(2):
+    for _attempt in range(2):
         s_a = max(r - eta, 0.0)
         s_b = min(r + eta, S)
         if s_a == 0.0:

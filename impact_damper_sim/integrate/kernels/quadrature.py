@@ -16,9 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernel
-
 from .flow_eval import _PHI1_SERIES, flow_factors, phis_from
-
 
 #: Relative size of the first dropped term of each coordinate's Taylor series in
 #: :func:`.ledger.ledger_taylor` (the Gauss rule of :func:`.ledger.ledger_panel` keeps its

@@ -15,7 +15,6 @@ import numpy as np
 from numba import types
 
 from . import kernel
-
 from .flow_eval import derivative_bounds, point_eval, row_bound, row_derivs
 from .poly import cubic_safe_step
 

@@ -34,13 +34,37 @@ import numpy as np
 from numba import types
 
 from . import kernel
-
-from .codes import (CNT_CANDIDATES, CNT_CERTIFIED, CNT_EVALS, CNT_FALLBACK, CNT_SEARCHES,
-                    CNT_SEGMENTS, CNT_TAYLOR)
-from .flow_eval import (add_particular, cabs, excursion_bounds, input_derivs, more_derivs,
-                   point_eval, row_derivs, search_bounds, site_bounds, site_reach, state_derivs)
-from .poly import (BINOM, ROOT_FOUND, ROOT_NONE, certified_first_root, cubic_safe_step,
-                   positive_until, quadratic_first_root)
+from .codes import (
+    CNT_CANDIDATES,
+    CNT_CERTIFIED,
+    CNT_EVALS,
+    CNT_FALLBACK,
+    CNT_SEARCHES,
+    CNT_SEGMENTS,
+    CNT_TAYLOR,
+)
+from .flow_eval import (
+    add_particular,
+    cabs,
+    excursion_bounds,
+    input_derivs,
+    more_derivs,
+    point_eval,
+    row_derivs,
+    search_bounds,
+    site_bounds,
+    site_reach,
+    state_derivs,
+)
+from .poly import (
+    BINOM,
+    ROOT_FOUND,
+    ROOT_NONE,
+    certified_first_root,
+    cubic_safe_step,
+    positive_until,
+    quadratic_first_root,
+)
 from .scan import FN_PLANAR, FN_RELEASE, FN_WALL_NEG, FN_WALL_POS, fn_values, scan_multi
 
 #: Degree of the model that tries to clear a candidate up to the best bracket first.
