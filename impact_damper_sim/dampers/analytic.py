@@ -61,10 +61,18 @@ in :mod:`.analytic_checks`.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import brentq
+
+#: A time, or an array of times, and what a function of it returns (np.float64 is a float)
+_Times = float | np.ndarray
+#: One root of the phase equation: (branch, t0 (s), x0 (m), x'0 (m/s), z'0 (m/s))
+_Root = tuple[int, float, float, float, float]
 
 __all__ = [
     'NoSymmetricOrbit',
@@ -85,7 +93,7 @@ _GRAZE_TOL = 1e-9
 class NoSymmetricOrbit(ValueError):
     """No symmetric two-impact orbit exists; ``reason`` says why (one entry per candidate)."""
 
-    def __init__(self, reason: str):
+    def __init__(self, reason: str) -> None:
         super().__init__(reason)
         self.reason = reason
 
@@ -200,7 +208,7 @@ class SymmetricTwoImpactOrbit:
 class _Oscillator:
     """Closed-form flow of ``M x'' + c x' + K x = F0 cos(Omega t)``."""
 
-    def __init__(self, M, K, c, F0, Omega):
+    def __init__(self, M: float, K: float, c: float, F0: float, Omega: float) -> None:
         self.M, self.K, self.c, self.F0, self.Omega = M, K, c, F0, Omega
         self.wn = np.sqrt(K / M)
         self.sigma = c / (2.0 * M)
@@ -216,12 +224,17 @@ class _Oscillator:
         self.X = np.hypot(self.A, self.B)
         self.phi = np.arctan2(self.B, self.A)
 
-    def particular(self, t):
+    @overload
+    def particular(self, t: float) -> tuple[float, float]: ...
+    @overload
+    def particular(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def particular(self, t: _Times) -> tuple[_Times, _Times]:
         wt = self.Omega * np.asarray(t, dtype=float)
         cs, sn = np.cos(wt), np.sin(wt)
         return self.A * cs + self.B * sn, self.Omega * (self.B * cs - self.A * sn)
 
-    def transition(self, tau):
+    def transition(self, tau: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """State-transition matrix ``Phi(tau)`` of the free oscillator, shape (..., 2, 2)."""
         tau = np.asarray(tau, dtype=float)
         a = self.wd * tau
@@ -240,7 +253,13 @@ class _Oscillator:
         Phi[..., 1, 1] = E * (C - self.sigma * S)
         return Phi
 
-    def flow(self, t0, x0, v0, t):
+    @overload
+    def flow(self, t0: float, x0: float, v0: float, t: float) -> tuple[float, float]: ...
+    @overload
+    def flow(self, t0: float, x0: float, v0: float,
+             t: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def flow(self, t0: float, x0: float, v0: float, t: _Times) -> tuple[_Times, _Times]:
         """Housing ``(x, x')`` at time(s) ``t`` from ``(x0, v0)`` at ``t0``."""
         xp0, vp0 = self.particular(t0)
         Phi = self.transition(np.asarray(t, dtype=float) - t0)
@@ -249,17 +268,23 @@ class _Oscillator:
         return (xp + Phi[..., 0, 0] * y0 + Phi[..., 0, 1] * u0,
                 vp + Phi[..., 1, 0] * y0 + Phi[..., 1, 1] * u0)
 
-    def accel(self, t, x, v):
+    @overload
+    def accel(self, t: float, x: float, v: float) -> float: ...
+    @overload
+    def accel(self, t: np.ndarray, x: np.ndarray, v: np.ndarray) -> np.ndarray: ...
+
+    def accel(self, t: _Times, x: _Times, v: _Times) -> _Times:
         return (self.F0 * np.cos(self.Omega * t) - self.c * v - self.K * x) / self.M
 
 
-def _impact(xd, zd, mu, e):
+def _impact(xd: float, zd: float, mu: float, e: float) -> tuple[float, float]:
     """Post-impact velocities (housing, impactor) from pre-impact ones."""
     return (((1.0 - mu * e) * xd + mu * (1.0 + e) * zd) / (1.0 + mu),
             ((1.0 + e) * xd + (mu - e) * zd) / (1.0 + mu))
 
 
-def _check_inputs(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+def _check_inputs(M: float, K: float, c: float, F0: float, Omega: float, mass_ratio: float,
+                  cor: float, clearance: float) -> None:
     if not (M > 0 and K > 0 and Omega > 0 and clearance > 0):
         raise ValueError('M, K, Omega and clearance must be positive')
     if not c >= 0:
@@ -272,7 +297,7 @@ def _check_inputs(M, K, c, F0, Omega, mass_ratio, cor, clearance):
         raise ValueError('F0 must be finite')
 
 
-def linear_steady_amplitude(M, K, c, F0, Omega):
+def linear_steady_amplitude(M: float, K: float, c: float, F0: float, Omega: float) -> float:
     """Steady-state amplitude of the primary system without impactor.
 
     Parameters
@@ -298,13 +323,13 @@ def linear_steady_amplitude(M, K, c, F0, Omega):
 
 
 # --------------------------------------------------------------------------- flight checks
-def _root(f, a, b):
+def _root(f: Callable[[float], float], a: float, b: float) -> float:
     """Root of ``f`` in the bracket ``[a, b]`` to machine precision."""
     eps = np.finfo(float).eps
     return brentq(f, a, b, xtol=1e-3 * eps * (b - a), rtol=4.0 * eps, maxiter=500)
 
 
-def _bracketed_roots(f, t, y):
+def _bracketed_roots(f: Callable[[float], float], t: np.ndarray, y: np.ndarray) -> list[float]:
     """Roots of ``f`` at the sign changes of the samples ``y = f(t)``."""
     roots = []
     for i in np.nonzero(y[:-1] * y[1:] < 0.0)[0]:
@@ -314,7 +339,9 @@ def _bracketed_roots(f, t, y):
     return sorted(roots)
 
 
-def _flight_extrema(osc, t0, x0, v0, w0, h, D):
+def _flight_extrema(osc: _Oscillator, t0: float, x0: float, v0: float, w0: float, h: float,
+                    D: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                       list[float], list[float]]:
     """Interior extrema of ``r = z - x`` and of ``x`` on ``(t0, t0 + h)``.
 
     Returns the grid ``(t, x, v, r)``, the times of the interior extrema of ``r`` and of ``x``.
@@ -323,14 +350,14 @@ def _flight_extrema(osc, t0, x0, v0, w0, h, D):
     x, v = osc.flow(t0, x0, v0, t)
     r = x0 + D / 2.0 + w0 * (t - t0) - x
 
-    def vel(s):
+    def vel(s: float) -> float:
         return osc.flow(t0, x0, v0, s)[1]
 
-    def acc(s):
+    def acc(s: float) -> float:
         xs, vs = osc.flow(t0, x0, v0, s)
         return osc.accel(s, xs, vs)
 
-    def rdot(s):
+    def rdot(s: float) -> float:
         return w0 - vel(s)
 
     a = osc.accel(t, x, v)
@@ -349,14 +376,16 @@ def _flight_extrema(osc, t0, x0, v0, w0, h, D):
 
 
 # --------------------------------------------------------------------------- the orbit
-def _multipliers(osc, D, mu, e, s):
+def _multipliers(osc: _Oscillator, D: float, mu: float, e: float,
+                 s: np.ndarray) -> tuple[complex, ...]:
     J = _half_map_jacobian(osc, D, mu, e, s)
     lam = np.linalg.eigvals(J) ** 2  # one period = (S G)^2
     lam = lam[np.argsort(-np.abs(lam), kind='stable')]
     return tuple(complex(v) for v in lam)
 
 
-def _phase_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+def _phase_roots(M: float, K: float, c: float, F0: float, Omega: float, mass_ratio: float,
+                 cor: float, clearance: float) -> tuple[_Oscillator, list[_Root], str]:
     """Roots of the reduced conditions: ``(osc, [(branch, t0, x0, v0, w0)], reason)``."""
     _check_inputs(M, K, c, F0, Omega, mass_ratio, cor, clearance)
     mu, e, D = float(mass_ratio), float(cor), float(clearance)
@@ -389,14 +418,16 @@ def _phase_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance):
     return osc, roots, ''
 
 
-def _admissibility(osc, D, t0, x0, v0, w0):
+def _admissibility(osc: _Oscillator, D: float, t0: float, x0: float, v0: float,
+                   w0: float) -> tuple[str, float, float | None, float | None]:
     """Check one root; returns ``(reason or '', V1, margin, amplitude)``."""
     h = np.pi / osc.Omega
     # pre-impact state at t0 is minus the pre-impact state at t1 = t0 + h
     _, V1 = osc.flow(t0, x0, v0, t0 + h)
     vrel = -w0 + float(V1)
     if not vrel > 0.0:
-        return f"impactor recedes from the wall (z'- - x'- = {vrel:.3e} m/s)", V1, None, None
+        return (f"impactor recedes from the wall (z'- - x'- = {vrel:.3e} m/s)", float(V1),
+                None, None)
     t, x, v, r, r_ext, x_ext = _flight_extrema(osc, t0, x0, v0, w0, h, D)
     r_at = [x0 + D / 2.0 + w0 * (s - t0) - osc.flow(t0, x0, v0, s)[0] for s in r_ext]
     # Grid points next to the walls sit within |r'| dt of D/2, so only the interior
@@ -404,13 +435,15 @@ def _admissibility(osc, D, t0, x0, v0, w0):
     margin = D / 2.0 - float(max((abs(q) for q in r_at), default=0.0))
     if not (np.abs(r[1:-1]).max() < D / 2.0 and margin > _GRAZE_TOL * D):
         why = f'impactor reaches a wall during the flight (margin {margin:.3e} m)'
-        return why, V1, margin, None
+        return why, float(V1), margin, None
     amp = max(abs(x0), float(np.abs(x).max()),
               *(abs(float(osc.flow(t0, x0, v0, s)[0])) for s in x_ext))
     return '', float(V1), margin, amp
 
 
-def phase_equation_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+def phase_equation_roots(M: float, K: float, c: float, F0: float, Omega: float,
+                         mass_ratio: float, cor: float,
+                         clearance: float) -> tuple[tuple[int, np.ndarray, str], ...]:
     """Both roots of the phase equation, admissible or not (for diagnostics and tests).
 
     Parameters are those of :func:`symmetric_two_impact_orbit`.
@@ -430,7 +463,8 @@ def phase_equation_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance):
     return tuple(out)
 
 
-def _candidates(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+def _candidates(M: float, K: float, c: float, F0: float, Omega: float, mass_ratio: float,
+                cor: float, clearance: float) -> tuple[list[SymmetricTwoImpactOrbit], list[str]]:
     """All admissible orbits and the reasons the other candidates failed."""
     osc, roots, why = _phase_roots(M, K, c, F0, Omega, mass_ratio, cor, clearance)
     if not roots:
@@ -442,6 +476,7 @@ def _candidates(M, K, c, F0, Omega, mass_ratio, cor, clearance):
         if why:
             reasons.append(f'branch {branch:+d} (alpha = {osc.Omega * t0:.6f} rad): {why}')
             continue
+        assert margin is not None and amp is not None   # admissible: both were measured
         mult = _multipliers(osc, D, mu, e, np.array([t0, x0, v0, w0]))
         orbits.append(SymmetricTwoImpactOrbit(
             M=float(M), K=float(K), c=float(c), F0=float(F0), Omega=float(Omega),
@@ -454,7 +489,9 @@ def _candidates(M, K, c, F0, Omega, mass_ratio, cor, clearance):
     return orbits, reasons
 
 
-def symmetric_two_impact_orbits(M, K, c, F0, Omega, mass_ratio, cor, clearance):
+def symmetric_two_impact_orbits(M: float, K: float, c: float, F0: float, Omega: float,
+                                mass_ratio: float, cor: float,
+                                clearance: float) -> tuple[SymmetricTwoImpactOrbit, ...]:
     """All symmetric two-impact orbits (at most two), stable ones first.
 
     Parameters are those of :func:`symmetric_two_impact_orbit`.
@@ -468,7 +505,9 @@ def symmetric_two_impact_orbits(M, K, c, F0, Omega, mass_ratio, cor, clearance):
     return tuple(sorted(orbits, key=lambda o: (not o.stable, o.spectral_radius)))
 
 
-def symmetric_two_impact_orbit(M, K, c, F0, Omega, mass_ratio, cor, clearance, *, branch=None):
+def symmetric_two_impact_orbit(M: float, K: float, c: float, F0: float, Omega: float,
+                               mass_ratio: float, cor: float, clearance: float, *,
+                               branch: int | None = None) -> SymmetricTwoImpactOrbit:
     """Symmetric two-impacts-per-cycle steady state of the SDOF impact damper.
 
     Parameters
@@ -514,11 +553,12 @@ def symmetric_two_impact_orbit(M, K, c, F0, Omega, mass_ratio, cor, clearance, *
 
 
 # --------------------------------------------------------------------------- the orbit in time
-def _osc_of(orbit):
+def _osc_of(orbit: SymmetricTwoImpactOrbit) -> _Oscillator:
     return _Oscillator(orbit.M, orbit.K, orbit.c, orbit.F0, orbit.Omega)
 
 
-def orbit_state(orbit, t):
+def orbit_state(orbit: SymmetricTwoImpactOrbit,
+                t: npt.ArrayLike) -> tuple[float, ...] | tuple[np.ndarray, ...]:
     """State on the periodic orbit at time(s) ``t``.
 
     Parameters
@@ -551,7 +591,8 @@ def orbit_state(orbit, t):
 
 
 # --------------------------------------------------------------------------- the half-cycle map
-def _half_map_jacobian(osc, D, mu, e, s):
+def _half_map_jacobian(osc: _Oscillator, D: float, mu: float, e: float,
+                       s: np.ndarray) -> npt.NDArray[np.float64]:
     t0, x0, v0, w0 = s
     h = np.pi / osc.Omega
     t1 = t0 + h  # valid at the fixed point; the Jacobian is only used there

@@ -23,9 +23,11 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -82,16 +84,16 @@ class ModalBasis:
     _damping: np.ndarray = field(repr=False)
 
     @property
-    def n_modes(self):
+    def n_modes(self) -> int:
         """int: Number of retained modes."""
         return self.omega.size
 
     @property
-    def frequencies_hz(self):
+    def frequencies_hz(self) -> np.ndarray:
         """ndarray: Natural frequencies (Hz)."""
         return self.omega / (2.0 * np.pi)
 
-    def rows(self, active_indices):
+    def rows(self, active_indices: npt.ArrayLike) -> np.ndarray:
         """Return mode-shape values at the given active DOFs.
 
         Slave (massless) DOFs are recovered through the condensation, ``u_s = T u_m``. Only
@@ -109,7 +111,7 @@ class ModalBasis:
         """
         return self.condensation.recovery(active_indices) @ self.shapes
 
-    def rows_at(self, pairs):
+    def rows_at(self, pairs: Iterable[tuple[int, int | str]]) -> np.ndarray:
         """Return mode-shape values at DOFs named by ``(node, component)``.
 
         Parameters
@@ -124,22 +126,22 @@ class ModalBasis:
         """
         return self.rows([self.system.index(node, comp) for node, comp in pairs])
 
-    def stiffness_matrix(self):
+    def stiffness_matrix(self) -> np.ndarray:
         """Return the modal stiffness ``diag(omega^2) + Phi^T K_skew Phi`` (1/s^2), (n, n)."""
         return self._stiffness.copy()
 
-    def damping_matrix(self):
+    def damping_matrix(self) -> np.ndarray:
         """Return the modal damping ``diag(2 zeta omega) + Phi^T C Phi`` (1/s), (n, n)."""
         return self._damping.copy()
 
-    def coupling_is_diagonal(self):
+    def coupling_is_diagonal(self) -> bool:
         """Return True if both modal matrices are diagonal to 1e-14 of their largest entry.
 
         Then every mode can be integrated on its own (closed-form oscillator flows).
         """
         return _is_diagonal(self._stiffness) and _is_diagonal(self._damping)
 
-    def impulse_mobility(self, active_indices):
+    def impulse_mobility(self, active_indices: npt.ArrayLike) -> np.ndarray:
         """Return ``R R^T``: velocity jump per unit impulse at the given DOFs (1/kg).
 
         Parameters
@@ -155,7 +157,7 @@ class ModalBasis:
         r = self.rows(active_indices)
         return r @ r.T
 
-    def effective_mass(self, active_indices):
+    def effective_mass(self, active_indices: npt.ArrayLike) -> float | np.ndarray:
         """Return the driving-point effective mass seen by an impactor.
 
         Parameters
@@ -180,8 +182,10 @@ class ModalBasis:
         raise ValueError(f'effective_mass takes one or two DOFs, got {mob.shape[0]}')
 
 
-def modal_reduction(system, *, n_modes=None, f_max=None, zeta=0.0, zeta_overrides=None,
-                    method='auto'):
+def modal_reduction(system: AssembledSystem, *, n_modes: int | None = None,
+                    f_max: float | None = None, zeta: float = 0.0,
+                    zeta_overrides: Mapping[int, float] | None = None,
+                    method: str = 'auto') -> ModalBasis:
     """Condense and reduce ``system`` to a mass-normalized modal basis.
 
     Parameters
@@ -261,7 +265,8 @@ def modal_reduction(system, *, n_modes=None, f_max=None, zeta=0.0, zeta_override
     return _make_basis(system, cond, omega, phi, zeta, zeta_overrides, reason)
 
 
-def harmonic_response(basis, force_rows, output_rows, Omega):
+def harmonic_response(basis: ModalBasis, force_rows: npt.ArrayLike, output_rows: npt.ArrayLike,
+                      Omega: npt.ArrayLike) -> npt.NDArray[np.complex128]:
     """Return the receptance of the modal model, modal couplings included.
 
     Parameters
@@ -297,7 +302,9 @@ def harmonic_response(basis, force_rows, output_rows, Omega):
     return out
 
 
-def full_harmonic_response(system, force_index, output_index, Omega):
+def full_harmonic_response(system: AssembledSystem, force_index: int,
+                           output_index: npt.ArrayLike,
+                           Omega: npt.ArrayLike) -> complex | npt.NDArray[np.complex128]:
     """Return the receptance of the physical (uncondensed, sparse) model.
 
     Solves ``(K - Omega^2 M + i Omega C) u = e_force`` directly; massless DOFs need no special
@@ -339,7 +346,9 @@ def full_harmonic_response(system, force_index, output_index, Omega):
 
 # --- helpers -----------------------------------------------------------------------------
 
-def _make_basis(system, cond, omega, phi, zeta, zeta_overrides, reason):
+def _make_basis(system: AssembledSystem, cond: Condensation, omega: np.ndarray,
+                phi: np.ndarray, zeta: float, zeta_overrides: Mapping[int, float] | None,
+                reason: str) -> ModalBasis:
     """Assemble a read-only :class:`ModalBasis` and its modal coupling matrices."""
     n = omega.size
     zetas = np.full(n, zeta)
@@ -357,7 +366,8 @@ def _make_basis(system, cond, omega, phi, zeta, zeta_overrides, reason):
                       selection_reason=reason, system=system, _stiffness=stiff, _damping=damp)
 
 
-def _solve_dense(K, M, n_modes, f_max, scale):
+def _solve_dense(K: np.ndarray, M: np.ndarray, n_modes: int | None, f_max: float | None,
+                 scale: float) -> tuple[np.ndarray, np.ndarray]:
     """Lowest eigenpairs with LAPACK; returns (eigenvalues (rad/s)^2, M-normalized vectors)."""
     try:
         if n_modes is not None:
@@ -371,12 +381,15 @@ def _solve_dense(K, M, n_modes, f_max, scale):
                          f'kept as master must carry mass') from exc
 
 
-def _solve_sparse(K, M, n_modes, f_max, scale):
+def _solve_sparse(K: np.ndarray, M: np.ndarray, n_modes: int | None, f_max: float | None,
+                  scale: float) -> tuple[np.ndarray, np.ndarray]:
     """Lowest eigenpairs by shift-invert Lanczos, then a Rayleigh-Ritz step for exact M-norm."""
     n = K.shape[0]
     Ks = sp.csc_matrix(K)
     Ms = sp.csc_matrix(M)
     sigma = -1e-9 * scale   # just below zero: K - sigma M stays factorizable with rigid modes
+    if n_modes is None and f_max is None:   # every mode: no cut-off for Lanczos to reach
+        return _solve_dense(K, M, n_modes, f_max, scale)
     k = n_modes if n_modes is not None else min(n - 1, 20)
     while True:
         if k >= n - 1:
@@ -385,7 +398,7 @@ def _solve_sparse(K, M, n_modes, f_max, scale):
                                 v0=lanczos_start(n))
         order = np.argsort(vals)
         vals, vecs = vals[order], vecs[:, order]
-        if n_modes is not None or vals[-1] > (2 * np.pi * f_max) ** 2:
+        if n_modes is not None or f_max is None or vals[-1] > (2 * np.pi * f_max) ** 2:
             break
         k = min(2 * k, n - 1)
     # Rayleigh-Ritz on the Lanczos subspace restores M-orthonormality to rounding
@@ -397,7 +410,7 @@ def _solve_sparse(K, M, n_modes, f_max, scale):
     return lam, phi
 
 
-def _eigen_scale(K, M):
+def _eigen_scale(K: np.ndarray, M: np.ndarray) -> float:
     """Return ``max(K_ii/M_ii)``, a lower bound of the largest eigenvalue ((rad/s)^2)."""
     d_m = np.diag(M)
     with np.errstate(divide='ignore', invalid='ignore'):
@@ -405,7 +418,7 @@ def _eigen_scale(K, M):
     return float(max(ratios.max(initial=0.0), np.finfo(float).tiny))
 
 
-def lanczos_start(n):
+def lanczos_start(n: int) -> npt.NDArray[np.float64]:
     """Return the fixed start vector of every ``eigsh`` call, shape (n,).
 
     Without one, ``eigsh`` draws a random start (SciPy >= 1.15 from OS entropy, older
@@ -417,7 +430,7 @@ def lanczos_start(n):
     return np.random.default_rng(_LANCZOS_SEED).uniform(-1.0, 1.0, int(n))
 
 
-def _canonical_basis(lam, phi):
+def _canonical_basis(lam: np.ndarray, phi: np.ndarray) -> npt.NDArray[np.float64]:
     """Give each degenerate eigenspace a basis fixed by the space, not by the solver.
 
     Eigenvalues within :data:`DEGENERATE_RTOL` of their neighbour form a cluster; an
@@ -443,7 +456,7 @@ def _canonical_basis(lam, phi):
     return phi
 
 
-def _canonical_span(phi):
+def _canonical_span(phi: np.ndarray) -> npt.NDArray[np.float64]:
     """Canonical orthonormal basis of the span of ``phi``'s columns (see above)."""
     a = phi.T.copy()        # (m, n_dof): column j holds every mode's amplitude at DOF j
     m = a.shape[0]
@@ -459,7 +472,7 @@ def _canonical_span(phi):
     return phi @ q
 
 
-def _fix_signs(phi):
+def _fix_signs(phi: np.ndarray) -> npt.NDArray[np.float64]:
     """Make each mode's largest-magnitude entry positive, so bases are reproducible."""
     phi = np.array(phi, dtype=float)
     idx = np.argmax(np.abs(phi), axis=0)
@@ -468,7 +481,7 @@ def _fix_signs(phi):
     return phi * signs
 
 
-def _reason(omega, n_modes, f_max, n_master):
+def _reason(omega: np.ndarray, n_modes: int | None, f_max: float | None, n_master: int) -> str:
     """Return the human-readable selection reason."""
     f_top = omega[-1] / (2 * np.pi)
     n = omega.size
@@ -486,14 +499,14 @@ def _reason(omega, n_modes, f_max, n_master):
             f'highest {f_top:.6g} Hz')
 
 
-def _is_diagonal(a):
+def _is_diagonal(a: np.ndarray) -> bool:
     """Return True if the off-diagonal of ``a`` is below 1e-14 of its largest entry."""
     scale = np.abs(a).max(initial=0.0)
     off = np.abs(a - np.diag(np.diag(a))).max(initial=0.0)
     return bool(off <= DIAGONAL_RTOL * scale)
 
 
-def _check_n_modes(n_modes):
+def _check_n_modes(n_modes: object) -> None:
     """Validate ``n_modes``: None or an integer >= 1."""
     if n_modes is None:
         return
@@ -503,7 +516,7 @@ def _check_n_modes(n_modes):
         raise ValueError(f'n_modes={n_modes} must be >= 1')
 
 
-def _check_f_max(f_max):
+def _check_f_max(f_max: object) -> None:
     """Validate ``f_max``: None or a finite frequency > 0 Hz."""
     if f_max is None:
         return
@@ -513,7 +526,7 @@ def _check_f_max(f_max):
         raise ValueError(f'f_max={f_max!r} Hz must be finite and > 0')
 
 
-def _check_ratio(name, value):
+def _check_ratio(name: str, value: object) -> float:
     """Validate a damping ratio: a real number in [0, 1). Returns it as float."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f'{name} must be a damping ratio in [0, 1), got {value!r}')
@@ -523,7 +536,7 @@ def _check_ratio(name, value):
     return value
 
 
-def _check_overrides(overrides, n):
+def _check_overrides(overrides: object, n: int) -> dict[int, float]:
     """Validate ``zeta_overrides`` against ``n`` retained modes; returns {int: float}."""
     if overrides is None:
         return {}

@@ -6,11 +6,15 @@ an isotropic Jeffcott rotor this happens exactly at ``Kcc = c omega_n``.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg as sla
 
 
-def state_matrix(K_m, C_m, M_m=None):
+def state_matrix(K_m: npt.ArrayLike, C_m: npt.ArrayLike,
+                 M_m: npt.ArrayLike | None = None) -> npt.NDArray[np.float64]:
     """Return the first-order state matrix of ``M q'' + C q' + K q = 0``.
 
     Parameters
@@ -42,7 +46,8 @@ def state_matrix(K_m, C_m, M_m=None):
     return np.block([[np.zeros((n, n)), np.eye(n)], [-m_k, -m_c]])
 
 
-def least_damped_eigenvalue(K_m, C_m, M_m=None):
+def least_damped_eigenvalue(K_m: npt.ArrayLike, C_m: npt.ArrayLike,
+                            M_m: npt.ArrayLike | None = None) -> complex:
     """Return the eigenvalue of the state matrix with the largest real part.
 
     Parameters
@@ -62,7 +67,9 @@ def least_damped_eigenvalue(K_m, C_m, M_m=None):
     return complex(candidates[np.argmax(candidates.imag)])
 
 
-def onset_cross_coupling(build_basis_for_kcc, lo, hi, rtol=1e-6, max_iter=200):
+def onset_cross_coupling(build_basis_for_kcc: Callable[[float], tuple[npt.ArrayLike, ...]],
+                         lo: float, hi: float, rtol: float = 1e-6,
+                         max_iter: int = 200) -> float:
     """Find the cross-coupled stiffness at which the model loses stability, by bisection.
 
     Parameters
@@ -89,7 +96,7 @@ def onset_cross_coupling(build_basis_for_kcc, lo, hi, rtol=1e-6, max_iter=200):
     if not lo < hi:
         raise ValueError(f'bracket lo={lo:g} N/m must be below hi={hi:g} N/m')
 
-    def growth(kcc):
+    def growth(kcc: float) -> float:
         return least_damped_eigenvalue(*build_basis_for_kcc(kcc)).real
 
     g_lo, g_hi = growth(lo), growth(hi)

@@ -18,16 +18,19 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 from impact_damper_sim.fem.system import AssembledSystem
 from impact_damper_sim.modal.basis import ModalBasis, modal_reduction
 
 
-def add_point_mass(system, active_indices, mass):
+def add_point_mass(system: AssembledSystem, active_indices: npt.ArrayLike,
+                   mass: float) -> AssembledSystem:
     """Return a copy of ``system`` with ``mass`` added on the diagonal at each given DOF.
 
     Parameters
@@ -67,8 +70,10 @@ def add_point_mass(system, active_indices, mass):
                            dofs=system.dofs)
 
 
-def stuck_basis(system, active_indices, mass, *, n_modes=None, f_max=None, zeta=0.0,
-                zeta_overrides=None, method='auto'):
+def stuck_basis(system: AssembledSystem, active_indices: npt.ArrayLike, mass: float, *,
+                n_modes: int | None = None, f_max: float | None = None, zeta: float = 0.0,
+                zeta_overrides: Mapping[int, float] | None = None,
+                method: str = 'auto') -> tuple[ModalBasis, ModalBasis]:
     """Return the free basis and the stuck basis (impactor mass added).
 
     The free basis is selected by ``n_modes``/``f_max`` as in :func:`modal_reduction`; the
@@ -115,7 +120,7 @@ def stuck_basis(system, active_indices, mass, *, n_modes=None, f_max=None, zeta=
     return free, replace(stuck, selection_reason=reason)
 
 
-def switch_matrices(free, stuck):
+def switch_matrices(free: ModalBasis, stuck: ModalBasis) -> tuple[np.ndarray, np.ndarray]:
     """Return ``(B Phi_f, A Phi_s)`` for two bases of the same structure (paper Eq. 2.3.13-14).
 
     Works when the two systems have different master sets (a massless DOF that receives the
@@ -142,7 +147,7 @@ def switch_matrices(free, stuck):
     return free_to_stuck, stuck_to_free
 
 
-def round_trip_error(free, stuck):
+def round_trip_error(free: ModalBasis, stuck: ModalBasis) -> float:
     """Measure how far a free -> stuck -> free switch is from the identity.
 
     Returns ``||(A Phi_s)(B Phi_f) - I||_2`` (spectral norm, dimensionless). It is at
@@ -184,27 +189,27 @@ class StuckTransforms:
     stuck_to_free: np.ndarray
 
     @classmethod
-    def from_bases(cls, free, stuck):
+    def from_bases(cls, free: ModalBasis, stuck: ModalBasis) -> StuckTransforms:
         """Build the transforms from a free and a stuck basis (see :func:`switch_matrices`)."""
         to_stuck, to_free = switch_matrices(free, stuck)
         to_stuck.setflags(write=False)
         to_free.setflags(write=False)
         return cls(free=free, stuck=stuck, free_to_stuck=to_stuck, stuck_to_free=to_free)
 
-    def to_stuck(self, q, qdot):
+    def to_stuck(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Map free modal displacement (m sqrt(kg)) and velocity (m sqrt(kg)/s) to stuck."""
         return self.free_to_stuck @ q, self.free_to_stuck @ qdot
 
-    def to_free(self, q, qdot):
+    def to_free(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Map stuck modal displacement (m sqrt(kg)) and velocity (m sqrt(kg)/s) to free."""
         return self.stuck_to_free @ q, self.stuck_to_free @ qdot
 
-    def round_trip_error(self):
+    def round_trip_error(self) -> float:
         """Return ``||(A Phi_s)(B Phi_f) - I||_2`` (dimensionless), as :func:`round_trip_error`."""
         product = self.stuck_to_free @ self.free_to_stuck
         return float(np.linalg.norm(product - np.eye(product.shape[0]), 2))
 
-    def switch_loss(self, q, qdot):
+    def switch_loss(self, q: npt.ArrayLike, qdot: npt.ArrayLike) -> float:
         """Return the relative energy lost by a free -> stuck -> free round trip.
 
         The energy is that of the free modal model,

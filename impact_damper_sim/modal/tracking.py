@@ -15,15 +15,17 @@ no scene or studies import.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg as sla
 
-from .whirl import OSCILLATORY_RTOL, ROUNDOFF_RTOL, Eigenvalues, RotorModel, whirl_modes
+from .whirl import OSCILLATORY_RTOL, ROUNDOFF_RTOL, Eigenvalues, RotorModel, WhirlModes, whirl_modes
 
 
-def mac(M, a, b):
+def mac(M: np.ndarray, a: np.ndarray, b: np.ndarray) -> npt.NDArray[np.float64]:
     """Mass-weighted modal assurance criterion between two sets of shapes.
 
     Parameters
@@ -79,12 +81,12 @@ class Campbell(Eigenvalues):
     growth: np.ndarray
 
     @property
-    def n_branches(self):
+    def n_branches(self) -> int:
         """int: Number of branches."""
         return self.eigenvalues.shape[1]
 
 
-def campbell(rotor, speeds):
+def campbell(rotor: RotorModel, speeds: npt.ArrayLike) -> Campbell:
     """Whirl modes over spin speed, each branch followed by its shape.
 
     Parameters
@@ -169,14 +171,16 @@ class CriticalSpeed:
     log_dec: float
 
 
-def _tracked(rotor, speed, reference):
+def _tracked(rotor: RotorModel, speed: float,
+             reference: np.ndarray) -> tuple[WhirlModes, int]:
     """The mode at ``speed`` whose shape matches ``reference`` best (MAC)."""
     modes = whirl_modes(rotor, speed)
     j = int(np.argmax(mac(rotor.M, reference[:, None], modes.shapes)[0]))
     return modes, j
 
 
-def critical_speeds(data, harmonics=(1.0,)):
+def critical_speeds(data: Campbell,
+                    harmonics: Iterable[float] = (1.0,)) -> list[CriticalSpeed]:
     """Return where each branch's damped frequency meets each harmonic line.
 
     Between two speeds where ``omega_d - h Omega`` changes sign, the crossing is refined by
@@ -211,7 +215,7 @@ def critical_speeds(data, harmonics=(1.0,)):
                 if g1 == 0:
                     crossing = speeds[k + 1]
                 else:
-                    def g(s, reference=reference, h=h):
+                    def g(s: float, reference: np.ndarray = reference, h: float = h) -> float:
                         modes, j = _tracked(rotor, s, reference)
                         return modes.eigenvalues[j].imag - h * s
                     crossing = brentq(g, speeds[k], speeds[k + 1],
@@ -250,14 +254,14 @@ class Onset:
     direction: str | None
 
 
-def _growth(rotor, speed):
+def _growth(rotor: RotorModel, speed: float) -> float:
     """:attr:`WhirlModes.growth` at ``speed`` (dimensionless), eigenvalues only."""
     lam = sla.eigvals(rotor.state_matrix(speed))
     scale = np.where(np.abs(lam) > 0, np.abs(lam), 1.0)
     return float((lam.real / scale).max())
 
 
-def instability_onset(data, rtol=1e-10):
+def instability_onset(data: Campbell, rtol: float = 1e-10) -> Onset | None:
     """Return the first speed of the range where the model is unstable, or None.
 
     Unstable: an eigenvalue with ``Re(lambda) > ROUNDOFF_RTOL |lambda|`` (a negative log

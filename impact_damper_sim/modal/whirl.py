@@ -40,12 +40,22 @@ matrices (modal or physical) and orbit stations; :func:`modal_rotor` and
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg as sla
 
 from .stability import state_matrix
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+    from impact_damper_sim.fem.system import AssembledSystem
+
+    from .basis import ModalBasis
 
 #: ``|kappa|`` at or below this is a planar (non-whirling) mode.
 PLANAR_TOL = 1e-6
@@ -84,7 +94,7 @@ class OrbitStations:
     z_rows: np.ndarray
     weights: np.ndarray
 
-    def select(self, kind):
+    def select(self, kind: str) -> OrbitStations:
         """Return the stations of one kind (``'translation'`` or ``'tilt'``).
 
         Parameters
@@ -130,11 +140,11 @@ class RotorModel:
     spin_axis: bool = True
 
     @property
-    def n(self):
+    def n(self) -> int:
         """int: Number of coordinates."""
         return self.K.shape[0]
 
-    def state_matrix(self, speed):
+    def state_matrix(self, speed: float) -> npt.NDArray[np.float64]:
         """Return the first-order state matrix at spin speed ``speed`` (rad/s)."""
         return state_matrix(self.K, self.C + float(speed) * self.G, self.M)
 
@@ -146,17 +156,17 @@ class Eigenvalues:
     eigenvalues: np.ndarray   # provided by the class it is mixed into
 
     @property
-    def frequency_hz(self):
+    def frequency_hz(self) -> npt.NDArray[np.float64]:
         """ndarray: Damped natural frequencies ``Im(lambda) / (2 pi)`` (Hz)."""
         return self.eigenvalues.imag / (2.0 * np.pi)
 
     @property
-    def log_dec(self):
+    def log_dec(self) -> npt.NDArray[np.float64]:
         """ndarray: Logarithmic decrements ``-2 pi sigma / omega_d`` (dimensionless)."""
         return log_decrement(self.eigenvalues)
 
     @property
-    def damping_ratio(self):
+    def damping_ratio(self) -> npt.NDArray[np.float64]:
         """ndarray: Damping ratios ``-sigma / |lambda|`` (dimensionless)."""
         return damping_ratio(self.eigenvalues)
 
@@ -195,12 +205,12 @@ class WhirlModes(Eigenvalues):
     growth: float
 
 
-def _real_part(lam):
+def _real_part(lam: np.ndarray) -> npt.NDArray[np.float64]:
     """``Re(lambda)`` with the rounding of undamped modes set to 0 (1/s)."""
     return np.where(np.abs(lam.real) <= ROUNDOFF_RTOL * np.abs(lam), 0.0, lam.real)
 
 
-def log_decrement(eigenvalues):
+def log_decrement(eigenvalues: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Return ``-2 pi Re(lambda) / |Im(lambda)|`` (dimensionless; nan for real eigenvalues).
 
     Parameters
@@ -218,7 +228,7 @@ def log_decrement(eigenvalues):
                         np.nan) + 0.0   # + 0.0: no -0.0 for an undamped mode
 
 
-def damping_ratio(eigenvalues):
+def damping_ratio(eigenvalues: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Return ``-Re(lambda) / |lambda|`` (dimensionless).
 
     Parameters
@@ -235,7 +245,8 @@ def damping_ratio(eigenvalues):
         return -_real_part(lam) / np.abs(lam) + 0.0
 
 
-def orbit_radii(stations, shapes):
+def orbit_radii(stations: OrbitStations, shapes: npt.ArrayLike
+                ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Return the forward and backward orbit radii of modes at the stations.
 
     Parameters
@@ -257,7 +268,7 @@ def orbit_radii(stations, shapes):
     return np.abs(Y + 1j * Z) / 2.0, np.abs(Y - 1j * Z) / 2.0
 
 
-def whirl_index(stations, shapes):
+def whirl_index(stations: OrbitStations, shapes: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Return the whirl index ``kappa`` of modes (see the module docstring).
 
     Parameters
@@ -280,7 +291,8 @@ def whirl_index(stations, shapes):
         return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
 
 
-def direction(kappa, speed, spin_axis=True, tol=PLANAR_TOL):
+def direction(kappa: float, speed: float, spin_axis: bool = True,
+              tol: float = PLANAR_TOL) -> str:
     """Whirl direction of a mode from its whirl index.
 
     Parameters
@@ -306,7 +318,7 @@ def direction(kappa, speed, spin_axis=True, tol=PLANAR_TOL):
     return 'forward' if kappa * spin > 0 else 'backward'
 
 
-def whirl_modes(rotor, speed):
+def whirl_modes(rotor: RotorModel, speed: float) -> WhirlModes:
     """Return the damped whirl modes of ``rotor`` at spin speed ``speed``.
 
     Parameters
@@ -336,13 +348,14 @@ def whirl_modes(rotor, speed):
     return WhirlModes(speed, lam, shapes, kappa, dirs, n_real, growth)
 
 
-def _mass_normalized(M, shapes):
+def _mass_normalized(M: np.ndarray, shapes: np.ndarray) -> np.ndarray:
     """Scale each column to ``v^H M v = 1``."""
     norms = np.sqrt(np.abs(np.einsum('im,ij,jm->m', shapes.conj(), M, shapes)))
     return shapes / np.where(norms > 0, norms, 1.0)
 
 
-def _resolve_degenerate(rotor, lam, shapes):
+def _resolve_degenerate(rotor: RotorModel, lam: np.ndarray,
+                        shapes: np.ndarray) -> np.ndarray:
     """In each cluster of equal eigenvalues, the combinations of extreme whirl index."""
     st = rotor.stations
     out = shapes.copy()
@@ -372,7 +385,8 @@ def _resolve_degenerate(rotor, lam, shapes):
 
 # --- models from a modal basis or an assembled system ----------------------------------------
 
-def gyroscopic_matrix(system, polar_inertia):
+def gyroscopic_matrix(system: AssembledSystem,
+                      polar_inertia: Mapping[int, float]) -> sp.csr_matrix:
     """Return the gyroscopic matrix per unit spin speed of spinning nodes, sparse.
 
     A disk of polar inertia ``Ip`` spinning at ``Omega`` about +X adds ``Ip Omega theta_z'``
@@ -407,7 +421,8 @@ def gyroscopic_matrix(system, polar_inertia):
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
 
 
-def orbit_stations(system, recovery):
+def orbit_stations(system: AssembledSystem,
+                   recovery: Callable[[list[int]], np.ndarray]) -> OrbitStations:
     """Return the orbit stations of every node that moves laterally.
 
     A node with both ``uy`` and ``uz`` active is a translation station weighted by its mass;
@@ -454,7 +469,8 @@ def orbit_stations(system, recovery):
                          weights)
 
 
-def modal_rotor(basis, gyroscopic=None, *, spin_axis=True):
+def modal_rotor(basis: ModalBasis, gyroscopic: sp.spmatrix | None = None, *,
+                spin_axis: bool = True) -> RotorModel:
     """Return the rotating model in the coordinates of a modal basis.
 
     Parameters
@@ -485,7 +501,8 @@ def modal_rotor(basis, gyroscopic=None, *, spin_axis=True):
                       stations=orbit_stations(basis.system, basis.rows), spin_axis=spin_axis)
 
 
-def condensed_rotor(system, gyroscopic=None, *, spin_axis=True):
+def condensed_rotor(system: AssembledSystem, gyroscopic: sp.spmatrix | None = None, *,
+                    spin_axis: bool = True) -> RotorModel:
     """Return the rotating model over every DOF with mass (no modal truncation).
 
     The massless DOFs are condensed statically (:meth:`AssembledSystem.condense`); the
