@@ -149,16 +149,25 @@ def test_readme_monitor_lines_are_the_monitors(node):
     ('examples/batch_subscriber.py', 'accel/hpotp_casing_bottom/batch', 1),
     ('examples/imu_subscriber.py', 'accel/hpotp_casing_bottom', 2)])
 def test_example_prints_the_stream(node, path, topic, rate_at):
-    """Three lines, each: the topic, the node's rate (from its start-up line) within 5 %, a
-    finite non-zero rms; then Ctrl-C ends it with status 0. The Imu is best effort: its
-    reader may lose samples on a loaded machine, so its rate is checked on the median line."""
+    """Three lines or more, each: the topic, the node's rate (from its start-up line) within
+    5 %, a finite non-zero rms; then Ctrl-C ends it with status 0. The Imu is best effort: its
+    reader may lose samples when the machine is loaded (seen: one run in three, 5 helpers on
+    2 cores), which only lowers a count; so for it no line may be above 5 % and one at least
+    within, waited for up to 60 s."""
     env, line = node
     rates = re.search(r'at (\d+) Hz \(per-sample Imu at (\d+) Hz\)', line).groups()
     rate = float(rates[rate_at - 1])
     form = re.compile(rf'^{re.escape(topic)}: (\d+) samples/s, rms ay (\S+) m/s\^2$')
+    def within(line):
+        return abs(float(form.match(line).group(1)) / rate - 1.0) <= 0.05
+
+    def enough(lines):
+        printed = [ln for ln in lines if form.match(ln)]
+        return len(printed) >= 3 and any(within(ln) for ln in printed)
+
     proc = Proc([sys.executable, str(ROOT / path)], env)
     try:
-        proc.wait_for(lambda lines: len([ln for ln in lines if form.match(ln)]) >= 3, 60.0)
+        proc.wait_for(enough, 60.0)
     finally:
         status = proc.interrupt()
     out = ''.join(proc.lines)
@@ -167,8 +176,11 @@ def test_example_prints_the_stream(node, path, topic, rate_at):
     assert len(found) >= 3 and all(found), out   # every line has the README's form
     counts = np.array([float(m.group(1)) for m in found])
     rms = np.array([float(m.group(2)) for m in found])
-    checked = counts if rate_at == 1 else np.median(counts)
-    assert np.all(np.abs(checked / rate - 1.0) <= 0.05), (rate, out)
+    if rate_at == 1:   # reliable: every sample arrives
+        assert np.all(np.abs(counts / rate - 1.0) <= 0.05), (rate, out)
+    else:
+        assert np.all(counts <= 1.05 * rate) and np.any(np.abs(counts / rate - 1.0) <= 0.05), \
+            (rate, out)
     assert all(math.isfinite(r) and r > 0 for r in rms), out
 
 
