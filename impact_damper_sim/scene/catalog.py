@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 import impact_damper_sim
 
@@ -27,7 +29,7 @@ _NAME_RE = re.compile(r'[A-Za-z0-9][A-Za-z0-9_.-]*')
 
 # --- finding scene files ------------------------------------------------------------------
 
-def scene_dirs():
+def scene_dirs() -> list[Path]:
     """Return the directories searched for scene names, in search order.
 
     The source tree's ``config/scenes`` first (editable installs, checkouts), then the
@@ -52,17 +54,17 @@ def scene_dirs():
     return out
 
 
-def available_scenes():
+def available_scenes() -> list[str]:
     """Return the names of the ready-made scenes (sorted list of str)."""
     return sorted({p.stem for d in scene_dirs() for p in d.glob('*.yaml')})
 
 
-def _is_path(text):
+def _is_path(text: str | os.PathLike[str]) -> bool:
     return (isinstance(text, os.PathLike) or '/' in text or os.sep in text
             or text.endswith(('.yaml', '.yml')))
 
 
-def resolve_scene(scene_name_or_path):
+def resolve_scene(scene_name_or_path: str | os.PathLike[str]) -> Path:
     """Return the file of a scene given by name (``'sdof'``) or path.
 
     Parameters
@@ -105,7 +107,8 @@ def resolve_scene(scene_name_or_path):
                      'or give a path to a .yaml file')
 
 
-def validated(scene_name_or_path, overrides=()):
+def validated(scene_name_or_path: str | os.PathLike[str],
+              overrides: Iterable[str] = ()) -> tuple[dict[str, Any], Path]:
     """Read, override and validate a scene file without building it.
 
     Parameters

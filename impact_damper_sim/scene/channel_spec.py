@@ -91,10 +91,15 @@ from __future__ import annotations
 import copy
 import difflib
 import math
+from collections.abc import Iterator, Mapping
+from typing import TYPE_CHECKING, Any
 
 from .containers import Optional, Section, Vector
-from .schema import _INVALID, Choice, Field, Integer, Quantity, _Errors, _got, _join
+from .schema import _INVALID, Choice, Field, Integer, KeyInfo, Quantity, _Errors, _got, _join
 from .units import SI_UNIT
+
+if TYPE_CHECKING:
+    from .build import SceneModel
 
 __all__ = ['STAGES', 'PRESETS', 'CHANNEL', 'SENSOR_CHANNEL', 'Channel', 'preset_channel',
            'channel_of', 'accelerometer_channels', 'accelerometer_problems',
@@ -175,7 +180,7 @@ PRESETS = {
 # --- stage keys ----------------------------------------------------------------------------
 
 
-def _check_highpass(values):
+def _check_highpass(values: dict[str, Any]) -> str | None:
     given = [k for k in ('corner', 'time_constant') if values[k] is not None]
     if len(given) != 1:
         return ("give exactly one of 'corner' and 'time_constant' "
@@ -252,7 +257,7 @@ _KEYS = Section({'preset': Choice(_PRESET_NAMES, default='ideal',
                   **{stage: _STAGE_FIELDS[stage] for stage in STAGES}})
 
 
-def _preset_problem(name):
+def _preset_problem(name: object) -> str:
     presets = ' | '.join(_PRESET_NAMES)
     if not isinstance(name, str):
         return f'expected a channel preset name, {_got(name)}; use one of {presets}'
@@ -262,7 +267,7 @@ def _preset_problem(name):
     return f'{name!r} is not a channel preset; {hint}use one of {presets}'
 
 
-def _finish(stage, value):
+def _finish(stage: str, value: Any) -> Any:
     """The resolved form of one valid converted stage value."""
     if stage == 'highpass':
         corner = value['corner']
@@ -274,7 +279,7 @@ def _finish(stage, value):
     return value
 
 
-def _over(preset_value, given):
+def _over(preset_value: object, given: object) -> object:
     """A stage mapping ``given`` over the preset's, key by key (nested mappings too); a
     non-mapping on either side is ``given`` as it is."""
     if not isinstance(preset_value, dict) or not isinstance(given, dict):
@@ -285,7 +290,8 @@ def _over(preset_value, given):
     return out
 
 
-def _resolve(raw, path, errors, presets):
+def _resolve(raw: dict[str, Any], path: str, errors: _Errors,
+             presets: Mapping[str, dict[str, Any]]) -> Any:
     """Resolve a channel mapping against ``presets`` (name -> resolved); _INVALID on errors."""
     before = len(errors)
     for key in raw:
@@ -319,7 +325,7 @@ def _resolve(raw, path, errors, presets):
     return out
 
 
-def _resolve_presets():
+def _resolve_presets() -> dict[str, dict[str, Any]]:
     off = {'preset': 'ideal', **{stage: None for stage in STAGES}}
     resolved = {}
     for name, raw in PRESETS.items():
@@ -335,7 +341,7 @@ def _resolve_presets():
 _RESOLVED = _resolve_presets()
 
 
-def preset_channel(name):
+def preset_channel(name: str) -> dict[str, Any]:
     """Return the resolved channel of a preset.
 
     Parameters
@@ -376,25 +382,25 @@ class Channel(Field):
         ``sensors[].channel`` refers to ``channel``'s).
     """
 
-    def __init__(self, default, doc, rows=True):
+    def __init__(self, default: str | None, doc: str, rows: bool = True) -> None:
         super().__init__(default, doc)
         self.rows = rows
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return 'preset or section'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return f'{" | ".join(_PRESET_NAMES)}, or a mapping'
 
-    def expects(self):
+    def expects(self) -> str:
         return (f'a channel preset ({" | ".join(_PRESET_NAMES)}) or a mapping of preset and '
                 f'stage keys ({", ".join(_KEYS.fields)})')
 
-    def _subfields(self):
+    def _subfields(self) -> tuple[Field, ...]:
         return tuple(_STAGE_FIELDS[stage] for stage in STAGES)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         if isinstance(raw, str):
             if raw not in _RESOLVED:
                 errors.add(path, _preset_problem(raw))
@@ -405,7 +411,7 @@ class Channel(Field):
             return _INVALID
         return _resolve(raw, path, errors, _RESOLVED)
 
-    def _child_rows(self, path):
+    def _child_rows(self, path: str) -> Iterator[KeyInfo]:
         if not self.rows:
             return
         yield from _KEYS.fields['preset']._rows(_join(path, 'preset'))
@@ -430,18 +436,18 @@ SENSOR_CHANNEL = Channel(None, rows=False,
 
 # --- accelerometers ---------------------------------------------------------------------------
 
-def _scene(scene_model):
+def _scene(scene_model: SceneModel | dict[str, Any]) -> dict[str, Any]:
     return scene_model.scene if hasattr(scene_model, 'scene') else scene_model
 
 
-def _by_node(scene):
+def _by_node(scene: dict[str, Any]) -> dict[int, list[tuple[int, dict]]]:
     nodes: dict[int, list[tuple[int, dict]]] = {}
     for i, s in enumerate(scene['sensors']):
         nodes.setdefault(s['node'], []).append((i, s))
     return nodes
 
 
-def _same(a, b):
+def _same(a: object, b: object) -> bool:
     if isinstance(a, float) and isinstance(b, float):
         return math.isclose(a, b, rel_tol=1e-12, abs_tol=0.0)
     if isinstance(a, dict) and isinstance(b, dict):
@@ -451,7 +457,7 @@ def _same(a, b):
     return type(a) is type(b) and a == b
 
 
-def _text(value):
+def _text(value: object) -> str:
     if value is None:
         return 'off'
     if isinstance(value, float):
@@ -463,7 +469,7 @@ def _text(value):
     return str(value)
 
 
-def _label(channel, differing):
+def _label(channel: dict[str, Any], differing: str) -> str:
     text = f"preset {channel['preset']}"
     if differing == 'preset':
         return text
@@ -473,7 +479,7 @@ def _label(channel, differing):
     return f'{text}, {differing} {_text(value)}{unit}'
 
 
-def resonance_problem(channel, band_edge, source=''):
+def resonance_problem(channel: dict[str, Any], band_edge: float, source: str = '') -> str | None:
     """The refusal of a mounted resonance not above the anti-alias band edge, or None.
 
     Parameters
@@ -501,7 +507,7 @@ def resonance_problem(channel, band_edge, source=''):
             'band: raise it, or lower the lowpass')
 
 
-def accelerometer_problems(scene):
+def accelerometer_problems(scene: SceneModel | dict[str, Any]) -> list[tuple[str, str]]:
     """Check every accelerometer's channel against its sensors (run at load).
 
     Parameters
@@ -545,7 +551,7 @@ def accelerometer_problems(scene):
     return problems
 
 
-def channel_of(scene_model, node):
+def channel_of(scene_model: SceneModel | dict[str, Any], node: int) -> dict[str, Any]:
     """The resolved channel of the accelerometer at a node.
 
     Parameters
@@ -579,7 +585,7 @@ def channel_of(scene_model, node):
     return copy.deepcopy(stated[0] if stated else scene['channel'])
 
 
-def accelerometer_channels(scene_model):
+def accelerometer_channels(scene_model: SceneModel | dict[str, Any]) -> dict[int, dict[str, Any]]:
     """The resolved channel of every accelerometer, by node in sensor order.
 
     Parameters

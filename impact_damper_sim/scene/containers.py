@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import copy
 import difflib
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from typing import Any, cast
 
 from .schema import (
     _INVALID,
@@ -15,6 +17,7 @@ from .schema import (
     Choice,
     Field,
     Integer,
+    KeyInfo,
     Quantity,
     String,
     _Errors,
@@ -22,6 +25,10 @@ from .schema import (
     _join,
 )
 from .units import SI_UNIT, UNITS, allowed_units
+
+#: A cross-key check of a :class:`Section` on its converted values (SI, of any type per
+#: key): no problem (None), one, or several messages
+SectionCheck = Callable[[dict[str, Any]], str | Iterable[str] | None]
 
 __all__ = ['Section', 'ListOf', 'Vector', 'MapOf', 'Optional']
 
@@ -45,7 +52,8 @@ class Section(Field):
         string is reported as an error of this section.
     """
 
-    def __init__(self, fields, doc='', checks=()):
+    def __init__(self, fields: Mapping[str, Field], doc: str = '',
+                 checks: Iterable[SectionCheck] = ()) -> None:
         super().__init__({}, doc)
         for name, field in fields.items():
             if not isinstance(name, str) or not isinstance(field, Field):
@@ -53,16 +61,16 @@ class Section(Field):
         self.fields = dict(fields)
         self.checks = tuple(checks)
 
-    def kind(self):
+    def kind(self) -> str:
         return 'section'
 
-    def default_text(self):
+    def default_text(self) -> str:
         return ''
 
-    def _subfields(self):
+    def _subfields(self) -> tuple[Field, ...]:
         return tuple(self.fields.values())
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         if not isinstance(raw, dict):
             errors.add(path, f'expected a mapping with keys {", ".join(self.fields)}; {_got(raw)}')
             return _INVALID
@@ -80,18 +88,18 @@ class Section(Field):
                     errors.add(path, message)
         return out
 
-    def _unknown(self, key):
+    def _unknown(self, key: object) -> str:
         known = list(self.fields)
         close = difflib.get_close_matches(str(key), known, n=1, cutoff=0.6)
         hint = f"; did you mean '{close[0]}'?" if close else ''
         return f'unknown key{hint} (known keys here: {", ".join(known)})'
 
-    def _child_rows(self, path):
+    def _child_rows(self, path: str) -> Iterator[KeyInfo]:
         for name, field in self.fields.items():
             yield from field._rows(_join(path, name))
 
 
-def _item_rows(item, path):
+def _item_rows(item: Field, path: str) -> Iterable[KeyInfo]:
     # A list/map of sections lists the section's keys; of scalars, one row for the item.
     inner = item.field if isinstance(item, Optional) else item
     if isinstance(inner, Section):
@@ -101,7 +109,7 @@ def _item_rows(item, path):
     return [rows[0]._replace(default='')] + rows[1:]
 
 
-def _count_text(lo, hi):
+def _count_text(lo: int, hi: int | None) -> str:
     if hi is None:
         return f'>= {lo} items' if lo else ''
     return f'{lo}..{hi} items'
@@ -122,22 +130,23 @@ class ListOf(Field):
         Description.
     """
 
-    def __init__(self, item, min_len=0, max_len=None, default=REQUIRED, doc=''):
+    def __init__(self, item: Field, min_len: int = 0, max_len: int | None = None,
+                 default: object = REQUIRED, doc: str = '') -> None:
         super().__init__(default, doc)
         self.item = item
         self.min_len, self.max_len = min_len, max_len
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return f'list of {self.item.kind()}'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return _count_text(self.min_len, self.max_len)
 
-    def _subfields(self):
+    def _subfields(self) -> tuple[Field, ...]:
         return (self.item,)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         if not isinstance(raw, list):
             errors.add(path, f'expected a list of {self.item.kind()}, {_got(raw)}')
             return _INVALID
@@ -145,7 +154,7 @@ class ListOf(Field):
             errors.add(path, f'has {len(raw)} items; expected {self.range_text()}')
         return [self.item.resolve(True, v, f'{path}[{i}]', errors) for i, v in enumerate(raw)]
 
-    def _child_rows(self, path):
+    def _child_rows(self, path: str) -> Iterable[KeyInfo]:
         return _item_rows(self.item, f'{path}[]')
 
 
@@ -170,8 +179,9 @@ class Vector(Field):
         Unit the default is shown in by :func:`~.keytable.describe`.
     """
 
-    def __init__(self, dimension, length, default=REQUIRED, min=None, max=None, doc='',
-                 unit=None):
+    def __init__(self, dimension: str, length: int, default: object = REQUIRED,
+                 min: float | str | None = None, max: float | str | None = None, doc: str = '',
+                 unit: str | None = None) -> None:
         super().__init__(default, doc)
         self.component = Quantity(dimension, min=min, max=max, unit=unit)
         self.dimension = dimension
@@ -179,24 +189,25 @@ class Vector(Field):
         self.unit = unit
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return f'{self.length}-vector of {self.dimension}'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return self.component.range_text()
 
-    def expects(self):
+    def expects(self) -> str:
         return f'{super().expects()} (units: {", ".join(allowed_units(self.dimension))})'
 
-    def default_text(self):
+    def default_text(self) -> str:
         if self.default is REQUIRED or self.default is None:
             return super().default_text()
-        values = self._convert(copy.deepcopy(self.default), '', _Errors())
+        # the default was converted when the field was built: a list of SI numbers
+        values = cast(list[float], self._convert(copy.deepcopy(self.default), '', _Errors()))
         unit = self.unit or SI_UNIT[self.dimension]
         factor = UNITS[self.dimension][unit]
         return f'[{", ".join(f"{v / factor:.12g}" for v in values)}] {unit}'.rstrip()
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         items = raw
         if isinstance(raw, dict):
             if set(raw) != {'value', 'unit'} or not isinstance(raw['value'], list):
@@ -234,7 +245,9 @@ class MapOf(Field):
         Description.
     """
 
-    def __init__(self, key, value, min_len=0, max_len=None, default=REQUIRED, doc=''):
+    def __init__(self, key: Integer | String | Choice, value: Field, min_len: int = 0,
+                 max_len: int | None = None, default: object = REQUIRED,
+                 doc: str = '') -> None:
         super().__init__(default, doc)
         if not isinstance(key, (Integer, String, Choice)):
             raise TypeError('MapOf keys must be Integer, String or Choice fields')
@@ -242,18 +255,18 @@ class MapOf(Field):
         self.min_len, self.max_len = min_len, max_len
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return f'map of {self.key.kind()} to {self.value.kind()}'
 
-    def range_text(self):
+    def range_text(self) -> str:
         parts = [f'keys {self.key.range_text()}' if self.key.range_text() else '',
                  _count_text(self.min_len, self.max_len).replace('items', 'entries')]
         return '; '.join(p for p in parts if p)
 
-    def _subfields(self):
+    def _subfields(self) -> tuple[Field, ...]:
         return (self.key, self.value)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         if not isinstance(raw, dict):
             errors.add(path, f'expected a mapping ({self.kind()}), {_got(raw)}')
             return _INVALID
@@ -271,7 +284,7 @@ class MapOf(Field):
                 out[ck] = value
         return out
 
-    def _child_rows(self, path):
+    def _child_rows(self, path: str) -> Iterable[KeyInfo]:
         return _item_rows(self.value, f'{path}.<{self.key.kind()}>')
 
 
@@ -286,24 +299,24 @@ class Optional(Field):
         Description (defaults to the wrapped field's).
     """
 
-    def __init__(self, field, doc=None):
+    def __init__(self, field: Field, doc: str | None = None) -> None:
         super().__init__(None, field.doc if doc is None else doc)
         self.field = field
 
-    def kind(self):
+    def kind(self) -> str:
         return self.field.kind()
 
-    def range_text(self):
+    def range_text(self) -> str:
         return self.field.range_text()
 
-    def expects(self):
+    def expects(self) -> str:
         return self.field.expects()
 
-    def _subfields(self):
+    def _subfields(self) -> tuple[Field, ...]:
         return (self.field,)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         return self.field._convert(raw, path, errors)
 
-    def _child_rows(self, path):
+    def _child_rows(self, path: str) -> Iterable[KeyInfo]:
         return self.field._child_rows(path)

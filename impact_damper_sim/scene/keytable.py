@@ -5,12 +5,13 @@ keys``). It only reads a built schema, never a scene, so it is apart from valida
 from __future__ import annotations
 
 from .containers import Section
+from .schema import Field, KeyInfo
 from .units import SI_UNIT, allowed_units
 
 __all__ = ['describe', 'markdown_table']
 
 
-def describe(schema):
+def describe(schema: Field) -> list[KeyInfo]:
     """List every scene key the schema accepts, for docs and a ``study keys`` command.
 
     Parameters
@@ -29,11 +30,11 @@ def describe(schema):
     return list(rows)
 
 
-def _md(text):
+def _md(text: object) -> str:
     return str(text).replace('|', '\\|').replace('\n', ' ')
 
 
-def markdown_table(schema, *, units=True):
+def markdown_table(schema: Field, *, units: bool = True) -> str:
     """Return a Markdown table of the scene keys (and, optionally, the accepted units).
 
     Parameters

@@ -10,9 +10,15 @@ assembled system and the validated scene only.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from .schema import _Errors
+
+if TYPE_CHECKING:
+    from ..fem.system import AssembledSystem
+    from ..modal import ModalBasis
 
 __all__ = ['MIN_SAMPLES_PER_REVOLUTION', 'auto_cutoff', 'excitation_frequencies']
 
@@ -22,7 +28,8 @@ __all__ = ['MIN_SAMPLES_PER_REVOLUTION', 'auto_cutoff', 'excitation_frequencies'
 MIN_SAMPLES_PER_REVOLUTION = 10
 
 
-def excitation_frequencies(scene, first_hz=None):
+def excitation_frequencies(scene: dict[str, Any],
+                           first_hz: float | None = None) -> list[tuple[str, float]]:
     """The frequencies of interest of a scene, for ``modal.cutoff: auto``.
 
     Parameters
@@ -63,7 +70,8 @@ def excitation_frequencies(scene, first_hz=None):
     return out
 
 
-def auto_cutoff(system, scene, method='auto'):
+def auto_cutoff(system: AssembledSystem, scene: dict[str, Any],
+                method: str = 'auto') -> tuple[float, str]:
     """The ``f_max`` of ``modal.cutoff: auto`` and why.
 
     ``f_max = cutoff_factor * max(f)`` over :func:`excitation_frequencies`: modes above the
@@ -106,7 +114,8 @@ def auto_cutoff(system, scene, method='auto'):
                           f'{factor * top:.6g} Hz')
 
 
-def _build_basis(system, modal, source, scene=None):
+def _build_basis(system: AssembledSystem, modal: dict[str, Any], source: str | None,
+                 scene: dict[str, Any]) -> ModalBasis:
     from dataclasses import replace
 
     from ..modal import modal_reduction

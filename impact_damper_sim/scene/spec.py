@@ -34,6 +34,8 @@ stays fast.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 from ..dampers.law import IMPACT_LAWS
 from ..integrate.events import STICK_RULES
@@ -61,7 +63,7 @@ STUCK_MODELS = ('mass_update', 'basis_switch')
 _IDENT = r'[A-Za-z][A-Za-z0-9_]*'   # ROS-friendly names (topics, frames)
 
 
-def _node(doc):
+def _node(doc: str) -> Integer:
     return Integer(min=0, doc=doc)
 
 
@@ -75,7 +77,7 @@ SECTION_SHAPES = {
 }
 
 
-def _check_section(values):
+def _check_section(values: dict[str, Any]) -> list[str]:
     required, optional = SECTION_SHAPES[values['shape']]
     problems = [f"shape {values['shape']} needs key '{k}'" for k in required
                 if values[k] is None]
@@ -128,15 +130,15 @@ _BEAM_OPTIONS = {
 }
 
 
-def _check_clamp_dofs(values):
+def _check_clamp_dofs(values: dict[str, Any]) -> str | None:
     dofs = values.get('dofs')
     if dofs is not None and len(set(dofs)) != len(dofs):
         return 'dofs must be distinct'
     return None
 
 
-def _check_spring(kind_key, rot_key):
-    def check(values):
+def _check_spring(kind_key: str, rot_key: str) -> Callable[[dict[str, Any]], list[str]]:
+    def check(values: dict[str, Any]) -> list[str]:
         rotational = values['dof'] in ROTATIONS
         want, other = (rot_key, kind_key) if rotational else (kind_key, rot_key)
         problems = []
@@ -148,7 +150,7 @@ def _check_spring(kind_key, rot_key):
     return check
 
 
-def _check_square(values):
+def _check_square(values: dict[str, Any]) -> list[str]:
     n = len(values['dofs'])
     problems = []
     for key in ('stiffness', 'damping'):
@@ -166,7 +168,7 @@ _ROW = ListOf(Quantity('dimensionless', doc='(beam) one matrix entry'), min_len=
               doc='(beam) one matrix row')
 
 
-def _check_line(values):
+def _check_line(values: dict[str, Any]) -> str | None:
     if max(abs(a - b) for a, b in zip(values['from'], values['to'])) == 0.0:
         return "'from' and 'to' coincide"
     return None
@@ -178,7 +180,7 @@ BEAM_KEYS = ('material', 'sections', 'nodes', 'lines', 'elements', 'point_masses
              'dampers', 'super_elements', 'clamps', 'cross_couplings')
 
 
-def _check_structure(values):
+def _check_structure(values: dict[str, Any]) -> list[str]:
     kind = values['kind']
     own, foreign = (SDOF_KEYS, BEAM_KEYS) if kind == 'sdof' else (BEAM_KEYS, SDOF_KEYS)
     problems = [f"key '{k}' does not apply to kind {kind} (keys of kind {kind}: "
@@ -315,7 +317,7 @@ _RATIO = dict(min=0, max=1, max_inclusive=False)
 CUTOFF_FACTOR = 1.5
 
 
-def _check_modal(values):
+def _check_modal(values: dict[str, Any]) -> str | None:
     if values['cutoff'] == 'auto' and values['f_max'] is not None:
         return "give f_max or cutoff: auto, not both (cutoff: auto derives f_max)"
     return None
@@ -366,7 +368,7 @@ _SENSOR = Section({
 })
 
 
-def _check_force(values):
+def _check_force(values: dict[str, Any]) -> str | None:
     given = [k for k in ('frequency', 'frequency_ratio') if values[k] is not None]
     if len(given) != 1:
         return ("give exactly one of 'frequency' and 'frequency_ratio' "
@@ -387,7 +389,7 @@ _FORCE = Section({
 }, checks=[_check_force])
 
 
-def _check_impactor(values):
+def _check_impactor(values: dict[str, Any]) -> list[str]:
     problems = []
     if values['kind'] == 'sdof':
         if values['dof'] is None:
@@ -460,7 +462,7 @@ SPEED_KINDS = {
 }
 
 
-def _check_speed(values):
+def _check_speed(values: dict[str, Any]) -> list[str]:
     kind = values['kind']
     required, optional = SPEED_KINDS[kind]
     allowed = set(required) | set(optional) | {'kind'}
@@ -524,7 +526,7 @@ _ROTOR = Section(doc='rotating shaft: speed profile and unbalance (rotor axis al
 
 # --- simulation -------------------------------------------------------------------------------
 
-def _check_simulation(values):
+def _check_simulation(values: dict[str, Any]) -> list[str]:
     problems = []
     if values['window'] > values['duration']:
         problems.append(f"window {values['window']:g} s exceeds duration "
@@ -569,13 +571,13 @@ _SIMULATION = Section(doc='defaults of study simulate and make_simulation', fiel
 
 # --- the scene --------------------------------------------------------------------------------
 
-def _unique(values, key):
+def _unique(values: dict[str, Any], key: str) -> list[str]:
     names = [item['name'] for item in values[key]]
     dup = sorted({n for n in names if names.count(n) > 1})
     return [f"{key}: name '{n}' is used more than once" for n in dup]
 
 
-def _check_scene(values):
+def _check_scene(values: dict[str, Any]) -> list[str]:
     return _unique(values, 'sensors') + _unique(values, 'impactors')
 
 
