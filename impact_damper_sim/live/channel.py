@@ -61,12 +61,17 @@ from __future__ import annotations
 import dataclasses
 import math
 import zlib
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from .channel_design import design_resonance, highpass_sos, mounting_matrix
 from .filters import butter_lowpass_sos
+
+#: The compiled ``sosfilt(sos, x, zi, y)`` kernel: filters ``x`` into ``y``, state ``zi``
+_SosFilt = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], object]
 
 #: Order of the anti-alias Butterworth (as ``StreamingLowpass``'s default, which it replaces).
 LOWPASS_ORDER = 4
@@ -129,7 +134,8 @@ class SensorChannel:
         A bad rate, cutoff or spec value; the message names the key.
     """
 
-    def __init__(self, spec, *, step_rate_hz, decimation, lowpass_hz, seed=0, name=''):
+    def __init__(self, spec: Mapping[str, Any] | None, *, step_rate_hz: float, decimation: int,
+                 lowpass_hz: float, seed: int = 0, name: str = '') -> None:
         self.name = str(name)
         self.step_rate_hz = float(step_rate_hz)
         self.decimation = int(decimation)
@@ -160,7 +166,7 @@ class SensorChannel:
         # 2. resonance: its biquads (none when the in-band effect is below the tolerances),
         # ahead of the high-pass in one sos cascade
         self.resonance = None
-        pre = []
+        pre: list[np.ndarray] = []
         if s['resonance'] is not None:
             try:
                 self.resonance = design_resonance(s['resonance']['frequency'],
@@ -202,7 +208,7 @@ class SensorChannel:
             half = 2.0 ** (adc['bits'] - 1)
             self._adc = (lsb, -half, half - 1.0, adc['noise'] / sens, rng['adc_noise'])
         self.white_noise_std = 0.0
-        self.white_noise_seed = None
+        self.white_noise_seed: int | None = None
         self._rng_white = rng['white_noise']
         self._step_ideal = (self.mounting is None and self._pre_sos is None
                             and not self._has_sensor_noise)
@@ -210,10 +216,10 @@ class SensorChannel:
         self._zi_lp = np.zeros((self._lp_sos.shape[0], 2, 3 if self._step_ideal else 6))
         self._zi_pre = (None if self._pre_sos is None
                         else np.zeros((self._pre_sos.shape[0], 2, 3)))
-        self._lp_energy = None
-        self._sosfilt = None
+        self._lp_energy: np.ndarray | None = None
+        self._sosfilt: _SosFilt | None = None
 
-    def _load_kernel(self):
+    def _load_kernel(self) -> _SosFilt:
         # imported on first use, as StreamingLowpass does: importing this module loads no Numba
         from ..integrate.kernels.filters import sosfilt
         self._sosfilt = sosfilt
@@ -221,7 +227,7 @@ class SensorChannel:
 
     # -- properties ----------------------------------------------------------------------
     @property
-    def output_rate_hz(self):
+    def output_rate_hz(self) -> float:
         """float: Output sample rate ``step_rate_hz / decimation`` (Hz)."""
         return self.step_rate_hz / self.decimation
 
@@ -230,30 +236,30 @@ class SensorChannel:
     delay_steps = 0
 
     @property
-    def ideal(self):
+    def ideal(self) -> bool:
         """bool: No stage changes the numbers: samples = the ground truth (+ white noise)."""
         return self._step_ideal and self.range is None and self._adc is None
 
     @property
-    def delay_s(self):
+    def delay_s(self) -> float:
         """float: :attr:`delay_steps` in seconds: 0."""
         return self.delay_steps / self.step_rate_hz
 
     @property
-    def lsb(self):
+    def lsb(self) -> float | None:
         """float or None: The ADC grid's step in acceleration (m/s^2); None without an ADC."""
         return None if self._adc is None else self._adc[0]
 
     @property
-    def _has_sensor_noise(self):
+    def _has_sensor_noise(self) -> bool:
         return (self.noise_std_per_step > 0 or self.turn_on_bias is not None
                 or self._gm is not None or self._rw is not None)
 
-    def _msg(self, text):
+    def _msg(self, text: str) -> str:
         return f'accelerometer {self.name!r}: {text}' if self.name else text
 
     # -- set-up --------------------------------------------------------------------------
-    def set_white_noise(self, std, seed=None):
+    def set_white_noise(self, std: float, seed: int | None = None) -> None:
         """Set the live white noise added to each output sample; optionally restart it.
 
         Parameters
@@ -279,7 +285,8 @@ class SensorChannel:
             self._rng_white = np.random.default_rng(int(seed))
 
     # -- streaming -----------------------------------------------------------------------
-    def process(self, mean_acc, before_limit=None):
+    def process(self, mean_acc: npt.ArrayLike,
+                before_limit: Callable[[np.ndarray], object] | None = None) -> ChannelOutput:
         """Run the next chunk through the chain.
 
         Parameters
@@ -324,10 +331,11 @@ class SensorChannel:
         clipped = self._limit(samples, self._adc is not None and self._adc[3] > 0)
         return ChannelOutput(samples, truth, clipped)
 
-    def _step_chain(self, a, sosfilt):
+    def _step_chain(self, a: np.ndarray, sosfilt: _SosFilt) -> np.ndarray:
         """Stages 1-4 at the step rate: (n, 3) model frame -> (n, 3) sensor, before the LP."""
         x = a if self.mounting is None else a @ self.mounting.T
         if self._pre_sos is not None:
+            assert self._zi_pre is not None   # made with _pre_sos
             y = np.empty_like(x)
             sosfilt(self._pre_sos, np.ascontiguousarray(x), self._zi_pre, y)
             x = y
@@ -347,7 +355,7 @@ class SensorChannel:
                 x += b
         return x
 
-    def _limit(self, x, adc_noise):
+    def _limit(self, x: np.ndarray, adc_noise: bool) -> int:
         """Range clip and ADC (noise, clip, grid) in place; the number of clipped values."""
         over = None
         if self.range is not None:
@@ -370,7 +378,7 @@ class SensorChannel:
             np.multiply(codes, lsb, out=x)
         return 0 if over is None else int(np.count_nonzero(over))
 
-    def process_decimated(self, imu):
+    def process_decimated(self, imu: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], int]:
         """Range clip and re-quantize samples decimated from this channel's output.
 
         ``LiveSimulation`` decimates the output-rate samples through its FIR
@@ -396,7 +404,7 @@ class SensorChannel:
         return x, self._limit(x, False)
 
     # -- noise bookkeeping ---------------------------------------------------------------
-    def _lp_impulse(self):
+    def _lp_impulse(self) -> np.ndarray:
         """Impulse response of the anti-alias low-pass at the step rate, to its last 1e-18."""
         if self._lp_energy is None:
             sosfilt = self._sosfilt or self._load_kernel()
@@ -413,12 +421,12 @@ class SensorChannel:
             self._lp_energy = h
         return self._lp_energy
 
-    def _output_white_variance(self):
+    def _output_white_variance(self) -> float:
         lsb_var = 0.0 if self._adc is None else self._adc[0] ** 2 / 12.0
         adc_var = 0.0 if self._adc is None else self._adc[3] ** 2
         return self.white_noise_std ** 2 + adc_var + lsb_var
 
-    def output_noise_variance(self):
+    def output_noise_variance(self) -> float:
         """Variance of the white noise in each output sample, per axis ((m/s^2)^2).
 
         The sensor noise (``noise_density``) through the low-pass (its impulse response's
@@ -435,7 +443,7 @@ class SensorChannel:
             sensor = self.noise_std_per_step ** 2 * float(np.sum(self._lp_impulse() ** 2))
         return sensor + self._output_white_variance()
 
-    def decimated_noise_variance(self, taps):
+    def decimated_noise_variance(self, taps: npt.ArrayLike) -> float:
         """:meth:`output_noise_variance` for a sample of an FIR decimator of this output.
 
         The sensor noise is coloured by the low-pass before the pick: its share is exact,
@@ -465,7 +473,7 @@ class SensorChannel:
         return var
 
     # -- labels --------------------------------------------------------------------------
-    def labels(self):
+    def labels(self) -> dict[str, Any]:
         """Every stage's values (SI, JSON-able) for a log's metadata.
 
         Returns
@@ -492,7 +500,7 @@ class SensorChannel:
         if s['bias'] is not None:
             bias = {**s['bias'], 'turn_on_values': (None if self.turn_on_bias is None else
                                                     [float(v) for v in self.turn_on_bias])}
-        return _jsonable({
+        return cast(dict[str, Any], _jsonable({
             'name': self.name, 'preset': s['preset'], 'seed': self.seed,
             'ideal': self.ideal,
             'step_rate_hz': self.step_rate_hz, 'decimation': self.decimation,
@@ -508,10 +516,10 @@ class SensorChannel:
             'white_noise': {'std': self.white_noise_std, 'seed': self.white_noise_seed},
             'delay_steps': self.delay_steps, 'delay_s': self.delay_s,
             'output_noise_variance': self.output_noise_variance(),
-        })
+        }))
 
 
-def _jsonable(v):
+def _jsonable(v: object) -> object:
     if isinstance(v, dict):
         return {str(k): _jsonable(x) for k, x in v.items()}
     if isinstance(v, (list, tuple, np.ndarray)):
@@ -525,7 +533,7 @@ def _jsonable(v):
     return v
 
 
-def _resolved(spec, msg):
+def _resolved(spec: Mapping[str, Any] | None, msg: Callable[[str], str]) -> dict[str, Any]:
     """The spec with every key (None = off), checked for the values the chain relies on."""
     if spec is None:
         return {k: None for k in SPEC_KEYS}
@@ -533,9 +541,9 @@ def _resolved(spec, msg):
     if unknown:
         raise ValueError(msg(f"unknown spec key(s) {', '.join(map(repr, unknown))}; "
                              f"known: {', '.join(SPEC_KEYS)}"))
-    s = {k: spec.get(k) for k in SPEC_KEYS}
+    s: dict[str, Any] = {k: spec.get(k) for k in SPEC_KEYS}
 
-    def positive(key, value, zero_ok=False):
+    def positive(key: str, value: Any, zero_ok: bool = False) -> float:
         v = float(value)
         if not (math.isfinite(v) and (v >= 0 if zero_ok else v > 0)):
             raise ValueError(msg(f"spec key {key!r}: must be finite and "

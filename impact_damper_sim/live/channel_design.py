@@ -13,11 +13,19 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
+
+#: What :func:`_check` measures of a cascade: (score, gain error, phase error (deg), lift
+#: error, gain above band, error above band, largest pole radius)
+_Checked = tuple[float, float, float, float, float, float, float]
+#: One fit of :meth:`_Fit.run`: (score on the grid, numerator b, denominator a, parameters p)
+_FitRun = tuple[float, np.ndarray, np.ndarray, np.ndarray]
 
 
-def rotation_matrix(orientation):
+def rotation_matrix(orientation: Sequence[float]) -> npt.NDArray[np.float64]:
     """Rotation ``R = Rz(yaw) Ry(pitch) Rx(roll)``: the sensor's axes in the model frame.
 
     Column ``i`` of ``R`` is the sensor's axis ``i`` in model coordinates, so a sensor at this
@@ -43,7 +51,7 @@ def rotation_matrix(orientation):
     return rz @ ry @ rx
 
 
-def _cos_sin(angle):
+def _cos_sin(angle: float) -> tuple[float, float]:
     # exact at whole quarter turns, so a 90 deg yaw swaps the axes with no 6e-17 leak
     quarter = angle / (0.5 * math.pi)
     if abs(quarter - round(quarter)) < 1e-12:
@@ -51,7 +59,7 @@ def _cos_sin(angle):
     return math.cos(angle), math.sin(angle)
 
 
-def transverse_matrix(fraction, angle):
+def transverse_matrix(fraction: float, angle: float) -> npt.NDArray[np.float64]:
     """Transverse sensitivity ``T`` of a triaxial sensor (dimensionless, zero diagonal).
 
     Axis ``i`` senses along ``e_i + fraction * u_i``, where ``u_i`` is the unit vector of the
@@ -89,7 +97,10 @@ def transverse_matrix(fraction, angle):
     return t
 
 
-def mounting_matrix(orientation=None, transverse=None, sensitivity_error=None):
+def mounting_matrix(orientation: Sequence[float] | None = None,
+                    transverse: Mapping[str, float] | None = None,
+                    sensitivity_error: Sequence[float] | None = None
+                    ) -> npt.NDArray[np.float64] | None:
     """The mounting stage ``M = S (I + T) R^T``: model-frame acceleration to sensor output.
 
     Parameters
@@ -118,7 +129,7 @@ def mounting_matrix(orientation=None, transverse=None, sensitivity_error=None):
     return m
 
 
-def analog_resonance(f, fn, q):
+def analog_resonance(f: npt.ArrayLike, fn: float, q: float) -> np.ndarray:
     """Closed form ``H(j 2 pi f)`` of ``wn^2 / (s^2 + wn/Q s + wn^2)`` (dimensionless).
 
     Parameters
@@ -206,27 +217,27 @@ class ResonanceDesign:
     pole_radius: float
 
     @property
-    def identity(self):
+    def identity(self) -> bool:
         """bool: The in-band effect is within the tolerances: nothing to apply."""
         return len(self.sos) == 0
 
     @property
-    def b(self):
+    def b(self) -> npt.NDArray[np.float64]:
         """ndarray: Numerator of the whole cascade, ``b[0] + b[1] z^-1 + ...``."""
         return functools.reduce(np.convolve, self.sos[:, :3], np.ones(1))
 
     @property
-    def a(self):
+    def a(self) -> npt.NDArray[np.float64]:
         """ndarray: Denominator of the whole cascade, ``1 + a[1] z^-1 + ...``."""
         return functools.reduce(np.convolve, self.sos[:, 3:], np.ones(1))
 
-    def response(self, f, step_rate_hz):
+    def response(self, f: npt.ArrayLike, step_rate_hz: float) -> npt.NDArray[np.complex128]:
         """Digital response ``H_d(e^{j 2 pi f / fs})`` (dimensionless), nothing removed."""
         theta = 2.0 * np.pi * np.asarray(f, dtype=float) / float(step_rate_hz)
         return _sos_response(self.sos, theta)
 
 
-def _sos_response(sos, theta):
+def _sos_response(sos: np.ndarray, theta: np.ndarray) -> npt.NDArray[np.complex128]:
     e = np.exp(-1j * np.multiply.outer(theta, np.arange(3)))
     out = np.ones(np.shape(theta), dtype=complex)
     for row in sos:
@@ -234,7 +245,7 @@ def _sos_response(sos, theta):
     return out
 
 
-def _tolerances(h):
+def _tolerances(h: np.ndarray) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Gain (relative) and phase (rad) tolerance at each point of the analog response ``h``."""
     lift = np.abs(np.abs(h) - 1.0)
     floor = RESONANCE_LIFT_FLOOR * (1.0 + RESONANCE_LIFT_FRACTION)
@@ -243,7 +254,7 @@ def _tolerances(h):
     return gain, np.full(np.shape(h), math.radians(RESONANCE_PHASE_TOLERANCE_DEG))
 
 
-def _denominator(p):
+def _denominator(p: Sequence[float] | np.ndarray) -> npt.NDArray[np.float64]:
     """Stable denominator, two parameters per section: reflection coefficients
     ``k = K_MAX tanh(p)`` of a polynomial stable in the unit disk, its poles scaled by
     ``_POLE_RADIUS`` (so every pole lies inside that radius)."""
@@ -255,7 +266,7 @@ def _denominator(p):
     return a
 
 
-def _params(a1, a2):
+def _params(a1: float, a2: float) -> list[float]:
     """Inverse of :func:`_denominator` for one section ``1 + a1 z^-1 + a2 z^-2``."""
     rho = _POLE_RADIUS
     k2 = a2 / (rho * rho)
@@ -263,7 +274,7 @@ def _params(a1, a2):
     return [math.atanh(min(max(v / _K_MAX, -0.999), 0.999)) for v in k]
 
 
-def _section_starts(ratio, q):
+def _section_starts(ratio: float, q: float) -> list[list[float]]:
     """Starting denominators of one section: none (an FIR); a real pole near Nyquist and one
     near 0 (the shape the fits take for fn above the band); the analog poles mapped by
     ``z = e^{s dt}`` when fn is below Nyquist, a pair at 0.75 pi otherwise."""
@@ -292,7 +303,8 @@ class _Fit:
     Lawson's reweighting pushes the least-squares fit towards the minimax one.
     """
 
-    def __init__(self, ratio, q, band, lowpass, sections):
+    def __init__(self, ratio: float, q: float, band: float, lowpass: float,
+                 sections: int) -> None:
         self.theta = np.linspace(0.0, 2.0 * np.pi * band, _N_BAND)
         above = _above_grid(band, _N_ABOVE, ratio, q)
         self.h = analog_resonance(self.theta / (2.0 * np.pi), ratio, q)
@@ -307,7 +319,8 @@ class _Fit:
         self.e_all = np.vstack([self.e, self.e_above])
         self.h_all = np.concatenate([self.h, self.h_above])
 
-    def numerator(self, a, nb, w_re, w_im):
+    def numerator(self, a: np.ndarray, nb: int, w_re: np.ndarray,
+                  w_im: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The numerator for the denominator ``a`` and the weighted residuals. ``w_re`` and
         ``w_im`` weigh the band's points, then those above it (only lightly in phase)."""
         # unknowns b_0 .. b_{nb-1}; b_nb = A(1) - sum(b_0 .. b_{nb-1})
@@ -320,22 +333,23 @@ class _Fit:
         x = np.linalg.lstsq(m, rhs, rcond=None)[0]
         return np.append(x, a.sum() - x.sum()), m @ x - rhs
 
-    def above(self, b, a):
+    def above(self, b: np.ndarray, a: np.ndarray) -> npt.NDArray[np.float64]:
         """|H_d| above the band over its cap."""
         return np.abs((self.e_above[:, :len(b)] @ b) / (self.e_above[:, :len(a)] @ a)) / self.cap
 
-    def residuals(self, p, nb, w_re, w_im):
+    def residuals(self, p: np.ndarray, nb: int, w_re: np.ndarray,
+                  w_im: np.ndarray) -> npt.NDArray[np.float64]:
         a = _denominator(p)
         b, res = self.numerator(a, nb, w_re, w_im)
         return np.concatenate([res, 100.0 * np.maximum(self.above(b, a) - 0.95, 0.0)])
 
-    def run(self, p0, nb, lawson=4):
+    def run(self, p0: Sequence[float], nb: int, lawson: int = 4) -> _FitRun | None:
         """The fit from the start ``p0``: (score on the grid, b, a, p), or None."""
         w_re = np.concatenate([1.0 / self.tol_gain, self.w_above])
         w_im = np.concatenate([1.0 / self.tol_phase, 0.1 * self.w_above])
         p, best = np.array(p0, dtype=float), None
 
-        def residuals(v):
+        def residuals(v: np.ndarray) -> npt.NDArray[np.float64]:
             return self.residuals(v, nb, w_re, w_im)
 
         for _ in range(lawson):
@@ -357,7 +371,8 @@ class _Fit:
         return best
 
 
-def _levenberg_marquardt(fun, p, iterations=30):
+def _levenberg_marquardt(fun: Callable[[np.ndarray], np.ndarray], p: np.ndarray,
+                         iterations: int = 30) -> np.ndarray:
     """Minimise ``|fun(p)|^2`` (a few parameters; forward-difference Jacobian)."""
     r = fun(p)
     cost, lam = float(r @ r), 1e-3
@@ -386,7 +401,7 @@ def _levenberg_marquardt(fun, p, iterations=30):
     return p
 
 
-def _to_sos(b, p):
+def _to_sos(b: np.ndarray, p: np.ndarray) -> npt.NDArray[np.float64]:
     """The cascade ``B/A`` as unit-DC-gain sections: the fit's own denominator sections, and
     B's roots paired into real quadratics (conjugate pairs; real roots by size)."""
     den = np.array([_denominator(p[i:i + 2]) for i in range(0, len(p), 2)])
@@ -397,7 +412,7 @@ def _to_sos(b, p):
     return sos
 
 
-def _quadratics(roots, m, lead_zeros=0):
+def _quadratics(roots: Iterable[complex], m: int, lead_zeros: int = 0) -> npt.NDArray[np.float64]:
     """``m`` real factors ``[c0, c1, c2]`` (in ``z^-1``) of a polynomial with these roots.
 
     ``lead_zeros`` leading zero coefficients (roots at infinity) become ``z^-1`` factors.
@@ -418,24 +433,25 @@ def _quadratics(roots, m, lead_zeros=0):
     return np.array(factors[:m], dtype=float)
 
 
-def _above_grid(band, n, ratio=None, q=None):
+def _above_grid(band: float, n: int, ratio: float | None = None,
+                q: float | None = None) -> npt.NDArray[np.float64]:
     """``n`` points from the band's top (excluded) to Nyquist, denser near the top; with
     ``ratio`` and ``q``, plus 13 across the resonance's peak when it lies there."""
     u = np.linspace(0.0, 1.0, n + 1)[1:]
     theta = 2.0 * np.pi * band + (np.pi - 2.0 * np.pi * band) * u * u
-    if ratio is not None and band < ratio < 0.5:
+    if ratio is not None and q is not None and band < ratio < 0.5:
         peak = 2.0 * np.pi * ratio * (1.0 + np.linspace(-3.0, 3.0, 13) / (2.0 * q))
         theta = np.sort(np.concatenate([theta, peak[(peak > 2.0 * np.pi * band)
                                                     & (peak <= np.pi)]]))
     return theta
 
 
-def _lowpass_gain(theta, lowpass):
+def _lowpass_gain(theta: np.ndarray, lowpass: float) -> npt.NDArray[np.float64]:
     """The anti-alias Butterworth's gain (4th order, analog form) at ``theta`` (rad/step)."""
     return 1.0 / np.sqrt(1.0 + (theta / (2.0 * np.pi * lowpass)) ** 8)
 
 
-def _check(sos, ratio, q, band, lowpass):
+def _check(sos: np.ndarray, ratio: float, q: float, band: float, lowpass: float) -> _Checked:
     """(score, gain error, phase error deg, lift error, gain above band, error above band,
     pole radius) on dense grids; the score is the largest error over its tolerance, in the
     band and above it."""
@@ -466,7 +482,8 @@ def _check(sos, ratio, q, band, lowpass):
 
 
 @functools.lru_cache(maxsize=64)
-def _design(ratio, q, band, lowpass):
+def _design(ratio: float, q: float, band: float,
+            lowpass: float) -> tuple[npt.NDArray[np.float64] | None, _Checked]:
     # in units of the step rate: the design depends on fn, band and lowpass / step rate and Q
     identity = np.zeros((0, 6))
     checked = _check(identity, ratio, q, band, lowpass)
@@ -497,7 +514,8 @@ def _design(ratio, q, band, lowpass):
     return (sos if score <= 1.0 else None), checked
 
 
-def design_resonance(frequency, q, step_rate_hz, lowpass_hz):
+def design_resonance(frequency: float, q: float, step_rate_hz: float,
+                     lowpass_hz: float) -> ResonanceDesign:
     """Digital section for the mounted resonance ``H(s) = wn^2 / (s^2 + wn/Q s + wn^2)``.
 
     Causal, stable and with **zero latency**: the channel's samples carry the model's motion
@@ -593,7 +611,7 @@ def design_resonance(frequency, q, step_rate_hz, lowpass_hz):
                            radius)
 
 
-def highpass_sos(corner_hz, step_rate_hz):
+def highpass_sos(corner_hz: float, step_rate_hz: float) -> npt.NDArray[np.float64]:
     """First-order high-pass (IEPE coupling), bilinear, prewarped: -3 dB exactly at the corner.
 
     The analog ``s / (s + wc)`` mapped with ``s -> (wc / k) (1 - z^-1)/(1 + z^-1)``,

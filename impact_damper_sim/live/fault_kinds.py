@@ -11,8 +11,13 @@ from __future__ import annotations
 
 import math
 import zlib
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from .fault_spec import FaultSpec
 
 #: Events drawn per refill of a random fault (dimensionless): a fixed block, so that the
 #: numbers never depend on how the run is chunked.
@@ -21,7 +26,7 @@ _EPS = 1e-6   # a time within this many sample periods of a sample is on it
 _AXIS = {'x': 0, 'y': 1, 'z': 2}
 
 
-def after_index(t, fs):
+def after_index(t: float, fs: float) -> int:
     """Index of the first sample strictly after sim time ``t`` (s), on the grid within _EPS."""
     return int(math.floor(t * fs + _EPS)) + 1
 
@@ -29,11 +34,11 @@ def after_index(t, fs):
 class _Buffer:
     """A growing 1-D array with amortised O(1) appends (events of a long run)."""
 
-    def __init__(self, dtype):
+    def __init__(self, dtype: npt.DTypeLike) -> None:
         self._a = np.empty(64, dtype)
         self.n = 0
 
-    def extend(self, values):
+    def extend(self, values: np.ndarray) -> None:
         need = self.n + len(values)
         if need > len(self._a):
             grown = np.empty(max(need, 2 * len(self._a)), self._a.dtype)
@@ -43,7 +48,7 @@ class _Buffer:
         self.n = need
 
     @property
-    def values(self):
+    def values(self) -> np.ndarray:
         return self._a[:self.n]
 
 
@@ -52,37 +57,38 @@ class _Fault:
 
     stage = 'before'
 
-    def __init__(self, spec, name, acc, lo, hi, fs, seed):
+    def __init__(self, spec: FaultSpec, name: str, acc: int, lo: int, hi: int | None,
+                 fs: float, seed: int | None) -> None:
         self.spec, self.name, self.acc = spec, name, acc
         self.lo, self.hi, self.fs, self.seed = lo, hi, fs, seed
         self.cols = np.array([_AXIS[c] for c in spec.axes])
         self.all_axes = spec.axes == 'xyz'
-        self.cleared_at = None
+        self.cleared_at: float | None = None
         self.params = dict(spec.params)
         self.rng: np.random.Generator | None = None
         if seed is not None:   # own stream: kind and accelerometer in it, so one seed on two
             self.rng = np.random.default_rng(np.random.SeedSequence(   # sensors is two streams
                 [seed, zlib.crc32(spec.kind.encode()), zlib.crc32(spec.accelerometer.encode())]))
 
-    def span(self, n0, k):
+    def span(self, n0: int, k: int) -> tuple[int, int]:
         """The window's part in the chunk of samples n0 .. n0 + k - 1: (a, b), chunk-relative
         (empty when a >= b)."""
         b = n0 + k if self.hi is None else min(self.hi, n0 + k)
         return max(self.lo, n0) - n0, b - n0
 
-    def _set(self, x, a, b, value):
+    def _set(self, x: np.ndarray, a: int, b: int, value: np.ndarray) -> None:
         if self.all_axes:
             x[a:b] = value
         else:
             x[a:b, self.cols] = value
 
-    def before(self, x, n0):
+    def before(self, x: np.ndarray, n0: int) -> None:
         pass
 
-    def capture(self, x, n0, last):
+    def capture(self, x: np.ndarray, n0: int, last: np.ndarray | None) -> None:
         pass
 
-    def after(self, x, n0, valid):
+    def after(self, x: np.ndarray, n0: int, valid: npt.NDArray[np.bool_]) -> None:
         pass
 
     @property
@@ -92,17 +98,17 @@ class _Fault:
             raise RuntimeError(f'fault kind {self.spec.kind!r} has no random stream')
         return self.rng
 
-    def invalid(self, n):
+    def invalid(self, n: np.ndarray) -> npt.NDArray[np.bool_] | None:
         """Samples ``n`` (absolute indices) this fault leaves out; None if it leaves none."""
         return None
 
-    def events(self, end):
+    def events(self, end: int) -> dict[str, list[Any]] | None:
         """Its random events before sample ``end`` for the labels; None for a fixed kind."""
         return None
 
 
 class _Gain(_Fault):
-    def before(self, x, n0):
+    def before(self, x: np.ndarray, n0: int) -> None:
         a, b = self.span(n0, len(x))
         if a < b:
             if self.all_axes:
@@ -112,7 +118,7 @@ class _Gain(_Fault):
 
 
 class _Bias(_Fault):
-    def before(self, x, n0):
+    def before(self, x: np.ndarray, n0: int) -> None:
         a, b = self.span(n0, len(x))
         if a >= b:
             return
@@ -128,14 +134,15 @@ class _Bias(_Fault):
 
 
 class _Spikes(_Fault):
-    def __init__(self, *args):
-        super().__init__(*args)
+    def __init__(self, spec: FaultSpec, name: str, acc: int, lo: int, hi: int | None,
+                 fs: float, seed: int | None) -> None:
+        super().__init__(spec, name, acc, lo, hi, fs, seed)
         self.starts = _Buffer(np.int64)
         self.signs = _Buffer(np.int8)
         self._carry = 0.0   # position of the last arrival (samples after lo, continuous)
         self._scale = self.fs / self.params['rate']   # mean gap (samples)
 
-    def _extend(self, end):
+    def _extend(self, end: int) -> None:
         """Draw arrivals until one starts at or after sample ``end``."""
         while self.lo + math.floor(self._carry) < end:
             gaps = self.random.exponential(self._scale, BLOCK)
@@ -146,7 +153,7 @@ class _Spikes(_Fault):
             self.starts.extend(self.lo + np.floor(pos).astype(np.int64))
             self.signs.extend((2 * signs - 1).astype(np.int8))
 
-    def before(self, x, n0):
+    def before(self, x: np.ndarray, n0: int) -> None:
         a, b = self.span(n0, len(x))
         if a >= b:
             return
@@ -166,7 +173,7 @@ class _Spikes(_Fault):
         sums = np.bincount(inverse, weights=vals[keep], minlength=len(rows))
         x[rows[:, None], self.cols] += sums[:, None]
 
-    def events(self, end):
+    def events(self, end: int) -> dict[str, list[Any]] | None:
         end = end if self.hi is None else min(end, self.hi)
         self._extend(end)
         i = np.searchsorted(self.starts.values, end)
@@ -175,15 +182,16 @@ class _Spikes(_Fault):
 
 
 class _Intermittent(_Fault):
-    def __init__(self, *args):
-        super().__init__(*args)
+    def __init__(self, spec: FaultSpec, name: str, acc: int, lo: int, hi: int | None,
+                 fs: float, seed: int | None) -> None:
+        super().__init__(spec, name, acc, lo, hi, fs, seed)
         self.stage = 'before' if self.params['off'] == 'rail' else 'after'
         self.starts = _Buffer(np.int64)   # open periods [start, end), sample indices
         self.ends = _Buffer(np.int64)
         self._carry = 0.0   # where the next open period begins (samples after lo)
         self._means = np.array([self.params['mean_off'], self.params['mean_on']]) * self.fs
 
-    def _extend(self, end):
+    def _extend(self, end: int) -> None:
         """Draw open/connected periods until the next open one starts at or after ``end``."""
         while self.lo + math.ceil(self._carry) < end:
             bounds = self._carry + np.cumsum(
@@ -197,7 +205,7 @@ class _Intermittent(_Fault):
             self.starts.extend(s[keep])
             self.ends.extend(e[keep])
 
-    def _open(self, n0, a, b):
+    def _open(self, n0: int, a: int, b: int) -> npt.NDArray[np.bool_]:
         """Chunk-relative mask of the open samples in a .. b - 1."""
         self._extend(n0 + b)
         starts, ends = self.starts.values, self.ends.values
@@ -208,18 +216,18 @@ class _Intermittent(_Fault):
         edges[np.clip(ends[i0:i1], n0 + a, n0 + b) - n0 - a] -= 1     # do not overlap
         return np.cumsum(edges[:-1]) > 0
 
-    def before(self, x, n0):
+    def before(self, x: np.ndarray, n0: int) -> None:
         a, b = self.span(n0, len(x))
         if a < b:
             rows = np.flatnonzero(self._open(n0, a, b)) + a
             x[rows[:, None], self.cols] = self.params['level']
 
-    def after(self, x, n0, valid):
+    def after(self, x: np.ndarray, n0: int, valid: npt.NDArray[np.bool_]) -> None:
         a, b = self.span(n0, len(x))
         if a < b:
             valid[a:b] &= ~self._open(n0, a, b)
 
-    def invalid(self, n):
+    def invalid(self, n: np.ndarray) -> npt.NDArray[np.bool_] | None:
         if self.stage == 'before' or n.size == 0:
             return None
         self._extend(int(n.max()) + 1)
@@ -230,7 +238,7 @@ class _Intermittent(_Fault):
         inside = (i >= 0) & (n < ends[np.maximum(i, 0)])
         return inside & (n >= self.lo) & (True if self.hi is None else n < self.hi)
 
-    def events(self, end):
+    def events(self, end: int) -> dict[str, list[Any]] | None:
         end = end if self.hi is None else min(end, self.hi)
         self._extend(end)
         i = np.searchsorted(self.starts.values, end)
@@ -243,11 +251,12 @@ class _Intermittent(_Fault):
 class _Stuck(_Fault):
     stage = 'after'
 
-    def __init__(self, *args):
-        super().__init__(*args)
-        self.hold = None
+    def __init__(self, spec: FaultSpec, name: str, acc: int, lo: int, hi: int | None,
+                 fs: float, seed: int | None) -> None:
+        super().__init__(spec, name, acc, lo, hi, fs, seed)
+        self.hold: np.ndarray | None = None
 
-    def capture(self, x, n0, last):
+    def capture(self, x: np.ndarray, n0: int, last: np.ndarray | None) -> None:
         if self.hold is not None:
             return
         p = self.lo - 1 - n0   # the sample before the onset, chunk-relative
@@ -258,7 +267,7 @@ class _Stuck(_Fault):
         elif p < 0 and len(x):   # the stream's first sample: nothing was read before it
             self.hold = x[0].copy()
 
-    def after(self, x, n0, valid):
+    def after(self, x: np.ndarray, n0: int, valid: npt.NDArray[np.bool_]) -> None:
         a, b = self.span(n0, len(x))
         if a < b:
             hold = self.hold
@@ -269,11 +278,11 @@ class _Stuck(_Fault):
 class _Dropout(_Fault):
     stage = 'after'
 
-    def after(self, x, n0, valid):
+    def after(self, x: np.ndarray, n0: int, valid: npt.NDArray[np.bool_]) -> None:
         a, b = self.span(n0, len(x))
         valid[a:max(a, b)] = False
 
-    def invalid(self, n):
+    def invalid(self, n: np.ndarray) -> npt.NDArray[np.bool_] | None:
         return (n >= self.lo) & (True if self.hi is None else n < self.hi)
 
 

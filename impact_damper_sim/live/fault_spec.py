@@ -48,6 +48,8 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import re
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, cast
 
 from ..scene.containers import Section
 from ..scene.schema import (
@@ -81,7 +83,7 @@ class FaultError(SceneError):
     """A fault spec or command is invalid; one line per problem naming the key
     (``fault.rate``, ``schedule[2].fault.rate``) and its allowed range."""
 
-    def __init__(self, errors, source=None):
+    def __init__(self, errors: str | Iterable[str], source: str | None = None) -> None:
         errors = [e.replace("scene key '", "key '", 1) for e in
                   ((errors,) if isinstance(errors, str) else errors)]
         super().__init__(errors, source)
@@ -90,21 +92,21 @@ class FaultError(SceneError):
 class _AccelerationRate(Field):
     """A drift rate of an acceleration (SI m/s^3): an acceleration unit over a time unit."""
 
-    def __init__(self, default, min, max, doc=''):
+    def __init__(self, default: object, min: float, max: float, doc: str = '') -> None:
         super().__init__(default, doc)
         self.min, self.max = float(min), float(max)
 
-    def kind(self):
+    def kind(self) -> str:
         return 'acceleration rate'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return f'{_interval(self.min, self.max, True, True)} m/s^3'
 
-    def expects(self):
+    def expects(self) -> str:
         return (f'{super().expects()} (units: m/s^3, or an acceleration unit over a time '
                 'unit: m/s^2/s, g/s, mg/min, ug/h)')
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         try:
             si = _rate_si(raw)
         except UnitError as exc:
@@ -119,7 +121,7 @@ class _AccelerationRate(Field):
 _NUMBER_UNIT = re.compile(r'^\s*([-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$')
 
 
-def _rate_si(raw):
+def _rate_si(raw: object) -> float:
     """m/s^3 from a number (SI), ``'<number> <acc unit>/<time unit>'`` or {value, unit}."""
     if isinstance(raw, dict) and set(raw) == {'value', 'unit'} and isinstance(raw['unit'], str):
         raw = f"{raw['value']} {raw['unit']}"
@@ -151,7 +153,7 @@ def _rate_si(raw):
                         ) from None
 
 
-def _common(axes=True):
+def _common(axes: bool = True) -> dict[str, Field]:
     fields = {
         'kind': Choice(KINDS, doc='what goes wrong'),
         'accelerometer': String(doc="the accelerometer's name (topic accel/<name>)"),
@@ -170,13 +172,13 @@ _SEED = Integer(None, min=0, max=MAX_SEED, doc='seed of its random numbers; none
                 'from the injector seed and the order faults were added in')
 
 
-def _bias_given(v):
+def _bias_given(v: dict[str, Any]) -> str | None:
     if v['step'] == 0.0 and v['drift'] == 0.0:
         return "a bias needs a non-zero 'step' and/or 'drift'"
     return None
 
 
-def _intermittent_checks(v):
+def _intermittent_checks(v: dict[str, Any]) -> str | None:
     if v['off'] == 'dropout' and v['axes'] != 'xyz':
         return f"'axes' {v['axes']!r} with off: dropout: a dropout removes whole samples (xyz)"
     if v['off'] == 'dropout' and v['level'] is not None:
@@ -257,7 +259,7 @@ class FaultSpec:
     seed: int | None = None
     params: dict = dataclasses.field(default_factory=dict)
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, Any]:
         """The spec as a plain SI mapping that :func:`parse_fault` reads back to this spec.
 
         Returns
@@ -275,7 +277,7 @@ class FaultSpec:
         out.update(self.params)
         return out
 
-    def check(self, accelerometers, key='fault'):
+    def check(self, accelerometers: Sequence[str], key: str = 'fault') -> None:
         """Refuse an accelerometer that does not exist, naming the ones that do.
 
         Parameters
@@ -294,7 +296,7 @@ class FaultSpec:
             raise FaultError(f"key '{_join(key, 'accelerometer')}': {problem}")
 
 
-def accelerometer_problem(name, accelerometers):
+def accelerometer_problem(name: object, accelerometers: Sequence[str]) -> str | None:
     """The refusal of an accelerometer that does not exist, naming the ones that do.
 
     Parameters
@@ -318,7 +320,8 @@ def accelerometer_problem(name, accelerometers):
     return f'{name!r} is not an accelerometer of this scene; {hint}the accelerometers: {known}'
 
 
-def _convert(raw, path, errors, accelerometers):
+def _convert(raw: object, path: str, errors: _Errors,
+             accelerometers: Sequence[str] | None) -> object:
     """A FaultSpec from one raw mapping, or _INVALID after adding its problems."""
     if not isinstance(raw, dict):
         errors.add(path, f"expected a fault mapping (kind, accelerometer, ...); {_got(raw)}")
@@ -343,7 +346,8 @@ def _convert(raw, path, errors, accelerometers):
                      params={k: v for k, v in value.items() if k not in _COMMON_KEYS})
 
 
-def parse_fault(raw, accelerometers=None, *, key='fault'):
+def parse_fault(raw: object, accelerometers: Sequence[str] | None = None, *,
+                key: str = 'fault') -> FaultSpec:
     """Read one fault mapping (engineering units allowed) into a :class:`FaultSpec`.
 
     Parameters
@@ -368,10 +372,11 @@ def parse_fault(raw, accelerometers=None, *, key='fault'):
     spec = _convert(raw, key, errors, accelerometers)
     if errors:
         raise FaultError(errors.lines())
-    return spec
+    return cast(FaultSpec, spec)   # no problem: a FaultSpec, not _INVALID
 
 
-def parse_faults(raw, accelerometers=None, *, key='faults'):
+def parse_faults(raw: object, accelerometers: Sequence[str] | None = None, *,
+                 key: str = 'faults') -> list[FaultSpec]:
     """Read a list of fault mappings (a data-set spec's ``faults``); every problem at once.
 
     Parameters
@@ -396,12 +401,12 @@ def parse_faults(raw, accelerometers=None, *, key='faults'):
         errors.add(key, f'expected a list of fault mappings, {_got(raw)}')
         raise FaultError(errors.lines())
     specs = [_convert(r, f'{key}[{i}]', errors, accelerometers) for i, r in enumerate(raw)]
-    names = [s.name for s in specs if s is not _INVALID and s.name is not None]
+    names = [s.name for s in specs if isinstance(s, FaultSpec) and s.name is not None]
     for name in sorted({n for n in names if names.count(n) > 1}):
         errors.add(key, f'fault name {name!r} is given twice; names must be unique')
     if errors:
         raise FaultError(errors.lines())
-    return specs
+    return cast(list[FaultSpec], specs)   # no problem: every item a FaultSpec
 
 
 @dataclasses.dataclass(frozen=True)
@@ -423,7 +428,8 @@ class FaultCommand:
     name: str | None = None
 
 
-def parse_command(text, accelerometers=None, *, key='fault'):
+def parse_command(text: str | Mapping[str, Any], accelerometers: Sequence[str] | None = None,
+                  *, key: str = 'fault') -> FaultCommand:
     """Read a node's fault command: YAML or JSON text (or an already loaded mapping).
 
     ``{kind: ..., accelerometer: ..., ...}`` adds a fault; ``{clear: <name>}`` clears that
@@ -476,19 +482,20 @@ class FaultField(Field):
     mapping of :meth:`FaultSpec.as_dict` (schema results are plain trees); the
     accelerometer is checked later, against the scene (:meth:`FaultSpec.check`)."""
 
-    def __init__(self, default=None, doc='a sensor fault (docs: kind, accelerometer, onset, '
-                 'duration and the kind\'s keys)'):
+    def __init__(self, default: object = None,
+                 doc: str = 'a sensor fault (docs: kind, accelerometer, onset, '
+                            'duration and the kind\'s keys)') -> None:
         super().__init__(default, doc)
 
-    def kind(self):
+    def kind(self) -> str:
         return 'fault'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return ' | '.join(KINDS)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         spec = _convert(raw, path, errors, None)
-        return spec if spec is _INVALID else spec.as_dict()
+        return spec.as_dict() if isinstance(spec, FaultSpec) else spec   # else _INVALID
 
 
 #: A schedule entry's ``fault`` key, optional.

@@ -45,8 +45,11 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .fault_kinds import CLASSES, after_index
 from .fault_spec import (
@@ -59,12 +62,16 @@ from .fault_spec import (
     parse_fault,
 )
 
+if TYPE_CHECKING:
+    from .channel import SensorChannel
+    from .fault_kinds import _Fault
+
 #: An open connection's default reading, in units of the channel's rail (dimensionless):
 #: anything beyond 1 is clipped to the rail by the limit; 2 says "beyond" plainly.
 OPEN_OVERDRIVE = 2.0
 
 
-def channel_rail(channel):
+def channel_rail(channel: SensorChannel) -> float | None:
     """The largest value a channel publishes: its range or its ADC's top code, the lower.
 
     Parameters
@@ -107,7 +114,8 @@ class FaultInjector:
         A bad rate, seed, rails list or repeated name.
     """
 
-    def __init__(self, accelerometer_names, sample_rate_hz, seed=0, *, rails=None):
+    def __init__(self, accelerometer_names: Iterable[str], sample_rate_hz: float, seed: int = 0,
+                 *, rails: Sequence[float | None] | None = None) -> None:
         self.names = [str(n) for n in accelerometer_names]
         if len(set(self.names)) != len(self.names):
             raise ValueError(f'accelerometer names repeat: {self.names}')
@@ -117,19 +125,20 @@ class FaultInjector:
         if isinstance(seed, bool) or int(seed) != seed or not 0 <= int(seed) <= MAX_SEED:
             raise ValueError(f'seed must be a whole number in [0, {MAX_SEED}], got {seed!r}')
         self.seed = int(seed)
-        self.rails = [None] * len(self.names) if rails is None else [
+        self.rails: list[float | None] = [None] * len(self.names) if rails is None else [
             None if r is None else float(r) for r in rails]
         if len(self.rails) != len(self.names):
             raise ValueError(f'{len(self.rails)} rails for {len(self.names)} accelerometers')
         if not all(r is None or (math.isfinite(r) and r > 0) for r in self.rails):
             raise ValueError(f'rails must be finite and > 0 m/s^2 (or None), got {rails!r}')
-        self._faults = []                              # every fault, in the order added
-        self._by_acc: list[list] = [[] for _ in self.names]   # per accelerometer, in order
-        self._done = [None] * len(self.names)          # next sample index (None: none yet)
-        self._last = [None] * len(self.names)          # last value read (after the limit)
+        self._faults: list[_Fault] = []                # every fault, in the order added
+        self._by_acc: list[list[_Fault]] = [[] for _ in self.names]   # per accelerometer
+        self._done: list[int | None] = [None] * len(self.names)   # next sample index
+        self._last: list[np.ndarray | None] = [None] * len(self.names)   # last value read
 
     @classmethod
-    def for_channels(cls, channels, sample_rate_hz=None, seed=0):
+    def for_channels(cls, channels: Iterable[SensorChannel], sample_rate_hz: float | None = None,
+                     seed: int = 0) -> FaultInjector:
         """An injector for ``SensorChannel`` s: their names, output rate and rails.
 
         Parameters
@@ -146,12 +155,13 @@ class FaultInjector:
         return cls([c.name for c in channels], rate, seed,
                    rails=[channel_rail(c) for c in channels])
 
-    def __len__(self):
+    def __len__(self) -> int:
         """Faults added so far (over or not; dimensionless)."""
         return len(self._faults)
 
     # -- faults ------------------------------------------------------------------------------
-    def add(self, spec, now=None, *, key='fault'):
+    def add(self, spec: FaultSpec | Mapping[str, Any], now: float | None = None, *,
+            key: str = 'fault') -> str:
         """Add a fault.
 
         Parameters
@@ -223,7 +233,8 @@ class FaultInjector:
                                                      side='right')), fault)
         return name
 
-    def clear(self, name=None, at=None, *, key='clear'):
+    def clear(self, name: str | None = None, at: float | None = None, *,
+              key: str = 'clear') -> list[str]:
         """End a fault (or every fault) now, or at sim time ``at``.
 
         Parameters
@@ -260,7 +271,7 @@ class FaultInjector:
                 cut.append(f.name)
         return cut
 
-    def active(self, acc_index=None):
+    def active(self, acc_index: int | None = None) -> list[str]:
         """The faults not over yet (running or to come). Not for diagnostics: a real sensor
         does not say it is faulty.
 
@@ -280,7 +291,7 @@ class FaultInjector:
                 (f.hi is None or f.hi > f.lo)]
 
     # -- streams -----------------------------------------------------------------------------
-    def _start(self, t, k):
+    def _start(self, t: npt.ArrayLike, k: int) -> int:
         """Index of a chunk's first sample from its times ``t`` (s; array, or the first)."""
         t = np.asarray(t, dtype=float)
         fs = self.sample_rate_hz
@@ -296,7 +307,7 @@ class FaultInjector:
                              f'samples at {fs:g} Hz')
         return n0
 
-    def before_limit(self, t, samples, acc_index):
+    def before_limit(self, t: npt.ArrayLike, samples: np.ndarray, acc_index: int) -> np.ndarray:
         """First stage, in place: gain, bias, spikes, intermittent rail.
 
         Parameters
@@ -320,7 +331,7 @@ class FaultInjector:
                 f.before(samples, n0)
         return samples
 
-    def hook(self, t, acc_index):
+    def hook(self, t: npt.ArrayLike, acc_index: int) -> Callable[[np.ndarray], np.ndarray] | None:
         """``before_limit`` for one chunk as ``f(samples)``, or None when no first-stage
         fault of the accelerometer touches it (the channel's ``before_limit`` argument).
 
@@ -344,7 +355,8 @@ class FaultInjector:
             return None
         return functools.partial(self.before_limit, t, acc_index=acc_index)
 
-    def after_limit(self, t, samples, acc_index):
+    def after_limit(self, t: npt.ArrayLike, samples: np.ndarray,
+                    acc_index: int) -> tuple[np.ndarray, npt.NDArray[np.bool_]]:
         """Second stage, in place: stuck, then the validity mask (dropout, intermittent).
 
         Call it for every chunk of every accelerometer, faults or none: it keeps the last
@@ -383,7 +395,9 @@ class FaultInjector:
         self._done[acc_index] = n0 + k
         return samples, valid
 
-    def apply(self, t, samples, acc_index, limit=None):
+    def apply(self, t: npt.ArrayLike, samples: npt.ArrayLike, acc_index: int,
+              limit: Callable[[np.ndarray], object] | None = None
+              ) -> tuple[np.ndarray, npt.NDArray[np.bool_]]:
         """Both stages on a copy of ``samples``, with the channel's limit between them.
 
         Parameters
@@ -414,7 +428,7 @@ class FaultInjector:
             limit(x)
         return self.after_limit(t, x, acc_index)
 
-    def valid_at(self, t, acc_index):
+    def valid_at(self, t: npt.ArrayLike, acc_index: int) -> npt.NDArray[np.bool_]:
         """Whether the samples at times ``t`` are there (not dropped), for any sample times:
         e.g. an Imu stream's (the sample each decimated value stands for).
 
@@ -438,7 +452,7 @@ class FaultInjector:
         return valid
 
     # -- labels ------------------------------------------------------------------------------
-    def labels(self):
+    def labels(self) -> list[dict[str, Any]]:
         """Every fault added, for a log's metadata and a data set's manifest (JSON-able, SI).
 
         Returns

@@ -10,10 +10,18 @@ single call.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from ..scene.build import SceneModel
 
 
-def butter_lowpass_sos(order, cutoff_hz, sample_rate_hz):
+def butter_lowpass_sos(order: int, cutoff_hz: float,
+                       sample_rate_hz: float) -> npt.NDArray[np.float64]:
     """Digital Butterworth low-pass in second-order sections (bilinear, prewarped).
 
     The same transfer function as ``scipy.signal.butter(order, cutoff_hz, output='sos',
@@ -75,7 +83,8 @@ class StreamingLowpass:
         A cutoff that is not positive or not below the Nyquist frequency.
     """
 
-    def __init__(self, cutoff_hz, sample_rate_hz, n_channels, order=4):
+    def __init__(self, cutoff_hz: float, sample_rate_hz: float, n_channels: int,
+                 order: int = 4) -> None:
         self.cutoff_hz = float(cutoff_hz)
         self.sample_rate_hz = float(sample_rate_hz)
         self.n_channels = int(n_channels)
@@ -90,11 +99,11 @@ class StreamingLowpass:
         self.sos = butter_lowpass_sos(self.order, self.cutoff_hz, self.sample_rate_hz)
         self.reset()
 
-    def reset(self):
+    def reset(self) -> None:
         """Zero the filter state (a signal at rest before the next sample)."""
         self.zi = np.zeros((self.sos.shape[0], 2, self.n_channels))
 
-    def apply(self, x):
+    def apply(self, x: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Filter the next chunk of the signal.
 
         Parameters
@@ -129,8 +138,8 @@ DECIMATION_STOPBAND_DB = 80.0
 DECIMATION_PASSBAND_FRACTION = 0.4
 
 
-def kaiser_lowpass_fir(cutoff_hz, transition_hz, sample_rate_hz,
-                       stopband_db=DECIMATION_STOPBAND_DB):
+def kaiser_lowpass_fir(cutoff_hz: float, transition_hz: float, sample_rate_hz: float,
+                       stopband_db: float = DECIMATION_STOPBAND_DB) -> npt.NDArray[np.float64]:
     """Linear-phase FIR low-pass by the Kaiser window method (odd length, unit DC gain).
 
     The window's beta and the length follow Kaiser's formulas (as ``scipy.signal.kaiserord``
@@ -191,7 +200,7 @@ class StreamingDecimator:
         Filter delay (input samples).
     """
 
-    def __init__(self, factor, sample_rate_hz, n_channels):
+    def __init__(self, factor: int, sample_rate_hz: float, n_channels: int) -> None:
         self.factor = int(factor)
         if self.factor < 1:
             raise ValueError(f'decimation factor must be >= 1, got {factor}')
@@ -212,12 +221,12 @@ class StreamingDecimator:
         self.white_noise_gain = float(np.sum(self.taps ** 2))
         self.reset()
 
-    def reset(self):
+    def reset(self) -> None:
         """Forget the history (a signal at rest before the next sample)."""
         self._history = np.zeros((self.n_channels, len(self.taps) - 1))
         self._consumed = 0   # input samples taken so far
 
-    def apply(self, x):
+    def apply(self, x: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
         """Take the next chunk; return the outputs that are now complete.
 
         Parameters
@@ -280,7 +289,8 @@ class SensorLowpass:
         sensor key (``sensors[i].lowpass``).
     """
 
-    def __init__(self, sensors, dt, order=4, source=None):
+    def __init__(self, sensors: Sequence[Mapping[str, Any]], dt: float, order: int = 4,
+                 source: str | None = None) -> None:
         from ..scene.schema import SceneError
         rate = 1.0 / float(dt)
         groups: dict[float, list[int]] = {}
@@ -301,11 +311,11 @@ class SensorLowpass:
                        for fc, idx in groups.items()]
 
     @property
-    def active(self):
+    def active(self) -> bool:
         """bool: at least one sensor is filtered."""
         return bool(self.groups)
 
-    def apply(self, acc):
+    def apply(self, acc: np.ndarray) -> npt.NDArray[np.float64]:
         """Filter the next chunk of sensor accelerations.
 
         Parameters
@@ -324,7 +334,7 @@ class SensorLowpass:
         return out
 
 
-def scene_lowpass(scene, dt=None, order=4):
+def scene_lowpass(scene: SceneModel, dt: float | None = None, order: int = 4) -> SensorLowpass:
     """:class:`SensorLowpass` of a built scene at sample period ``dt``.
 
     Parameters

@@ -16,6 +16,7 @@ import math
 import statistics
 import threading
 import time
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 #: lateness statistics are kept over this many recent messages (bounded memory with --loop)
@@ -46,7 +47,8 @@ class Schedule:
         A rate that is not a positive number, or an offset outside the log.
     """
 
-    def __init__(self, start_ns, end_ns, count=2, rate=1.0, start_offset=0.0, loop=False):
+    def __init__(self, start_ns: int, end_ns: int, count: int = 2, rate: float = 1.0,
+                 start_offset: float = 0.0, loop: bool = False) -> None:
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
             raise ValueError(f'--rate must be a number > 0, got {rate}')
         span = int(end_ns) - int(start_ns)
@@ -65,11 +67,11 @@ class Schedule:
         gap = span / (count - 1) if count > 1 and span > 0 else 1e9
         self.period_ns = (self.end_ns - self.begin_ns) + gap
 
-    def selects(self, log_time_ns):
+    def selects(self, log_time_ns: int) -> bool:
         """True if a message at ``log_time_ns`` (ns) is played (not before the offset)."""
         return log_time_ns >= self.begin_ns
 
-    def deadline(self, log_time_ns, iteration=0):
+    def deadline(self, log_time_ns: int, iteration: int = 0) -> float:
         """Wall time (s after playback start) at which to publish a message.
 
         Parameters
@@ -85,7 +87,7 @@ class Schedule:
         """
         return ((log_time_ns - self.begin_ns) + iteration * self.period_ns) / (self.rate * 1e9)
 
-    def log_time_at(self, wall_s):
+    def log_time_at(self, wall_s: float) -> int:
         """Log time (ns) that playback has reached ``wall_s`` s after its start: the /clock.
 
         Parameters
@@ -102,17 +104,18 @@ class Schedule:
             elapsed = math.fmod(elapsed, self.period_ns)
         return self.begin_ns + int(min(elapsed, self.end_ns - self.begin_ns))
 
-    def iterations(self):
+    def iterations(self) -> Iterable[int]:
         """Return the pass numbers: 0 only, or 0, 1, 2, ... with ``loop``."""
         return itertools.count() if self.loop else range(1)
 
     @property
-    def pass_s(self):
+    def pass_s(self) -> float:
         """float: wall duration of one pass, first to last message (s)."""
         return (self.end_ns - self.begin_ns) / (self.rate * 1e9)
 
 
-def deadlines(log_times_ns, rate=1.0, start_offset=0.0, passes=1):
+def deadlines(log_times_ns: Sequence[int], rate: float = 1.0, start_offset: float = 0.0,
+              passes: int = 1) -> list[tuple[int, int, float]]:
     """Wall deadlines of a list of log times, over a number of passes.
 
     Parameters
@@ -178,8 +181,12 @@ class Player:
         Monotonic wall clock (s).
     """
 
-    def __init__(self, schedule, source, publish, clock=None, clock_period=0.01, stop=None,
-                 now=time.monotonic):
+    def __init__(self, schedule: Schedule,
+                 source: Callable[[], Iterable[tuple[object, int, object]]],
+                 publish: Callable[[object, object], object],
+                 clock: Callable[[int], object] | None = None, clock_period: float = 0.01,
+                 stop: threading.Event | None = None,
+                 now: Callable[[], float] = time.monotonic) -> None:
         if not clock_period > 0:
             raise ValueError(f'clock period must be > 0 s, got {clock_period}')
         self.schedule, self._source, self._publish = schedule, source, publish
@@ -187,14 +194,14 @@ class Player:
         self._stop = stop if stop is not None else threading.Event()
         self._now = now
 
-    def _wait(self, t):
+    def _wait(self, t: float) -> None:
         remaining = t - self._now()
         if remaining > 0 and self._stop.wait(remaining):
             raise _Stopped
         if self._stop.is_set():
             raise _Stopped
 
-    def run(self):
+    def run(self) -> PlaybackStats:
         """Play to the end (or until stopped).
 
         Returns

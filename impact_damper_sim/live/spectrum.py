@@ -11,12 +11,13 @@ rolling window's bookkeeping (test/test_monitoring.py checks it through the repo
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 #: Fewest uniformly spaced samples for which a dominant frequency is reported.
 MIN_FFT_SAMPLES = 8
 
 
-def _quadratic_peak(log_mag, k):
+def _quadratic_peak(log_mag: np.ndarray, k: int) -> float:
     """Offset (bins, within -0.5..0.5) of the vertex of the parabola through ``k-1, k, k+1``."""
     a, b, c = log_mag[k - 1], log_mag[k], log_mag[k + 1]
     denom = a - 2.0 * b + c
@@ -25,7 +26,7 @@ def _quadratic_peak(log_mag, k):
     return float(np.clip(0.5 * (a - c) / denom, -0.5, 0.5))
 
 
-def _dominant_from_power(power, bin_hz):
+def _dominant_from_power(power: np.ndarray, bin_hz: float) -> float:
     """Dominant frequency (Hz) from a one-sided power spectrum, bin 0 (DC) excluded."""
     if power.size < 3:
         return float('nan')
@@ -40,7 +41,7 @@ def _dominant_from_power(power, bin_hz):
     return (k + offset) * bin_hz
 
 
-def _fast_length(n):
+def _fast_length(n: int) -> int:
     """Smallest ``2^a 3^b 5^c >= n`` (int), a length the FFT handles at full speed."""
     best = 1 << max(int(n - 1).bit_length(), 0)
     power5 = 1
@@ -54,7 +55,8 @@ def _fast_length(n):
     return best
 
 
-def dominant_frequencies(t, values):
+def dominant_frequencies(t: np.ndarray, values: np.ndarray
+                         ) -> tuple[float, npt.NDArray[np.float64], float]:
     """Dominant frequency of each column and of their summed power.
 
     Parameters
