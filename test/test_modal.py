@@ -109,6 +109,21 @@ def test_sparse_matches_dense_on_long_chain():
     assert by_f.n_modes == np.count_nonzero(modal_reduction(system).frequencies_hz <= 2.0)
 
 
+def test_sparse_without_a_cutoff_keeps_every_mode():
+    """``method='sparse'`` with neither ``n_modes`` nor ``f_max`` keeps every mode, as its
+    docstring says (it raised TypeError before: Lanczos has no cut-off to reach). Tolerance:
+    the same omegas as the dense solver to 1e-12 relative, all 7 closed-form ones."""
+    n, m, k = 7, 2.5, 3.0e4
+    system = fixed_free_chain(n, m, k)
+    every = modal_reduction(system, method='sparse')
+    assert every.n_modes == n
+    j = np.arange(1, n + 1)
+    closed = 2.0 * np.sqrt(k / m) * np.sin((2 * j - 1) * np.pi / (2 * (2 * n + 1)))
+    np.testing.assert_allclose(every.omega, closed, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(every.omega, modal_reduction(system, method='dense').omega,
+                               rtol=1e-12)
+
+
 def test_selection_by_count_cutoff_and_both():
     """Exact counts; the reason string names the rule that decided."""
     system = fixed_free_chain(6, 1.0, 1e4)
