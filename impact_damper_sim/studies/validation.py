@@ -72,8 +72,10 @@ def make_points(quick=False, seed=0):
         tagged.append(Point(onset_task, 'hpotp', tuple(HPOTP_KCC), 0,
                             {'kcc_key': KCC_KEY, 'start_hi': 1e5},
                             {'study': 'hpotp_onset'}))
-        tagged.append(Point(onset_task, 'rbs', ('structure.cross_couplings=[{node: 4, kcc: '
-                                                '0 lb/in}]',), 0,
+        # the paper's speed: the scene's default is its first critical (config/scenes/rbs.yaml)
+        tagged.append(Point(onset_task, 'rbs', ('rotor.speed.speed=7878 rpm',
+                                                'structure.cross_couplings=[{node: 4, kcc: '
+                                                '0 lb/in}]'), 0,
                             {'kcc_key': KCC_KEY, 'start_hi': 1e5}, {'study': 'rbs_onset'}))
     kccs = [f'{k} lb/in' for k in s['kccs']]
     tag(stab_mod.make_points('rbs_kcc', KCC_KEY, kccs, s['rbs_overrides'] + ['impactors=[]'],
