@@ -124,7 +124,7 @@ def run_case(scene, overrides, seconds, rtf, dampers=True, domain=DOMAIN0, recor
         sent_at = []
         if subscriber:
             # wall time of every sample put on the wire: how steady the stream is
-            pub = node._accel_pubs[0].pub
+            pub = node.publishing.accel[0].pub
             real_publish = pub.publish
 
             def timed(data, _publish=real_publish, _now=time.monotonic):
@@ -132,7 +132,7 @@ def run_case(scene, overrides, seconds, rtf, dampers=True, domain=DOMAIN0, recor
                 _publish(data)
 
             pub.publish = timed
-            topic = node._accel_pubs[0].topic
+            topic = node.publishing.accel[0].topic
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain))
             proc = subprocess.Popen([sys.executable, '-c', SUBSCRIBER, topic, str(seconds),
                                      str(domain)], stdout=subprocess.PIPE, text=True, env=env)

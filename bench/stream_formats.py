@@ -6,7 +6,7 @@ One triaxial accelerometer stream (linear acceleration and angular velocity, 6 c
 
 ``imu``
     one ``sensor_msgs/Imu`` per sample at the full rate, packed the way vibration_node packs
-    them (:class:`impact_damper_sim.ros.wire.ImuPacker`: one NumPy pass per 10 ms block);
+    them (:class:`impact_damper_sim.ros.outlets.ImuPacker`: one NumPy pass per 10 ms block);
 ``imu2k``, ``imu1k``
     one ``sensor_msgs/Imu`` per sample at 2 kHz and 1 kHz: the stream decimated by a
     linear-phase Kaiser FIR (pass band to 0.4 of the output rate, >= 60 dB from its Nyquist

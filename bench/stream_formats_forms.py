@@ -138,7 +138,7 @@ class Encoder:
             self.imu_template = template
             self.packer_error = None
             try:
-                from impact_damper_sim.ros.wire import ImuPacker
+                from impact_damper_sim.ros.outlets import ImuPacker
                 self.packer = ImuPacker(template)
             except Exception as exc:   # noqa: BLE001 - any failure: message by message
                 self.packer = None

@@ -155,7 +155,7 @@ def test_a_tiny_real_time_factor_is_paced_and_never_reported_negative(ros_contex
     for outlet in node.outlets:
         outlet.has_subscribers = lambda: True
         outlet.pub.publish = lambda data: None
-    node._accel_pubs[0].pub.publish = sent.append
+    node.publishing.accel[0].pub.publish = sent.append
     steps = itertools.cycle((0.5, 0.13, 0.37, 0.05, 0.29, 0.011))
     try:
         node.publish_diagnostics()

@@ -103,9 +103,9 @@ class Stepper:
         self.period = 1.0 / node.live.sample_rate
         self.bad = []
         self.samples = 0
-        original = node._queue_batch
+        original = node.publishing.queue_batch
 
-        def spy(batch):
+        def spy(batch, *args):
             t, acc = np.asarray(batch.t), np.asarray(batch.linear_acceleration)
             if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)
                     and np.all(np.isfinite(acc))):
@@ -113,7 +113,7 @@ class Stepper:
             self.samples += t.size
             return original(batch, *args)
 
-        node._queue_batch = spy
+        node.publishing.queue_batch = spy
 
     def advance(self, where):
         """Advance the fake wall clock so that at most 20 ms of sim time is due, tick, and
@@ -384,12 +384,12 @@ def test_real_time_factor_fuzz_with_the_stepping_thread(ros_context, scale):
     node = VibrationNode(context=ros_context, parameter_overrides=[
         Parameter('scene', value='sdof')])
     listener = Node('listener', context=ros_context)
-    listener.create_subscription(Imu, node._accel_pubs[0].topic, lambda m: None,
+    listener.create_subscription(Imu, node.publishing.accel[0].topic, lambda m: None,
                                  itf.SENSOR_QOS)
     end = time.monotonic() + 10.0
-    while not node._accel_pubs[0].has_subscribers() and time.monotonic() < end:
+    while not node.publishing.accel[0].has_subscribers() and time.monotonic() < end:
         time.sleep(0.05)
-    assert node._accel_pubs[0].has_subscribers()
+    assert node.publishing.accel[0].has_subscribers()
     node.MAX_WAIT = 1e6   # no periodic re-read: only a wake ends a long wait
     values = [1e-6, 5e-324, 2.2250738585072014e-308, 0.0, 1e-300, 0.5, 1000.0, 1.0, 1e-3]
     # random factors, then the issue's sequence (1.0 running, a tiny one, 1.0 again)

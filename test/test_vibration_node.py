@@ -24,7 +24,7 @@ from std_msgs.msg import Float64, String  # noqa: E402
 
 from impact_damper_sim.recording.batches import rows_of  # noqa: E402
 from impact_damper_sim.ros import interface as itf  # noqa: E402
-from impact_damper_sim.ros import vibration_node, wire  # noqa: E402
+from impact_damper_sim.ros import handoff, vibration_node  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode, main  # noqa: E402
 from impact_damper_sim.scene.schema import SceneError  # noqa: E402
 from node_helpers import FakeClock, make_node  # noqa: E402
@@ -86,8 +86,8 @@ def test_dampers_enabled_switches_impacts(ros_context):
     node = make_node(ros_context, 'sdof')
     published = []
     from rclpy.serialization import deserialize_message
-    node._impact_pub.has_subscribers = lambda: True
-    node._impact_pub.publish_raw = (   # what would go on the wire
+    node.publishing.impacts.has_subscribers = lambda: True
+    node.publishing.impacts.publish_raw = (   # what would go on the wire
         lambda data, ns=None, wire=True: published.append(deserialize_message(data,
                                                                                PointCloud2)))
 
@@ -287,7 +287,7 @@ def test_in_process_subscriber_gets_every_topic(ros_context):
         rows = np.concatenate([rows_of(m) for m in batches])
         tb = np.concatenate([_sec(m.header.stamp) + rows_of(m)['t'] for m in batches])
         np.testing.assert_allclose(np.diff(tb), 1 / 2000.0, rtol=0, atol=2e-9)
-        assert sim._batch_pubs[0].count * 20 == published   # 20 samples per 10 ms chunk
+        assert sim.publishing.batch[0].count * 20 == published   # 20 samples per 10 ms chunk
         by_time = {round(x * 2000): m for x, m in zip(t, imu)}
         for x, r in zip(tb[:50], rows[:50]):
             m = by_time.get(round(x * 2000))
@@ -297,7 +297,7 @@ def test_in_process_subscriber_gets_every_topic(ros_context):
         assert sub.got[itf.IMPACTOR_STATE][0].name == ['damper/uy']
         clock = [_sec(m.clock) for m in sub.got[itf.CLOCK]]
         # one /clock per chunk of at most 10 ms; keep last 1, so a busy reader sees only some
-        assert sim._clock_pub.count >= sim.live.t / 0.01 - 2
+        assert sim.publishing.clock.count >= sim.live.t / 0.01 - 2
         assert len(clock) > 10 and np.all(np.diff(clock) > 0)
         # QoS as documented
         for topic, qos in [(itf.accel_topic(sensor.name), itf.SENSOR_QOS),
@@ -388,15 +388,15 @@ def test_pacing_never_runs_ahead_and_flat_out_leaves_the_executor_free(ros_conte
         assert 0 < d['real_time_factor_achieved'] <= 1.02
         assert 0 < d['cpu_percent'] < 200
         sim.set_parameters([Parameter('real_time_factor', value=0.0)])
-        n_state = sim._state_pub.count
+        n_state = sim.publishing.state.count
         pub.publish(Float64(data=1000.0))
         # liveness, not latency: generous deadlines (the latency is bench/node_realtime.py's)
         end = time.monotonic() + 20.0
-        while (sim.live.profile.target != 1000.0 or sim._state_pub.count < n_state + 2) \
+        while (sim.live.profile.target != 1000.0 or sim.publishing.state.count < n_state + 2) \
                 and time.monotonic() < end:
             ex.spin_once(timeout_sec=0.01)
         assert sim.live.profile.target == 1000.0
-        assert sim._state_pub.count >= n_state + 2   # the 1 s state timer kept firing
+        assert sim.publishing.state.count >= n_state + 2   # the 1 s state timer kept firing
     finally:
         sim.destroy_node()
         cmd.destroy_node()
@@ -423,7 +423,7 @@ def test_a_waiting_callback_gets_the_lock_at_the_next_chunk():
     without the hand-over Python's unfair lock lets the stepper win again (measured: 60 to
     900 chunks of 1 ms each, quiet or with both cores loaded; with it 1 to 4 at most, median
     1). Counted in chunks, not seconds, so a loaded machine does not make it flaky."""
-    lock = wire.HandoffLock()
+    lock = handoff.HandoffLock()
     stop = threading.Event()
     chunks = [0]
 
@@ -460,7 +460,7 @@ def test_shutdown_after_ctrl_c_does_not_race_the_sigint_handler(monkeypatch):
     once the context is down, and raises it while the context is still up."""
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     RCLError = _rclpy.RCLError
-    from impact_damper_sim.ros.wire import settle_interrupt, shutdown_quietly
+    from impact_damper_sim.ros.process import settle_interrupt, shutdown_quietly
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     # the handler's shutdown, 50 ms after the interrupt: settle_interrupt waits for it
@@ -501,7 +501,7 @@ def test_spin_guarded_ends_quietly_when_ctrl_c_shuts_the_context_under_it():
     context is not valid") ends the spin as a shutdown, not as a failed callback."""
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     from rclpy.executors import ExternalShutdownException
-    from impact_damper_sim.ros.wire import spin_guarded
+    from impact_damper_sim.ros.process import spin_guarded
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     executor = SingleThreadedExecutor(context=ctx)
@@ -530,7 +530,7 @@ def test_recording_keeps_the_stream_on_time(ros_context, tmp_path):
     path = tmp_path / 'rt.mcap'
     node = make_node(ros_context, 'hpotp', LINEAR_HPOTP, clock=clock, imu_rate=2000.0,
                      record=str(path))
-    node._accel_pubs[0].has_subscribers = lambda: True   # the stream waits for its times
+    node.publishing.accel[0].has_subscribers = lambda: True   # the stream waits for its times
     try:
         while clock.now < 1000.1:
             clock.now += _wake(node)
@@ -583,12 +583,12 @@ def test_every_shipped_scene_runs_with_default_parameters(ros_context, scene):
         assert node.live.failure is None
         n = node.stats_total['samples']
         assert n == round(0.05 * live.sample_rate)
-        assert all(out.count == 5 for out in node._batch_pubs)   # one per 10 ms chunk
+        assert all(out.count == 5 for out in node.publishing.batch)   # one per 10 ms chunk
         # the decimated stream has every output whose filter window is complete
         factor, delay = live._decimator.factor, live._decimator.delay
         assert live.imu_rate * factor == pytest.approx(live.sample_rate, rel=1e-12)
         assert live.imu_rate <= LIVE_IMU_MAX_RATE
-        assert all(out.count == (n - 1 - delay) // factor + 1 for out in node._accel_pubs)
+        assert all(out.count == (n - 1 - delay) // factor + 1 for out in node.publishing.accel)
     finally:
         node.destroy_node()
 
@@ -604,7 +604,7 @@ def test_imu_packer_bytes_round_trip(ros_context):
     """The vectorised CDR is byte for byte what rclpy serializes, and reads back exactly."""
     from rclpy.serialization import deserialize_message, serialize_message
 
-    from impact_damper_sim.ros.wire import ImuPacker
+    from impact_damper_sim.ros.outlets import ImuPacker
     rng = np.random.default_rng(3)
     for frame in ('', 'a', 'ab', 'abc', 'hpotp_casing_bottom', 'x' * 37):
         template = Imu()
@@ -640,7 +640,7 @@ def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
     from rclpy.serialization import deserialize_message
     clock = FakeClock()
     node = make_node(ros_context, 'hpotp', LINEAR_HPOTP, clock=clock, imu_rate=2000.0)
-    out = node._accel_pubs[0]
+    out = node.publishing.accel[0]
     out.has_subscribers = lambda: True
     sent = []
 
@@ -671,12 +671,12 @@ def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
             backlog.append((k, delay))
             clock.now += delay
         assert max(k for k, _ in backlog) <= 4
-        assert backlog[0] == (4, node.CATCH_UP)
-        caught_up = next(i for i, (_, d) in enumerate(backlog) if d != node.CATCH_UP)
+        assert backlog[0] == (4, node.outbox.CATCH_UP)
+        caught_up = next(i for i, (_, d) in enumerate(backlog) if d != node.outbox.CATCH_UP)
         # 40 due, 1 more every 0.5 ms, 4 sent per wake-up (4 x 2 kHz): 3 fewer each time
         assert 12 <= caught_up <= 15
         # back on time: the last sample sent is due within 0.75 ms of the clock
-        assert node.pacer.wall_at(sent[-1] * 1e-9) <= clock.now + node.EARLY
+        assert node.pacer.wall_at(sent[-1] * 1e-9) <= clock.now + node.outbox.EARLY
         assert np.all(np.diff(sent) == 500_000)   # every sample, in order, once
         # nobody subscribed: a chunk's samples go at once, about one wake-up per chunk
         out.has_subscribers = lambda: False
@@ -700,7 +700,7 @@ def test_a_20_khz_stream_sends_its_1_khz_imu_in_pairs_and_its_backlog_two_at_a_t
     clock = FakeClock()
     node = make_node(ros_context, 'sdof', clock=clock, sample_rate=20000.0)
     assert (node.live.sample_rate, node.live.imu_rate) == (20000.0, 1000.0)
-    out = node._accel_pubs[0]
+    out = node.publishing.accel[0]
     out.has_subscribers = lambda: True
     sent = []
     out.pub.publish = lambda data: sent.append(
@@ -737,7 +737,7 @@ def test_a_backlog_drains_at_four_times_the_rate_when_every_wake_up_comes_late(r
     from rclpy.serialization import deserialize_message
     clock = FakeClock()
     node = make_node(ros_context, 'sdof', clock=clock, sample_rate=20000.0)
-    out = node._accel_pubs[0]
+    out = node.publishing.accel[0]
     out.has_subscribers = lambda: True
     sent = []   # (stamp ns, wall s)
     out.pub.publish = lambda data: sent.append(
@@ -758,10 +758,10 @@ def test_a_backlog_drains_at_four_times_the_rate_when_every_wake_up_comes_late(r
                 break
         drained = clock.now - t_stall
         assert drained <= 0.025, f'backlog drained in {1e3 * drained:.0f} ms'
-        assert max(groups) <= node.MAX_BURST
+        assert max(groups) <= node.outbox.MAX_BURST
         walls = np.array([w for _, w in sent[n_stall:]])
         # at most 4 x 1 kHz over any span from the first wake-up on, plus one group
-        assert len(walls) <= 4.0 * 1000.0 * (walls[-1] - t_stall) + node.MAX_BURST
+        assert len(walls) <= 4.0 * 1000.0 * (walls[-1] - t_stall) + node.outbox.MAX_BURST
         stamps = np.array([ns for ns, _ in sent])
         assert np.all(np.diff(stamps) == 1_000_000)   # every sample, in order, once
     finally:
@@ -775,8 +775,8 @@ def test_achieved_factor_is_the_delivered_stream_on_a_short_period(ros_context):
     reports that shortfall: 0.204 / 0.254."""
     clock = FakeClock()
     node = make_node(ros_context, 'hpotp', LINEAR_HPOTP, clock=clock, imu_rate=2000.0)
-    node._accel_pubs[0].has_subscribers = lambda: True
-    node._accel_pubs[0].pub.publish = lambda data: None
+    node.publishing.accel[0].has_subscribers = lambda: True
+    node.publishing.accel[0].pub.publish = lambda data: None
     try:
         while clock.now < 1000.1:
             clock.now += _wake(node)
@@ -825,7 +825,7 @@ def test_published_and_recorded_bytes_are_the_same(ros_context, tmp_path):
     """Serialized once: the recorder gets the very bytes that went on the wire."""
     node = make_node(ros_context, 'sdof', imu_rate=2000.0)   # no filter delay: 40 in 20 ms
     sent = []
-    pub = node._accel_pubs[0]
+    pub = node.publishing.accel[0]
     real = pub.pub.publish
     pub.pub.publish = lambda data: (sent.append(data), real(data))
     pub.has_subscribers = lambda: True
@@ -1061,7 +1061,7 @@ def test_rotor_joint_states_carry_angle_and_speed(ros_context):
     got = []
     from rclpy.serialization import deserialize_message
     # the node publishes bytes packed without rclpy (recording.node_messages)
-    node._joint_pub.publish_raw = lambda data, ns=None, wire=True: got.append(
+    node.publishing.joint.publish_raw = lambda data, ns=None, wire=True: got.append(
         deserialize_message(data, JointState))
     try:
         run_for(node, 0.1)
@@ -1080,7 +1080,7 @@ def test_rotor_joint_states_carry_angle_and_speed(ros_context):
 
 def test_slow_start_up_says_what_it_is_doing():
     """A cold Numba cache keeps the node busy for tens of seconds: it logs that it is."""
-    from impact_damper_sim.ros.wire import BusyNotice
+    from impact_damper_sim.ros.notices import BusyNotice
     said = []
     busy = BusyNotice(said.append, 'compiling', period=0.05)
     time.sleep(0.3)
@@ -1135,7 +1135,7 @@ def test_a_new_real_time_factor_wakes_the_stepping_thread(ros_context, tiny):
         Parameter('scene', value='sdof')])
     # a subscriber: the thread then waits for each sample's time (a stream nobody reads is
     # sent as soon as it is stepped, and its thread never waits long)
-    node._accel_pubs[0].has_subscribers = lambda: True
+    node.publishing.accel[0].has_subscribers = lambda: True
     node.MAX_WAIT = 1e6   # no periodic re-read: only a wake ends the wait
     probe = node._wake = _WaitProbe(long_s=1.0)
     try:
@@ -1204,7 +1204,7 @@ def test_main_freezes_the_start_up_heap_before_stepping(ros_context, monkeypatch
     held the GIL ~150 ms: a 1 s window at 0.90 x real time) and only then starts stepping;
     the frozen objects are out of every generation the collector walks."""
     import gc
-    from impact_damper_sim.ros import wire
+    from impact_damper_sim.ros import process
     order = []
     real_start = VibrationNode.start
     monkeypatch.setattr(VibrationNode, 'start',
@@ -1227,7 +1227,7 @@ def test_main_freezes_the_start_up_heap_before_stepping(ros_context, monkeypatch
     assert order == ['freeze', 'start', 'spin']
     kept = [{'i': i} for i in range(20000)]
     try:
-        assert wire.freeze_start_up_heap() >= len(kept)
+        assert process.freeze_start_up_heap() >= len(kept)
         walked = {id(o) for generation in range(3) for o in gc.get_objects(generation)}
         assert not any(id(o) in walked for o in kept)
     finally:
@@ -1274,5 +1274,27 @@ def test_every_command_a_person_sends_is_acknowledged_a_flood_is_thinned(ros_con
             wall[0] += 0.001
         accepted = [line for line in lines if 'accepted at sim time' in line]
         assert [line.split()[1] for line in accepted] == ['1200', '1300', '1000']
+    finally:
+        node.destroy_node()
+
+
+def test_rclpy_refuses_a_read_only_parameter_before_the_node_sees_it(ros_context):
+    """A read-only parameter (set at start) is refused by rclpy itself, with its reason,
+    before the node's set-parameters callback runs: the node needs no check of its own."""
+    from impact_damper_sim.ros.parameters import PARAMETERS
+    node = make_node(ros_context, 'sdof')
+    seen = []
+    validate = node._validate
+    node._validate = lambda params: (seen.append([p.name for p in params]),
+                                     validate(params))[1]
+    try:
+        assert PARAMETERS['sample_rate'].read_only
+        result = node.set_parameters([Parameter('sample_rate', value=4000.0)])[0]
+        assert not result.successful
+        assert result.reason == 'Trying to set a read-only parameter: sample_rate.'
+        assert seen == [] and node.get_parameter('sample_rate').value == 0.0
+        # a dynamic one reaches the callback, and is applied
+        assert node.set_parameters([Parameter('noise_std', value=0.5)])[0].successful
+        assert seen == [['noise_std']] and node.live.noise_std == 0.5
     finally:
         node.destroy_node()

@@ -10,23 +10,23 @@ tested here with plain NumPy. Everything is SI.
   rotor speed and unbalance multiplier; the tachometer (the rotor angle the unbalance force
   uses, at every output sample, and the once-per-revolution keyphasor times). Speed and
   unbalance commands are validated here.
-* :class:`Pacer` maps wall time to sim time for a real-time factor, and tells how far behind
-  the simulation is.
+
+When to step and what to send is :mod:`.pacing`'s. Messages name quantities (``speed``,
+``sample rate``), never the topics or parameters an adapter sets them with.
 
 The scene it steps is loaded, and its accelerometers and output rates are chosen, in
 :mod:`.streams`.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
-import time
 
 import numpy as np
 
 from ..integrate.divergence import Divergence
 from ..scene.advice import scene_advice
 from ..scene.schema import SceneError
+from .batch import Batch
 from .fault_spec import FaultError
 from .faults import FaultInjector
 from .streams import accelerometers, default_imu_rate, default_sample_rate
@@ -47,71 +47,8 @@ GROWTH_RATE_NOISE = 1e-8
 
 
 class CommandError(ValueError):
-    """A rejected command; the message names the command and its allowed range."""
-
-
-@dataclasses.dataclass
-class Batch:
-    """What one :meth:`LiveSimulation.step` produced.
-
-    Attributes
-    ----------
-    t : ndarray, shape (k,)
-        Output sample times (s).
-    linear_acceleration : ndarray, shape (k, n_acc, 3)
-        Accelerometer readings (m/s^2).
-    angular_velocity : ndarray, shape (k, n_acc, 3)
-        Rotational DOF rates (rad/s).
-    events : ndarray of EVENT_DTYPE
-        Impacts, sticks and releases in the chunk (times in s).
-    states_changed : bool
-        Some impactor changed between stuck and free during the chunk.
-    imu_t : ndarray, shape (j,)
-        Times (s) of the live per-sample stream's samples completed in this chunk: the
-        decimated signal, a filter delay behind ``t`` (see :class:`StreamingDecimator`).
-    imu_linear_acceleration, imu_angular_velocity : ndarray, shape (j, n_acc, 3)
-        The decimated readings (m/s^2, rad/s).
-    truth : ndarray, shape (k, n_acc, 3)
-        Ground truth at the output samples: the model's acceleration (model frame) through
-        the anti-alias low-pass and no other stage of the channel (m/s^2).
-    clipped, imu_clipped : ndarray of int, shape (n_acc,)
-        Values clipped by the measuring range or the ADC in this chunk, per accelerometer:
-        of ``linear_acceleration`` and of ``imu_linear_acceleration`` (values, 3 per sample).
-    shaft_angle, shaft_speed : ndarray, shape (k,), or None
-        The tachometer at ``t``: the rotor angle ``phi(t)`` the unbalance force uses,
-        unwrapped (rad, 0 at t = 0, never decreasing), and the speed (rad/s); None without a
-        rotor.
-    keyphasor : ndarray of KEYPHASOR_DTYPE, or None
-        The times in this chunk's interval (end of the previous chunk, ``t[-1]``] at which
-        ``phi`` reached a whole number of turns; None without a rotor.
-    valid : ndarray of bool, shape (k, n_acc)
-        Whether each full-rate sample of each accelerometer is there: False where a sensor
-        fault (a dropout, an intermittent connection with ``off: dropout``) lost it. A
-        missing sample is not published; its value in ``linear_acceleration`` is what the
-        channel made (the decimator downstream sees a continuous signal).
-    imu_valid : ndarray of bool, shape (j, n_acc)
-        The same for the decimated samples at ``imu_t`` (the full-rate sample each stands
-        for).
-    """
-
-    t: np.ndarray
-    linear_acceleration: np.ndarray
-    angular_velocity: np.ndarray
-    events: np.ndarray
-    states_changed: bool
-    imu_t: np.ndarray = None
-    imu_linear_acceleration: np.ndarray = None
-    imu_angular_velocity: np.ndarray = None
-    truth: np.ndarray = None
-    clipped: np.ndarray = None
-    imu_clipped: np.ndarray = None
-    shaft_angle: np.ndarray = None
-    shaft_speed: np.ndarray = None
-    keyphasor: np.ndarray = None
-    valid: np.ndarray = None
-    imu_valid: np.ndarray = None
-
-
+    """A rejected command; the message (``'<quantity>: ...'``) names the quantity and its
+    allowed range."""
 
 
 class LiveSimulation:
@@ -158,14 +95,14 @@ class LiveSimulation:
         sample_rate = (default_sample_rate(scene_model) if sample_rate is None
                        else float(sample_rate))
         if not (math.isfinite(sample_rate) and sample_rate > 0):
-            raise SceneError(f"parameter 'sample_rate': must be a finite rate > 0 Hz, "
+            raise SceneError(f"sample rate: must be a finite rate > 0 Hz, "
                              f'got {sample_rate}')
         self.scene = scene_model
         self.sample_rate = sample_rate
         self.accelerometers = accelerometers(scene_model, sample_rate)
         for acc in self.accelerometers:
             if not acc.lowpass_hz < 0.5 * sample_rate:
-                raise SceneError(f"parameter 'sample_rate': {sample_rate:g} Hz must exceed "
+                raise SceneError(f"sample rate: {sample_rate:g} Hz must exceed "
                                  f'twice the anti-alias cutoff {acc.lowpass_hz:g} Hz of '
                                  f'accelerometer {acc.name!r} (> {2 * acc.lowpass_hz:g} Hz)')
         dt_scene = float(scene_model.scene['simulation']['dt'])
@@ -183,7 +120,7 @@ class LiveSimulation:
         imu_rate = default_imu_rate(sample_rate) if imu_rate is None else float(imu_rate)
         factor = sample_rate / imu_rate if math.isfinite(imu_rate) and imu_rate > 0 else 0.0
         if not (factor >= 1 - 1e-9 and abs(factor - round(factor)) < 1e-6 * factor):
-            raise SceneError(f"parameter 'imu_rate': must be the sample rate "
+            raise SceneError(f"imu rate: must be the sample rate "
                              f'{sample_rate:g} Hz divided by a whole number (e.g. '
                              f'{default_imu_rate(sample_rate):g} Hz), got {imu_rate:g} Hz')
         self.imu_rate = sample_rate / round(factor)
@@ -193,6 +130,8 @@ class LiveSimulation:
         self.max_unbalance = float(max_unbalance)
         self.profile = scene_model.speed_profile
         self.unbalance = scene_model.unbalance
+        #: the rate limit at start (rad/s^2): a speed rate limit of 0 restores it
+        self.start_speed_rate = self.profile.max_rate if self.speed_commanded else None
         if self.profile is not None:
             w0 = float(self.profile.speed(np.asarray(0.0)))
             reference = max(initial_target or 0.0, w0)
@@ -279,6 +218,11 @@ class LiveSimulation:
         """bool: The scene has a rotor (speed commands apply)."""
         return self.profile is not None
 
+    @property
+    def speed_commanded(self):
+        """bool: The rotor's speed follows commands (a gyroscopic scene's does not)."""
+        return self.profile is not None and self.profile.commanded
+
     def command_speed(self, target):
         """Command a rotor speed from now on, reached under the rate limit.
 
@@ -293,11 +237,11 @@ class LiveSimulation:
             No rotor, or the target is out of range; nothing changes.
         """
         if not self.has_rotor:
-            raise CommandError(f'rotor/speed_command: scene {self.scene.name!r} has no rotor')
-        if not hasattr(self.profile, 'command'):
-            raise CommandError(f'rotor/speed_command: scene {self.scene.name!r} has a '
-                               'gyroscopic coupling built for its constant speed')
-        target = _checked(target, 'rotor/speed_command', 0.0, self.max_speed, 'rad/s')
+            raise CommandError(f'speed: scene {self.scene.name!r} has no rotor')
+        if not self.speed_commanded:
+            raise CommandError(f'speed: scene {self.scene.name!r} has a gyroscopic coupling '
+                               'built for its constant speed')
+        target = _checked(target, 'speed', 0.0, self.max_speed, 'rad/s')
         self.profile.command(self.sim.t, target)
 
     def set_speed_rate(self, rate):
@@ -306,20 +250,19 @@ class LiveSimulation:
         Parameters
         ----------
         rate : float
-            Rate limit (rad/s^2), finite, in ``(0, 1e6]``.
+            Rate limit (rad/s^2), finite, in ``[0, 1e6]``; 0 restores the rate at start
+            (:attr:`start_speed_rate`).
 
         Raises
         ------
         CommandError
             No commanded rotor, or the rate is out of range; nothing changes.
         """
-        if not self.has_rotor or not hasattr(self.profile, 'command'):
-            raise CommandError(f"parameter 'speed_rate_limit': scene {self.scene.name!r} has "
-                               'no commanded rotor')
-        rate = _checked(rate, "parameter 'speed_rate_limit'", 0.0, 1.0e6, 'rad/s^2')
-        if rate <= 0:
-            raise CommandError("parameter 'speed_rate_limit': must be > 0 rad/s^2, got 0")
-        self.profile.max_rate = rate
+        if not self.speed_commanded:
+            raise CommandError(f'speed rate limit: scene {self.scene.name!r} has no commanded '
+                               'rotor')
+        rate = _checked(rate, 'speed rate limit', 0.0, 1.0e6, 'rad/s^2')
+        self.profile.max_rate = rate if rate > 0 else self.start_speed_rate
         # re-command the target now: the remaining ramp is rebuilt at the new rate
         self.profile.command(self.sim.t, self.profile.target)
 
@@ -337,9 +280,9 @@ class LiveSimulation:
             No unbalance in the scene, or X out of range; nothing changes.
         """
         if self.unbalance is None:
-            raise CommandError(f'rotor/unbalance_command: scene {self.scene.name!r} has no '
-                               'rotor unbalance')
-        self.unbalance.multiplier = _checked(multiplier, 'rotor/unbalance_command', 0.0,
+            raise CommandError(f'unbalance multiplier: scene {self.scene.name!r} has no rotor '
+                               'unbalance')
+        self.unbalance.multiplier = _checked(multiplier, 'unbalance multiplier', 0.0,
                                              self.max_unbalance, '')
 
     def set_noise(self, std, seed=None):
@@ -351,7 +294,7 @@ class LiveSimulation:
         """
         std = float(std)
         if not (math.isfinite(std) and std >= 0):
-            raise CommandError(f"parameter 'noise_std': must be finite and >= 0 m/s^2, "
+            raise CommandError(f"noise std: must be finite and >= 0 m/s^2, "
                                f'got {std}')
         self.noise_std = std
         for k, channel in enumerate(self.channels):
@@ -368,7 +311,7 @@ class LiveSimulation:
         spec : FaultSpec or dict
             The fault (a mapping is read by :func:`~.fault_spec.parse_fault`: units allowed).
         key : str
-            The command's name in messages (``accel/fault_command``, ``schedule[2].fault``).
+            The command's name in messages (the node gives its topic; ``schedule[2].fault``).
 
         Returns
         -------
@@ -467,6 +410,10 @@ class LiveSimulation:
         t = np.asarray(self.sim.t)
         x = self.unbalance.multiplier if self.unbalance is not None else 0.0
         return (float(self.profile.speed(t)), float(self.profile.acceleration(t)), float(x))
+
+    def stuck_count(self):
+        """int: Impactors stuck to their housing at the end of the last chunk."""
+        return sum(self._stuck)
 
     def _stuck_flags(self):
         return tuple(bool(s) for s in self.sim.integrator._stuck)
@@ -633,78 +580,4 @@ def _checked(value, name, low, high, unit):
     return value
 
 
-class Pacer:
-    """Maps wall time to the sim time the simulation should have reached.
-
-    Sim time advances with wall time x ``real_time_factor``; 0 means as fast as possible.
-    When the simulation falls more than ``max_lag`` (wall s) behind, the deficit is dropped
-    from the schedule (the physics is not skipped: the simulation just runs slower than
-    asked, and the node reports it), so it does not race afterwards.
-
-    Parameters
-    ----------
-    real_time_factor : float
-        Sim seconds per wall second (dimensionless), >= 0.
-    t_sim : float
-        Sim time now (s).
-    max_lag : float
-        Largest schedule deficit kept (wall s).
-    clock : callable
-        Wall clock (s), ``time.monotonic`` by default.
-    """
-
-    def __init__(self, real_time_factor, t_sim, *, max_lag=0.25, clock=time.monotonic):
-        self._clock = clock
-        self.max_lag = float(max_lag)
-        self.deficits = 0
-        self.reset(real_time_factor, t_sim)
-
-    def reset(self, real_time_factor, t_sim):
-        """Restart the schedule at sim time ``t_sim`` (s) with a new factor."""
-        rtf = float(real_time_factor)
-        if not (math.isfinite(rtf) and rtf >= 0):
-            raise CommandError(f"parameter 'real_time_factor': must be finite and >= 0, "
-                               f'got {rtf}')
-        self.real_time_factor = rtf
-        self._wall0 = self._clock()
-        self._sim0 = float(t_sim)
-
-    def wall_at(self, t_sim):
-        """Wall time (s) at which sim time ``t_sim`` (s) is due; -inf as fast as possible."""
-        if self.real_time_factor == 0:
-            return -math.inf
-        return self._wall0 + (t_sim - self._sim0) / self.real_time_factor
-
-    def sim_at(self, wall):
-        """Sim time (s) due at wall time ``wall`` (s), the inverse of :meth:`wall_at`; inf as
-        fast as possible (no deficit is dropped here)."""
-        if self.real_time_factor == 0:
-            return math.inf
-        return self._sim0 + (wall - self._wall0) * self.real_time_factor
-
-    def target(self, t_sim):
-        """Sim time to reach now (s), given the current sim time ``t_sim`` (s); inf if 0.
-
-        Returns
-        -------
-        target : float
-            Sim time (s).
-        lag : float
-            How far the simulation is behind the schedule (wall s), before any deficit is
-            dropped.
-        """
-        if self.real_time_factor == 0:
-            return math.inf, 0.0
-        now = self._clock()
-        target = self._sim0 + (now - self._wall0) * self.real_time_factor
-        lag = (target - t_sim) / self.real_time_factor
-        if lag > self.max_lag:
-            # drop the deficit: re-anchor so the schedule is max_lag ahead of the simulation
-            self.deficits += 1
-            self._sim0 = t_sim + self.max_lag * self.real_time_factor
-            self._wall0 = now
-            target = self._sim0
-        return target, lag
-
-
-__all__ = ['Batch', 'CommandError', 'KEYPHASOR_DTYPE', 'LiveSimulation', 'Pacer']
+__all__ = ['CommandError', 'KEYPHASOR_DTYPE', 'LiveSimulation']

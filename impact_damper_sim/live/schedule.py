@@ -188,7 +188,7 @@ class Schedule:
             ``clear_fault`` of a name no earlier entry gives).
         """
         problems = []
-        commanded = live.has_rotor and hasattr(live.profile, 'command')
+        commanded = live.speed_commanded
         problems += self._check_faults(live)
         for i, entry in enumerate(self.entries):
             for key, _, name, value in entry.commands:

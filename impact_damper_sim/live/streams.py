@@ -1,6 +1,6 @@
 """What a scene streams live: the scene with a commanded rotor, its accelerometers, its rates.
 
-* :func:`live_scene` loads a scene for live stepping and makes its rotor commanded;
+* :func:`live_scene` loads a scene for live stepping, its rotor commanded;
 * :func:`accelerometers` makes one triaxial :class:`Accelerometer` per instrumented node;
 * :func:`default_sample_rate` and :func:`default_imu_rate` give the output rate the scene's
   sensors imply and the rate of the decimated per-sample stream.
@@ -131,33 +131,35 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
         cannot run live.
     """
     from ..integrate.kernels.prefetch import prefetch
-    from ..scene.build import load
+    from ..scene.build import build
+    from ..scene.catalog import validated
+    from ..scene.excitation import speed_profile
     prefetch()   # a live run follows: a cold cache starts compiling the event search now
-    model = load(scene, overrides=list(overrides))
-    if model.scene['offline_only']:
-        raise SceneError(f"scene {model.name!r} is for offline studies only: "
-                         f"{model.scene['offline_only']}", model.source)
-    rotor = model.scene['rotor']
+    overrides = tuple(overrides)
+    spec, path = validated(scene, overrides)
+    if spec['offline_only']:
+        raise SceneError(f"scene {spec['name']!r} is for offline studies only: "
+                         f"{spec['offline_only']}", str(path))
+    rotor = spec['rotor']
     if rotor is None:
-        return model, None
-    sp = rotor['speed']
-    profile = model.speed_profile
-    if sp['kind'] == 'commanded':
-        rate = sp['max_rate'] if speed_rate_limit is None else speed_rate_limit
-        final = sp['speed']
-    else:
-        knots = profile._knots()
-        final = float(knots.w[-1])
-        slopes = np.abs(knots.s[:-1])
-        default = float(slopes.max()) if slopes.size and slopes.max() > 0 else 100.0
-        rate = default if speed_rate_limit is None else speed_rate_limit
+        return build(spec, source=str(path), overrides=overrides), None
+    profile = speed_profile(rotor['speed'])
+    final = profile.final_speed
+    rate = (profile.max_rate if profile.commanded else profile.steepest_rate or 100.0) \
+        if speed_rate_limit is None else speed_rate_limit
     if not (math.isfinite(rate) and rate > 0):
-        raise SceneError(f"parameter 'speed_rate_limit': must be a finite rate > 0 rad/s^2, "
-                         f'got {rate}')
-    if rotor['gyroscopic'] is not None:
-        return model, None   # one constant speed (see LiveSimulation.command_speed)
-    model.command_rotor(float(profile.speed(np.asarray(0.0))), rate)
-    return model, final
+        raise SceneError(f'speed rate limit: must be a finite rate > 0 rad/s^2, got {rate}')
+    if rotor['gyroscopic'] is not None:   # one constant speed (LiveSimulation.command_speed)
+        return build(spec, source=str(path), overrides=overrides), None
+    # the same scene with the rotor commanded: a new mapping, as validating the override
+    # would give (without reading and validating the file twice), built once
+    initial = float(profile.speed(np.asarray(0.0)))
+    commanded = dict(rotor['speed'], kind='commanded', speed=initial, max_rate=float(rate),
+                     final_speed=None, ramp_time=None, times=None, speeds=None)
+    spec = dict(spec, rotor=dict(rotor, speed=commanded))
+    overrides += (f'rotor.speed={{kind: commanded, speed: {initial!r}, '
+                  f'max_rate: {float(rate)!r}}}',)
+    return build(spec, source=str(path), overrides=overrides), final
 
 
 def accelerometers(scene_model, sample_rate):

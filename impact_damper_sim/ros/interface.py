@@ -147,6 +147,24 @@ DIAGNOSTICS_QOS = COMMAND_QOS
 #: /parameter_events as rclpy publishes it (the log records accepted parameter changes).
 PARAMETER_EVENTS_QOS = _profile(_topics.PARAMETER_EVENTS_QOS)
 
+#: what the ROS-free core calls a quantity in its messages (``'<quantity>: ...'``) -> how a
+#: user of the node sets it: the topic or the parameter
+QUANTITY_NAMES = {'speed': SPEED_COMMAND, 'unbalance multiplier': UNBALANCE_COMMAND,
+                  'sample rate': "parameter 'sample_rate'",
+                  'imu rate': "parameter 'imu_rate'",
+                  'speed rate limit': "parameter 'speed_rate_limit'",
+                  'noise std': "parameter 'noise_std'",
+                  'real-time factor': "parameter 'real_time_factor'"}
+
+
+def named(text):
+    """A core message (``'<quantity>: ...'``, e.g. a ``CommandError``) with the quantity
+    named as the node's user sets it (``"parameter 'sample_rate': ..."``,
+    ``'rotor/speed_command: ...'``); any other text as it is."""
+    quantity, sep, rest = str(text).partition(': ')
+    return f'{QUANTITY_NAMES[quantity]}: {rest}' if sep and quantity in QUANTITY_NAMES \
+        else str(text)
+
 
 __all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'COMMAND_QOS',
            'DIAGNOSTICS',
@@ -155,4 +173,4 @@ __all__ = ['ACCEL_PREFIX', 'BATCH_QOS', 'BATCH_SUFFIX', 'CLOCK', 'CLOCK_QOS', 'C
            'PARAMETER_EVENTS', 'PARAMETER_EVENTS_QOS',
            'ROTOR_JOINT_STATES', 'ROTOR_KEYPHASOR', 'ROTOR_SPEED', 'ROTOR_TACH', 'SENSOR_QOS',
            'SPEED_COMMAND', 'TRUTH_SUFFIX', 'TYPES', 'UNBALANCE_COMMAND', 'accel_batch_topic',
-           'accel_topic', 'accel_truth_topic']
+           'QUANTITY_NAMES', 'accel_topic', 'accel_truth_topic', 'named']

@@ -72,8 +72,10 @@ from ..recording.batches import BATCH_SUFFIX, rows_of, sample_times_ns
 from .interface import (ACCEL_PREFIX, accel_topic, BATCH_QOS, DIAGNOSTICS, DIAGNOSTICS_QOS,
                         EVENT_QOS, IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS)
 from .parameters import serve_unset_parameters
-from .wire import (freeze_start_up_heap, guard_services, ignore_further_interrupts,
-                   settle_interrupt, shutdown_quietly, spin_guarded, type_name)
+from .outlets import type_name
+from .process import (freeze_start_up_heap, ignore_further_interrupts, settle_interrupt,
+                      shutdown_quietly, spin_guarded)
+from .service_guard import guard_services
 
 #: Samples (or impacts) queued on one per-sample stream, or in all batch messages together
 #: (a batch counts at least 1, so empty ones are bounded too), before they go to the report

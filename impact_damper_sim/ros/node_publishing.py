@@ -1,128 +1,147 @@
-"""The publishing helpers of ``vibration_node``: what a stepped chunk puts on the wire, and when.
+"""The publisher set of ``vibration_node``: its outlets, and what a stepped chunk queues.
 
-:class:`PublishingMixin` queues what the chunks :class:`~impact_damper_sim.live.realtime.
-LiveSimulation` steps produce (per-sample ``Imu``, full-rate and impact batches, ``/clock``,
-rotor speed and joint state, ``impactor_state``) and sends each at its sim time through the
-pacer. The bytes themselves come from :class:`~impact_damper_sim.recording.node_messages.
-NodeMessages`, ROS-free, which ``study record`` packs its offline logs with too; this module
-decides when they leave. It is separate from :mod:`.vibration_node` because it is the node's
-message layer, not its life cycle: the node declares parameters, handles commands and runs
-the stepping thread. A mixin of :class:`~impact_damper_sim.ros.vibration_node.VibrationNode`
-only: it keeps no state of its own and works on the node's (``live``, ``pacer``, ``stats``,
-``_lock``, ``_pending``, ``_messages`` and the outlets that ``_make_interfaces`` makes).
+:class:`Publishers` makes one :class:`~.outlets.Outlet` per published topic and turns what
+:class:`~impact_damper_sim.live.realtime.LiveSimulation` steps into queued items of the
+node's :class:`~impact_damper_sim.live.pacing.Outbox` (per-sample ``Imu``, full-rate and
+impact batches, ``/clock``, rotor speed and joint state, ``impactor_state``), counting what
+it holds. The bytes come from :class:`~impact_damper_sim.recording.node_messages.
+NodeMessages`, ROS-free, which ``study record`` packs its offline logs with too; when each
+item leaves is the outbox's rule, not this module's.
 """
 from __future__ import annotations
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu, JointState, PointCloud2
 
 from ..recording.node_messages import published_samples
+from . import interface as itf
+from .outlets import Outlet
 
 _IMPACT = 0   # EVENT_KINDS index of an impact
 
 
-class PublishingMixin:
-    """Queue what :class:`~impact_damper_sim.ros.vibration_node.VibrationNode` steps and
-    publish it at its time (a mixin of that node; no state of its own)."""
+class Publishers:
+    """Every publisher of the node, and the queueing of what it steps.
 
-    # -- publishing -----------------------------------------------------------------------
-    def _flush(self, now, burst=None):
-        """Publish every queued item due by wall time ``now`` (through the pacer).
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Creates the publishers.
+    messages : NodeMessages
+        Packs each stream's bytes.
+    outbox : Outbox
+        Where queued items wait for their time.
+    counters : Counters
+        Its ``stats`` (this period) and ``stats_total`` count what is queued.
+    record : callable
+        ``record(topic, type_name, qos, data, ns)``: every published message's bytes.
+    publish_clock : bool
+        Publish ``/clock``.
+    """
 
-        An item nobody receives (no subscriber when it was queued: it is only counted and
-        recorded, with its own stamp as log time) does not wait for its time, so a topic
-        nobody reads costs no wake-ups; items still leave in time order.
+    def __init__(self, node, messages, outbox, counters, record, *, publish_clock):
+        self.messages, self.outbox, self.counters = messages, outbox, counters
+        live = messages.live
+        self.live = live
 
-        Parameters
-        ----------
-        now : float
-            Wall time (s); ``math.inf`` publishes everything queued.
-        burst : int, optional
-            Most samples sent per accelerometer (None: no limit).
+        def outlet(msg_type, topic, qos):
+            return Outlet(node, msg_type, topic, qos, record)
+        self.accel = [outlet(Imu, itf.accel_topic(acc.name), itf.SENSOR_QOS)
+                      for acc in live.accelerometers]   # per-sample, imu_rate
+        self.batch = [outlet(PointCloud2, itf.accel_batch_topic(acc.name), itf.BATCH_QOS)
+                      for acc in live.accelerometers]   # full-rate batches
+        self.truth = [outlet(PointCloud2, itf.accel_truth_topic(acc.name), itf.BATCH_QOS)
+                      for acc in live.accelerometers] if messages.truth else []
+        self.impacts = outlet(PointCloud2, itf.IMPACTS, itf.EVENT_QOS)
+        self.state = outlet(JointState, itf.IMPACTOR_STATE, itf.LATCHED_QOS)
+        self.speed = outlet(Vector3Stamped, itf.ROTOR_SPEED, itf.COMMAND_QOS)
+        self.joint = outlet(JointState, itf.ROTOR_JOINT_STATES, itf.COMMAND_QOS)
+        # the tachometer and keyphasor: scenes with a rotor only
+        self.tach = [] if messages.tach is None else [
+            outlet(PointCloud2, itf.ROTOR_TACH, itf.BATCH_QOS),
+            outlet(PointCloud2, itf.ROTOR_KEYPHASOR, itf.EVENT_QOS)]
+        self.clock = outlet(Clock, itf.CLOCK, itf.CLOCK_QOS) if publish_clock else None
+        self.diagnostics = outlet(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
+        self.outlet_of = {**dict(zip(messages.imu, self.accel)),
+                          **dict(zip(messages.batch, self.batch)),
+                          **dict(zip(messages.truth, self.truth)),
+                          **dict(zip((messages.tach, messages.keyphasor), self.tach)),
+                          messages.impacts: self.impacts, messages.state: self.state,
+                          messages.speed: self.speed, messages.joint: self.joint,
+                          messages.clock: self.clock}
+        for stream, out in self.outlet_of.items():
+            if out is not None and (messages.streams[stream].topic, messages.streams[
+                    stream].type_name) != (out.topic, out.type_name):
+                raise RuntimeError(f'stream {messages.streams[stream]} is not {out.topic}')
 
-        Returns
-        -------
-        bool
-            True when due samples were held back by ``burst`` (a backlog to send next).
-        """
-        pending = self._pending
-        if not pending:
-            # nothing queued (a scene without outputs): all that was stepped is out, up to
-            # the schedule, or pacing would wait forever for an item
-            self._t_published = max(self._t_published,
-                                    min(self.live.t, self.pacer.sim_at(now)))
-            return False
-        with self._lock:
-            horizon = self.pacer.sim_at(now) * 1e9   # ns (a float; inf for now = inf)
-            left = dict.fromkeys(self._accel_pubs, burst) if burst else None
-            while pending:
-                ns, outlet, item, wire = pending[0]
-                if wire:
-                    if ns > horizon:
-                        break
-                    if left is not None and outlet in left:
-                        if not left[outlet]:
-                            return True
-                        left[outlet] -= 1
-                pending.popleft()
-                if isinstance(item, bytes):
-                    outlet.publish_raw(item, ns, wire)
-                else:
-                    outlet.publish(item, ns, wire)
-                self._t_published = min(ns, horizon) * 1e-9
-        return False
+    @property
+    def all(self):
+        """list of Outlet: Every publisher (``topic``, ``type_name``, ``count``)."""
+        return [*self.accel, *self.batch, *self.truth, self.impacts, self.state, self.speed,
+                self.joint, *self.tach, self.diagnostics] + ([self.clock] if self.clock else [])
 
-    def _queue_batch(self, batch):
-        """Queue a stepped chunk: the messages :class:`~impact_damper_sim.recording.
-        node_messages.NodeMessages` packs from it (the same bytes ``study record`` writes),
-        each with its send time, and count what it holds."""
-        outlet_of = self._outlet_of
+    @staticmethod
+    def send(ns, outlet, item, wire):
+        """Publish one queued item (the outbox's ``send``)."""
+        if isinstance(item, bytes):
+            outlet.publish_raw(item, ns, wire)
+        else:
+            outlet.publish(item, ns, wire)
+
+    def queue_batch(self, batch, period):
+        """Queue a stepped chunk (``period``: output sample period, s): the messages
+        :class:`~impact_damper_sim.recording.node_messages.NodeMessages` packs from it (the
+        same bytes ``study record`` writes), each with its send time, and count what it
+        holds."""
+        outlet_of, put = self.outlet_of, self.outbox.put
         wire_of = {}   # one has_subscribers() per outlet and chunk
-        for ns, stream, data in self._messages.batch_items(batch):
+        for ns, stream, data in self.messages.batch_items(batch):
             outlet = outlet_of[stream]
             wire = wire_of.get(stream)
             if wire is None:
                 wire = wire_of[stream] = outlet.has_subscribers()
-            self._pending.append((ns, outlet, data, wire))
-        k = batch.t.size
+            put(ns, outlet, data, wire)
+        stats, total = self.counters.stats, self.counters.stats_total
         # what was published: a sample a sensor fault lost is not counted (the counters
         # say nothing of faults, as a DAQ driver counting what it sends would not)
         published = published_samples(batch)
-        self.stats.samples += published
-        self.stats_total['samples'] += published
+        stats.samples += published
+        total['samples'] += published
         lin = batch.linear_acceleration
         if batch.valid is not None and not batch.valid.all():   # the peak of what was sent
             lin = lin[batch.valid]
         peak = float(np.max(np.abs(lin))) if lin.size else 0.0   # a scene may have no sensor
-        self.stats.peak = max(self.stats.peak, peak)
-        ev = batch.events
-        impacts = int(np.count_nonzero(ev['kind'] == _IMPACT))
-        self.stats.impacts += impacts
-        self.stats_total['impacts'] += impacts
+        stats.peak = max(stats.peak, peak)
+        impacts = int(np.count_nonzero(batch.events['kind'] == _IMPACT))
+        stats.impacts += impacts
+        total['impacts'] += impacts
         if batch.clipped is not None and batch.clipped.any():   # the DAQ's overrange count
-            self.stats.clipped = self.stats.clipped + batch.clipped
-            self.stats_total['clipped'] = self.stats_total['clipped'] + batch.clipped
-        stuck = sum(self.live._stuck)
-        self.stats.stuck_time += stuck * k * self._period
+            stats.clipped = stats.clipped + batch.clipped
+            total['clipped'] = total['clipped'] + batch.clipped
+        stats.stuck_time += self.live.stuck_count() * batch.t.size * period
         if batch.states_changed:
-            self._queue_state()
+            self.queue_state()
 
-    def _queue_time(self):
+    def queue_time(self):
+        """Queue ``/clock``, rotor speed and joint state for the stepped time."""
         # like the samples, a topic nobody subscribes to (volatile: no late joiner gets it)
         # is not put on the wire and costs the stepping thread no wake-up
-        for ns, stream, data in self._messages.time_items():
-            outlet = self._outlet_of[stream]
-            self._pending.append((ns, outlet, data, outlet.has_subscribers()))
+        for ns, stream, data in self.messages.time_items():
+            outlet = self.outlet_of[stream]
+            self.outbox.put(ns, outlet, data, outlet.has_subscribers())
 
-    def publish_state(self):
-        """Queue ``impactor_state`` (the periodic timer's callback): it leaves with the
-        samples of its sim time, not a chunk ahead of them."""
-        with self._lock:
-            self._queue_state()
+    def publish_state_now(self):
+        """Publish ``impactor_state`` at once (latched: start-up, a switch of the dampers)."""
+        self.state.publish_raw(self.messages.state_message(), int(round(self.live.t * 1e9)))
 
-    def _publish_state(self):
-        self._state_pub.publish_raw(self._messages.state_message(),
-                                    int(round(self.live.t * 1e9)))
+    def queue_state(self):
+        """Queue ``impactor_state``: it leaves with the samples of its sim time, not a chunk
+        ahead of them."""
+        self.outbox.put(int(round(self.live.t * 1e9)), self.state,
+                        self.messages.state_message(), True)
 
-    def _queue_state(self):
-        self._pending.append((int(round(self.live.t * 1e9)), self._state_pub,
-                              self._messages.state_message(), True))
+
+__all__ = ['Publishers']

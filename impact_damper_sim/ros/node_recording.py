@@ -7,9 +7,8 @@ file with the run's metadata (software version, the resolved scene in SI, the no
 parameters); it closes it with the run's sensor faults (``impact_damper_sim_faults``: each
 fault's kind, values, seed and actual window). It is separate from :mod:`.vibration_node`
 because recording is an optional side channel of publishing: the node runs the same without
-it. A mixin of
-:class:`~impact_damper_sim.ros.vibration_node.VibrationNode` only: it keeps ``recorder`` and
-``record_error`` on the node and uses its lock, outlets and command subscriptions.
+it. The node owns one :class:`Recording` and gives it what it needs: its lock, the
+simulation, the outlets and command topics to declare, the run's metadata and a log.
 
 A disk error (a full disk, an I/O error, the file or its directory removed) is logged once
 at ERROR when it happens (from the writer thread) and the node goes on; stopping never says
@@ -22,16 +21,43 @@ import os
 import time
 
 from ..recording.node_topics import RECORD_CHUNK_SIZE
-from . import interface as itf
 
 
-class RecordingMixin:
-    """Record what :class:`~impact_damper_sim.ros.vibration_node.VibrationNode` publishes and
-    receives (a mixin of that node)."""
+class Recording:
+    """Records what the node publishes and receives, on request.
 
-    #: The one line of the last recording that did not end as a finished log (str or None).
-    record_failure = None
-    _record_error_logged = False   # this recording's disk error is in the log at ERROR
+    Parameters
+    ----------
+    lock : HandoffLock
+        The node's lock: a recorder starts and stops between chunks.
+    live : LiveSimulation
+        The simulation (its time is the log time; its faults close the log).
+    topics : callable
+        ``topics()``: ``(topic, type_name, qos)`` of every outlet and command subscription,
+        declared when a recording starts.
+    metadata : callable
+        ``metadata()``: the run's metadata (dict) that opens a log.
+    opened : callable
+        Called (under the lock) once a recording is open: the latched state opens the log.
+    log : callable
+        ``log(level, text)``.
+    """
+
+    def __init__(self, lock, live, topics, metadata, opened, log):
+        self._lock, self.live, self._topics = lock, live, topics
+        self._metadata, self._opened, self._log = metadata, opened, log
+        self.recorder = None
+        #: the disk error of this (or the last) recording, in one line (str or None)
+        self.record_error = None
+        #: the one line of the last recording that did not end as a finished log (or None)
+        self.record_failure = None
+        self._record_error_logged = False   # this recording's disk error is logged at ERROR
+
+    def current_error(self):
+        """The recording's disk error (str), or None: the writer's, once it has one."""
+        if self.recorder is not None and self.recorder.error is not None:
+            self.record_error = self.record_error or str(self.recorder.error)
+        return self.record_error
 
     # -- recording ------------------------------------------------------------------------
     def start_recording(self, path, overwrite=False):
@@ -72,14 +98,12 @@ class RecordingMixin:
             except (OSError, ValueError) as exc:
                 return str(exc)
             made.append(rec)
-            rec.add_metadata('impact_damper_sim', self._run_metadata())
-            for out in self.outlets:
-                rec.add_topic(out.topic, out.type_name, out.qos)
-            for sub in self._command_subs:
-                rec.add_topic(sub.topic_name, 'std_msgs/msg/Float64', itf.COMMAND_QOS)
+            rec.add_metadata('impact_damper_sim', self._metadata())
+            for topic, type_name, qos in self._topics():
+                rec.add_topic(topic, type_name, qos)
             self.recorder = rec
-            self._publish_state()   # the latched state opens the log
-        self.get_logger().info(f'recording to {path}')
+            self._opened()   # the latched state opens the log
+        self._log('info', f'recording to {path}')
         return None
 
     def stop_recording(self):
@@ -121,15 +145,13 @@ class RecordingMixin:
         self._record_error_logged = True
         return rec
 
-    def on_record_request(self, request, response):
-        """``~/record`` (std_srvs/SetBool): true starts recording to the ``record`` parameter's
-        path (or a new timestamped file), false stops (failure, with what is on disk, when
-        the file is not a finished log)."""
+    def on_request(self, request, response, path, overwrite):
+        """``~/record`` (std_srvs/SetBool): true starts recording to ``path`` (the ``record``
+        parameter's; '': a new timestamped file), false stops (failure, with what is on disk,
+        when the file is not a finished log)."""
         if request.data:
-            if self._params['record']:
-                path, overwrite = self._params['record'], self._params['record_overwrite']
-            else:   # a new file each start: an automatic name never overwrites
-                path, overwrite = _new_record_path(self.scene.name), False
+            if not path:   # a new file each start: an automatic name never overwrites
+                path, overwrite = _new_record_path(self.live.scene.name), False
             error = self.start_recording(path, overwrite)
             response.success = error is None
             response.message = error or str(path)
@@ -141,7 +163,9 @@ class RecordingMixin:
                                 if self.record_failure else str(rec.path))
         return response
 
-    def _record(self, topic, type_name, qos, data, ns=None):
+    def record(self, topic, type_name, qos, data, ns=None):
+        """Write one message (bytes) to the recording, if any; ``ns``: log time (ns), the
+        sim time now by default."""
         rec = self.recorder
         if rec is not None:
             # the log runs on sim time, as a recorder with use_sim_time on our /clock would:
@@ -171,11 +195,6 @@ class RecordingMixin:
         self._record_error_logged = True
         self._log('error', f'recording to {path} failed: {what}; the simulation goes on')
 
-    def _run_metadata(self):
-        from ..recording.node_messages import run_metadata
-        return run_metadata(self.scene, self._params['overrides'], self._params,
-                            self.get_fully_qualified_name(), live=self.live)
-
 
 def _new_record_path(scene, directory='.'):
     """A record file name not used before: ``<scene>_<date>-<time>.mcap``, or with ``-2``,
@@ -187,3 +206,6 @@ def _new_record_path(scene, directory='.'):
         n += 1
         path = base.with_name(f'{base.name}-{n}.mcap')
     return path
+
+
+__all__ = ['Recording']

@@ -1,81 +1,97 @@
 """``vibration_node``'s parameters: declarations, ranges, and strict checks with clear messages.
 
-One table, :data:`PARAMETERS`, gives each parameter's default, description (with unit),
-range and whether it can change at run time. The node declares them with ranged
+One table, :data:`PARAMETERS`, gives each parameter's :class:`Spec`: default, description
+(with unit), range and whether it can change at run time (rclpy refuses a change of a
+read-only one before the node's callback runs). The node declares them with ranged
 descriptors, and checks every value itself, strictly: rclpy's own range check admits values
 within a relative 1e-6 of a bound (``1000.0001`` against 1000) and lets NaN through.
 """
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.parameter import Parameter
 
+from ..integrate import simulation as _simulation
 from ..recording import node_topics as _topics
 from ..scene.schema import SceneError
 
-#: integration methods the live node steps ('' = the scene's simulation.method)
-METHODS = ('', 'exact', 'newmark', 'newmark_step_end')
+#: integration methods the live node steps ('' = the scene's simulation.method): the
+#: simulation's, but 'direct' (the live node steps the modal model)
+METHODS = ('',) + tuple(m for m in _simulation.METHODS if m != 'direct')
 
-#: name: (default, description with unit, (low, high) or None, read_only)
+
+class Spec(NamedTuple):
+    """One parameter: its default (its type; ``Parameter.Type.STRING_ARRAY`` for a string
+    array without one), description with unit, closed range ``(low, high)`` or None, and
+    whether it is read-only (set at start only)."""
+
+    default: object
+    description: str
+    bounds: tuple = None
+    read_only: bool = False
+
+
+#: name: Spec
 PARAMETERS = {
-    'scene': ('hpotp', 'scene name (config/scenes/<name>.yaml) or path to a scene file',
+    'scene': Spec('hpotp', 'scene name (config/scenes/<name>.yaml) or path to a scene file',
               None, True),
-    'overrides': (Parameter.Type.STRING_ARRAY,
+    'overrides': Spec(Parameter.Type.STRING_ARRAY,
                   "scene overrides 'key=value' (engineering units allowed, e.g. "
                   "'impactors.0.clearance=2 mil')", None, True),
-    'method': ('', 'integration method: exact, newmark or newmark_step_end; empty = the '
+    'method': Spec('', 'integration method: exact, newmark or newmark_step_end; empty = the '
                    "scene's simulation.method", None, True),
-    'real_time_factor': (1.0, 'sim seconds per wall second; 0 = as fast as possible '
+    'real_time_factor': Spec(1.0, 'sim seconds per wall second; 0 = as fast as possible '
                               '(dimensionless)', (0.0, 1000.0), False),
-    'sample_rate': (0.0, 'full-rate accelerometer sample rate (Hz) of accel/<name>/batch, '
+    'sample_rate': Spec(0.0, 'full-rate accelerometer sample rate (Hz) of accel/<name>/batch, '
                          ">= 100 and above twice every sensor's anti-alias cutoff; 0 = from "
                          'the scene: the lowest '
                          'submultiple of 1/simulation.dt at least 2.5 x the highest sensor '
                          'lowpass (hpotp 2000 Hz, rbs 20000 Hz), 2000 Hz without one',
                     (0.0, 100000.0), True),
-    'imu_rate': (0.0, 'rate of the per-sample Imu stream accel/<name> (Hz): the full-rate '
+    'imu_rate': Spec(0.0, 'rate of the per-sample Imu stream accel/<name> (Hz): the full-rate '
                       'signal (accel/<name>/batch) decimated through an anti-alias FIR, '
                       'sample_rate / k for a whole number k; 0 = the highest such rate not '
                       'above 1000 Hz (hpotp 1000 Hz from 2000 Hz, rbs 1000 Hz from 20000 Hz)',
                  (0.0, 100000.0), True),
-    'dampers_enabled': (True, 'impact dampers act (dynamic: compare with and without live)',
+    'dampers_enabled': Spec(True, 'impact dampers act (dynamic: compare with and without live)',
                         None, False),
-    'noise_std': (0.0, 'white noise added to each acceleration sample, standard deviation '
+    'noise_std': Spec(0.0, 'white noise added to each acceleration sample, standard deviation '
                        '(m/s^2)', (0.0, 1000.0), False),
-    'noise_seed': (0, 'seed of the noise generator and, at start, of every random stage of '
+    'noise_seed': Spec(0, 'seed of the noise generator and, at start, of every random stage of '
                       'the accelerometer channel (sensor noise, biases, DAQ noise); setting '
                       'it live restarts the noise_std sequence only (dimensionless)',
                    (0, 2**31 - 1), False),
-    'max_speed': (0.0, 'largest accepted speed command (rad/s); 0 = twice the scene speed',
+    'max_speed': Spec(0.0, 'largest accepted speed command (rad/s); 0 = twice the scene speed',
                   (0.0, 1.0e5), True),
-    'max_unbalance': (100.0, 'largest accepted unbalance multiplier X (dimensionless)',
+    'max_unbalance': Spec(100.0, 'largest accepted unbalance multiplier X (dimensionless)',
                       (0.0, 1.0e4), True),
-    'speed_rate_limit': (0.0, "rate limit of speed changes (rad/s^2); 0 = the scene's "
+    'speed_rate_limit': Spec(0.0, "rate limit of speed changes (rad/s^2); 0 = the scene's "
                               '(ramp slope or max_rate; at run time: the rate at start); a '
                               'change also applies to a ramp under way (no effect without a '
                               'commanded rotor)', (0.0, 1.0e6), False),
-    'publish_clock': (True, 'publish /clock (turn off on all but one node of a system)',
+    'publish_clock': Spec(True, 'publish /clock (turn off on all but one node of a system)',
                       None, True),
-    'publish_truth': (False, "publish each accelerometer's ground truth accel/<name>/truth: "
+    'publish_truth': Spec(False, "publish each accelerometer's ground truth accel/<name>/truth: "
                              "the model's acceleration (m/s^2) before the channel, through the "
                              'anti-alias low-pass only, in the batch layout (recorded when on); '
                              'off: a real test stand has none', None, True),
-    'tick_period': (_topics.TICK_PERIOD, 'sim time stepped per chunk (s); samples are '
+    'tick_period': Spec(_topics.TICK_PERIOD, 'sim time stepped per chunk (s); samples are '
                     'computed one chunk ahead and published one by one at their own time',
                     _topics.TICK_PERIOD_RANGE, True),
-    'state_period': (_topics.STATE_PERIOD, 'period of the impactor_state republish (s); it '
+    'state_period': Spec(_topics.STATE_PERIOD, 'period of the impactor_state republish (s); it '
                      'is also sent on every change', _topics.STATE_PERIOD_RANGE, True),
-    'diagnostics_period': (1.0, 'period of /diagnostics (s)', (0.1, 60.0), True),
-    'max_lag': (0.25, 'largest schedule deficit kept before it is dropped and reported (s)',
+    'diagnostics_period': Spec(1.0, 'period of /diagnostics (s)', (0.1, 60.0), True),
+    'max_lag': Spec(0.25, 'largest schedule deficit kept before it is dropped and reported (s)',
                 (0.01, 10.0), True),
-    'record': ('', 'MCAP file to record every published topic and received command to, in '
+    'record': Spec('', 'MCAP file to record every published topic and received command to, in '
                    "rosbag2's layout; empty = not recording (start/stop at run time with the "
                    '~/record service)', None, True),
-    'record_overwrite': (False, 'overwrite an existing record file (otherwise refused)', None,
+    'record_overwrite': Spec(False, 'overwrite an existing record file (otherwise refused)', None,
                          True),
-    'schedule': ('', 'command schedule to play in sim time (YAML file: speed, speed_rate, '
+    'schedule': Spec('', 'command schedule to play in sim time (YAML file: speed, speed_rate, '
                      'unbalance, dampers, noise_std, noise_seed, fault, clear_fault at given '
                      'times; docs/node.md); each applied entry is recorded as the command or '
                      "parameter change it stands for; empty = none", None, True),
@@ -132,8 +148,8 @@ def descriptor(name):
 
 def expected(name):
     """What a parameter accepts, in words (for messages)."""
-    default, _, bounds, _ = PARAMETERS[name]
-    kind = kind_of(default)
+    spec = PARAMETERS[name]
+    bounds, kind = spec.bounds, kind_of(spec.default)
     if name == 'method':
         return 'one of ' + ', '.join(repr(m) for m in METHODS)
     if name == 'sample_rate':
@@ -153,8 +169,8 @@ def check(name, value):
     """
     if name not in PARAMETERS:
         return f'unknown parameter {name!r}'
-    default, _, bounds, _ = PARAMETERS[name]
-    kind = kind_of(default)
+    spec = PARAMETERS[name]
+    bounds, kind = spec.bounds, kind_of(spec.default)
     ok_type = {'bool': lambda v: isinstance(v, bool),
                'int': lambda v: isinstance(v, int) and not isinstance(v, bool),
                'double': lambda v: isinstance(v, float),
@@ -189,11 +205,12 @@ def declare_all(node):
     overrides = getattr(node, '_parameter_overrides', {})
     for name in PARAMETERS:
         given = overrides.get(name)
-        if (given is not None and kind_of(PARAMETERS[name][0]) == 'double'
+        kind = kind_of(PARAMETERS[name].default)
+        if (given is not None and kind == 'double'
                 and given.type_ == Parameter.Type.INTEGER):
             # '-p real_time_factor:=1' means 1.0: YAML reads it as an int
             given = overrides[name] = Parameter(name, value=float(given.value))
-        if (given is not None and kind_of(PARAMETERS[name][0]) == 'string[]'
+        if (given is not None and kind == 'string[]'
                 and isinstance(given.value, (list, tuple)) and len(given.value) == 0):
             # rclpy reads an empty list as a byte array; empty means none: unset
             del overrides[name]
@@ -202,9 +219,8 @@ def declare_all(node):
             why = check(name, given.value)
             if why:
                 raise ParameterError(f'parameter {name!r}: {why}')
-        default = PARAMETERS[name][0]
         try:
-            node.declare_parameter(name, default, descriptor(name))
+            node.declare_parameter(name, PARAMETERS[name].default, descriptor(name))
         except (ParameterException, TypeError, ValueError) as exc:   # what rclpy refuses
             raise ParameterError(f'parameter {name!r}: {exc}; expected '
                                  f'{expected(name)}') from None
@@ -252,6 +268,5 @@ def serve_unset_parameters(node):
             service.callback = get_parameters
 
 
-__all__ = ['METHODS', 'PARAMETERS', 'ParameterError', 'check', 'declare_all', 'descriptor',
-           'serve_unset_parameters',
-           'expected', 'parameters_markdown']
+__all__ = ['METHODS', 'PARAMETERS', 'ParameterError', 'Spec', 'check', 'declare_all',
+           'descriptor', 'expected', 'parameters_markdown', 'serve_unset_parameters']

@@ -58,7 +58,7 @@ from ..live.playback import Player
 from ..studies.log_reader import LogError
 from .interface import CLOCK, CLOCK_QOS
 from .replay_plan import describe, finished_line, prepare
-from .wire import freeze_start_up_heap, ignore_further_interrupts, settle_interrupt, \
+from .process import freeze_start_up_heap, ignore_further_interrupts, settle_interrupt, \
     shutdown_quietly
 
 EXIT_USAGE = 2

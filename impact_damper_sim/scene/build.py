@@ -151,23 +151,11 @@ class SceneModel:
 
     def _make_rotor(self):
         """The speed profile and the unbalance force (None, None without a rotor)."""
-        from .excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
-                                  PiecewiseLinearSpeed, UnbalanceForce)
+        from .excitation import UnbalanceForce, speed_profile
         rotor = self.scene['rotor']
         if rotor is None:
             return None, None
-        sp = rotor['speed']
-        kind = sp['kind']
-        if kind == 'constant':
-            profile = ConstantSpeed(sp['speed'])
-        elif kind == 'paper_ramp':
-            ramp = {k: v for k, v in (('omega_f', sp['final_speed']),
-                                      ('t_ramp', sp['ramp_time'])) if v is not None}
-            profile = PaperRamp(**ramp)
-        elif kind == 'piecewise':
-            profile = PiecewiseLinearSpeed(sp['times'], sp['speeds'])
-        else:
-            profile = CommandedSpeed(sp['speed'], sp['max_rate'])
+        profile = speed_profile(rotor['speed'])
         if not self.unbalance_dofs:
             return profile, None
         first = len(self.force_dofs)
@@ -237,40 +225,6 @@ class SceneModel:
             sensor_names=tuple(s['name'] for s in self.scene['sensors']),
             impactors=impactors, kind='modal',
             input_names=self.input_names)
-
-    def command_rotor(self, initial, max_rate):
-        """Make the rotor speed *commanded* in place, without rebuilding the structure.
-
-        The same as loading with the override ``rotor.speed={kind: commanded, speed:
-        initial, max_rate: max_rate}`` (which is appended to :attr:`overrides`), but the
-        finite elements and the modal basis are kept.
-
-        Parameters
-        ----------
-        initial : float
-            Speed at t = 0 (rad/s), >= 0.
-        max_rate : float
-            Rate limit of speed changes (rad/s^2), > 0.
-
-        Raises
-        ------
-        SceneError
-            No rotor, or a gyroscopic coupling (built for one constant speed).
-        """
-        rotor = self.scene['rotor']
-        if rotor is None:
-            raise SceneError("scene key 'rotor': the scene has no rotor to command", self.source)
-        if rotor['gyroscopic'] is not None:
-            raise SceneError("scene key 'rotor.gyroscopic': the coupling is built for one "
-                             'constant speed, so the speed cannot be commanded', self.source)
-        speed = dict(rotor['speed'])
-        speed.update(kind='commanded', speed=float(initial), max_rate=float(max_rate),
-                     final_speed=None, ramp_time=None, times=None, speeds=None)
-        rotor['speed'] = speed
-        self.overrides += (f'rotor.speed={{kind: commanded, speed: {float(initial)!r}, '
-                           f'max_rate: {float(max_rate)!r}}}',)
-        self.speed_profile, self.unbalance = self._make_rotor()
-        self.forcing = self._make_forcing()
 
     def polar_inertia(self):
         """Polar inertia of each ``rotor.gyroscopic`` node (the Campbell study's too).

@@ -123,8 +123,24 @@ class SpeedProfile:
     The rotor angle is zero at ``t = 0``: ``phi(t) = integral_0^t omega(s) ds``.
     """
 
+    #: whether the speed follows commands (:class:`CommandedSpeed`) or is fixed in advance
+    commanded = False
+
     def _knots(self):
         raise NotImplementedError
+
+    @property
+    def final_speed(self):
+        """float: The speed the profile ends at and holds (rad/s): a commanded profile's
+        current target."""
+        return float(self._knots().w[-1])
+
+    @property
+    def steepest_rate(self):
+        """float: The largest magnitude of the speed's rate of change (rad/s^2); 0 for a
+        constant speed."""
+        slopes = np.abs(self._knots().s[:-1])
+        return float(slopes.max()) if slopes.size else 0.0
 
     def speed(self, t):
         """Rotor speed ``omega(t)``.
@@ -287,6 +303,8 @@ class CommandedSpeed(SpeedProfile):
         ``t = 0``, inside the initial hold, so commands never shift the angle's origin.
     """
 
+    commanded = True
+
     def __init__(self, initial, max_rate, t0=0.0):
         initial = _finite(initial, 'CommandedSpeed.initial', 0.0, False, ' rad/s')
         self.max_rate = _finite(max_rate, 'CommandedSpeed.max_rate', 0.0, True, ' rad/s^2')
@@ -345,6 +363,30 @@ class CommandedSpeed(SpeedProfile):
         self.t_last_command = t_now
         self._k = None
         return self
+
+
+def speed_profile(spec):
+    """The speed profile a validated ``rotor.speed`` mapping describes (SI).
+
+    Parameters
+    ----------
+    spec : dict
+        ``kind`` (constant, paper_ramp, piecewise, commanded) and its keys, validated.
+
+    Returns
+    -------
+    SpeedProfile
+    """
+    kind = spec['kind']
+    if kind == 'constant':
+        return ConstantSpeed(spec['speed'])
+    if kind == 'paper_ramp':
+        ramp = {k: v for k, v in (('omega_f', spec['final_speed']),
+                                  ('t_ramp', spec['ramp_time'])) if v is not None}
+        return PaperRamp(**ramp)
+    if kind == 'piecewise':
+        return PiecewiseLinearSpeed(spec['times'], spec['speeds'])
+    return CommandedSpeed(spec['speed'], spec['max_rate'])
 
 
 class UnbalanceForce:
@@ -513,4 +555,4 @@ def unbalance_forcing(n_inputs, force, *, exact_harmonics=True):
 
 
 __all__ = ['CommandedSpeed', 'ConstantSpeed', 'PaperRamp', 'PiecewiseLinearSpeed',
-           'SpeedProfile', 'UnbalanceForce', 'unbalance_forcing']
+           'SpeedProfile', 'UnbalanceForce', 'speed_profile', 'unbalance_forcing']

@@ -383,7 +383,6 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     if schedule is not None:
         schedule.check(live)
     start_faults = _start_faults(live, faults)
-    start_rate = live.profile.max_rate if hasattr(live.profile, 'command') else None
     messages = NodeMessages(live, scene_model, node_name=NODE_NAME, truth=bool(truth))
     streams = messages.streams
     parameters = {'scene': str(scene), 'overrides': list(overrides) or None,
@@ -429,7 +428,7 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
 
         def parameter(name, value):
             if name == 'speed_rate_limit':
-                live.set_speed_rate(value or start_rate)
+                live.set_speed_rate(value)   # 0: the rate at start
             elif name == 'dampers_enabled':
                 live.set_dampers_enabled(value)
                 write(messages.state, messages.state_message())
