@@ -5,9 +5,9 @@ import pickle
 import numpy as np
 import pytest
 
+from impact_damper_sim._exit_status import EXIT_DIVERGED
 from impact_damper_sim.cli.study import main
 from impact_damper_sim.integrate.divergence import (
-    EXIT_DIVERGED,
     MAX_DISPLACEMENT,
     Divergence,
     check_samples,

@@ -35,10 +35,11 @@ from __future__ import annotations
 
 import argparse
 
-from ..studies.output import EXIT_DIVERGED, EXIT_USAGE, refuse_existing
+from .._exit_status import EXIT_DIVERGED, EXIT_USAGE
 from ..studies.output import fmt as _g
 from ..studies.output import print_error as _error
 from ..studies.output import print_json as _print_json
+from ..studies.output import refuse_existing
 
 
 def add_record_parser(sub, scene_args):

@@ -6,7 +6,8 @@ The computation is :mod:`impact_damper_sim.studies.campbell` (on
 """
 from __future__ import annotations
 
-from ..studies.output import EXIT_USAGE, OutputExists, refuse_existing
+from .._exit_status import EXIT_USAGE
+from ..studies.output import OutputExists, refuse_existing
 from ..studies.output import fmt as _g
 from ..studies.output import print_error as _error
 from ..studies.output import print_json as _print_json

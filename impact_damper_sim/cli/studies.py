@@ -9,10 +9,9 @@ import csv
 import os
 import sys
 
+from .._exit_status import EXIT_DIVERGED, EXIT_USAGE
 from ..integrate.divergence import StudyDiverged
-
-from ..studies.output import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists,
-                              refuse_existing)
+from ..studies.output import QUICK_VALIDATION_OUT, OutputExists, refuse_existing
 from ..studies.output import fmt as _g
 from ..studies.output import print_error as _error
 from ..studies.output import print_json as _print_json
@@ -303,9 +302,9 @@ def _print_sweep(r):
 # --- stability ----------------------------------------------------------------------------
 
 def _stability(args):
+    from ..scene.units import parse_quantity
     from ..studies.stability import stability
     from ..studies.sweep import split_values
-    from ..scene.units import parse_quantity
     kccs = split_values(args.kcc)
     if not kccs and not args.onset:
         raise _Usage('stability needs --kcc values, --onset, or both')
@@ -378,9 +377,9 @@ def _print_stability(r):
 # --- convergence --------------------------------------------------------------------------
 
 def _convergence(args):
+    from ..scene.units import parse_quantity
     from ..studies.convergence import convergence
     from ..studies.sweep import split_values
-    from ..scene.units import parse_quantity
 
     def times(text, option):
         return [parse_quantity(v, 'time', key=option) for v in split_values(text)]

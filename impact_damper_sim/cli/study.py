@@ -49,12 +49,13 @@ import argparse
 import sys
 import time
 
-from ..studies.output import (EXIT_DIVERGED, EXIT_USAGE, QUICK_VALIDATION_OUT, OutputExists,
-                              refuse_existing)
+from .._exit_status import EXIT_DIVERGED, EXIT_USAGE
+from ..studies.output import QUICK_VALIDATION_OUT, OutputExists, refuse_existing
 from ..studies.output import fmt as _g
 from ..studies.output import print_error as _error
 from ..studies.output import print_json as _print_json
 from ..studies.output import table as _table
+
 _METHODS_HELP = 'exact, newmark, newmark_step_end or direct'
 
 
@@ -489,14 +490,14 @@ def run(scene):
     Divergence
         If the run diverges; its ``setting`` names the scene keys to change.
     """
-    from ..studies.analysis import summarize
     from ..integrate.divergence import Divergence
+    from ..integrate.events import EVENT_KINDS
     from ..integrate.memory import TooLarge, check_allocation
+    from ..live.filters import scene_lowpass
     from ..scene.advice import scene_advice
     from ..scene.model_budget import model_estimate
-    from ..live.filters import scene_lowpass
     from ..scene.schema import SceneError
-    from ..integrate.events import EVENT_KINDS
+    from ..studies.analysis import summarize
     cfg = scene.scene['simulation']
     method, dt = cfg['method'], cfg['dt']
     scene_lowpass(scene, dt)   # reject a cutoff at or above Nyquist before running

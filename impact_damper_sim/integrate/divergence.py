@@ -10,7 +10,7 @@ finds that setting in a scene. Memory budgets are :mod:`.memory`.
 
 Pure NumPy, no rclpy: :class:`~impact_damper_sim.integrate.simulation.Simulation` checks every
 chunk it advances, the ``study`` command turns :class:`Divergence` into exit status
-:data:`EXIT_DIVERGED`, and a node reports ``str(exc)`` in its diagnostics.
+``EXIT_DIVERGED`` (3), and a node reports ``str(exc)`` in its diagnostics.
 """
 from __future__ import annotations
 
@@ -18,8 +18,7 @@ import math
 
 import numpy as np
 
-#: Exit status of ``study`` when a run diverged.
-EXIT_DIVERGED = 3
+from .._exit_status import EXIT_DIVERGED
 
 #: Sensor displacement beyond which a run has diverged (m).
 MAX_DISPLACEMENT = 1.0e3
@@ -168,5 +167,5 @@ def from_engine_error(exc, t):
     return None
 
 
-__all__ = ['Divergence', 'EXIT_DIVERGED', 'MAX_DISPLACEMENT', 'StudyDiverged', 'check_samples',
+__all__ = ['Divergence', 'MAX_DISPLACEMENT', 'StudyDiverged', 'check_samples',
            'check_state', 'from_engine_error']

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 import numpy as np
 
 EVENT_KINDS = ('impact', 'stick', 'release', 'graze')
+#: ``kind`` of an impact event (its index in :data:`EVENT_KINDS`)
+IMPACT = EVENT_KINDS.index('impact')
 
 #: One record per event. ``normal`` is the unit contact normal in the housing plane (SDOF
 #: impactors use its first entry, +-1 for the wall hit); ``v_n`` the closing normal relative

@@ -53,6 +53,8 @@ import struct
 
 import numpy as np
 
+from .node_topics import BATCH_SUFFIX, POINTCLOUD2
+
 #: PointField datatypes (sensor_msgs/PointField) and their NumPy formats.
 _DATATYPES = {1: 'i1', 2: 'u1', 3: 'i2', 4: 'u2', 5: 'i4', 6: 'u4', 7: 'f4', 8: 'f8'}
 FLOAT64, UINT32 = 8, 6
@@ -73,10 +75,6 @@ TACH_POINT_STEP = 24
 #: Fields of the keyphasor: one row per revolution (4 bytes of padding after ``revolution``).
 KEYPHASOR_FIELDS = (('t', 0, FLOAT64), ('revolution', 8, UINT32), ('speed', 16, FLOAT64))
 KEYPHASOR_POINT_STEP = 24
-
-#: The suffix of an accelerometer's batch topic (``accel/<name>`` + this).
-BATCH_SUFFIX = '/batch'
-POINTCLOUD2 = 'sensor_msgs/msg/PointCloud2'
 
 
 def dtype_of(fields, point_step):

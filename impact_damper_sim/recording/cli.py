@@ -12,8 +12,9 @@ from __future__ import annotations
 import json
 import sys
 
+from .._exit_status import EXIT_USAGE
+
 EXIT_NOTHING_KEPT = 1
-EXIT_USAGE = 2
 #: where :func:`.recovery.recover` took a lost channel definition from, in words
 _SOURCES = {'summary section': "the file's summary section",
             'later record': 'later copies of their records in the file'}

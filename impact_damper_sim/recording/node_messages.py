@@ -24,12 +24,21 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..integrate.events import IMPACT
 from . import node_topics as nt
-from .batches import (ACCEL_FIELDS, ACCEL_POINT_STEP, IMPACT_FIELDS, IMPACT_POINT_STEP,
-                      KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP, TACH_FIELDS, TACH_POINT_STEP,
-                      BatchEncoder, CdrWriter)
+from .batches import (
+    ACCEL_FIELDS,
+    ACCEL_POINT_STEP,
+    IMPACT_FIELDS,
+    IMPACT_POINT_STEP,
+    KEYPHASOR_FIELDS,
+    KEYPHASOR_POINT_STEP,
+    TACH_FIELDS,
+    TACH_POINT_STEP,
+    BatchEncoder,
+    CdrWriter,
+)
 
-_IMPACT = 0   # EVENT_KINDS index of an impact
 _HEADER = b'\x00\x01\x00\x00'   # CDR encapsulation: little-endian
 #: rcl_interfaces/ParameterType values
 PARAMETER_BOOL, PARAMETER_INTEGER, PARAMETER_DOUBLE, PARAMETER_STRING = 1, 2, 3, 4
@@ -422,7 +431,7 @@ class NodeMessages:
         if self.scene.impactors:
             ev = batch.events
             items.append((end_ns, len(self.imu), self.impacts,
-                          self._impact_batch(ev[ev['kind'] == _IMPACT])))
+                          self._impact_batch(ev[ev['kind'] == IMPACT])))
         if self.tach is not None:
             items += self._tach_items(batch, t_ns, end_ns)
         self.impacts_from = end_ns

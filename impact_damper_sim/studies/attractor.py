@@ -19,7 +19,7 @@ import numpy as np
 
 from ..dampers.analytic import symmetric_two_impact_orbits
 from ..dampers.impactors import Impactor
-from ..integrate.events import EVENT_KINDS
+from ..integrate.events import EVENT_KINDS, IMPACT
 from ..integrate.forcing import Forcing, Harmonic
 from ..integrate.model import LinearModel
 
@@ -33,7 +33,6 @@ MASS = 2.0
 STIFFNESS = 5.0e4
 FORCE = 10.0
 
-_IMPACT = EVENT_KINDS.index('impact')
 _STICK = EVENT_KINDS.index('stick')
 
 
@@ -178,7 +177,7 @@ def run_from_rest(point, periods, method='exact', per_cycle=400, chunk=200, offs
         evs.append(prop.take_events())
         done += n
     ev = np.concatenate(evs) if evs else np.zeros(0)
-    imp = ev[ev['kind'] == _IMPACT]
+    imp = ev[ev['kind'] == IMPACT]
     impacts = np.column_stack([imp['t'], np.sign(imp['normal'][:, 0]), imp['v_n']]) \
         if imp.size else np.zeros((0, 3))
     label = method + ''.join(f' {k}={v}' for k, v in sorted(options.items()) if k != 'ledger')

@@ -24,10 +24,9 @@ import time
 
 import numpy as np
 
+
 #: rad/s per rpm.
 RPM = np.pi / 30.0
-#: Relative off-diagonal size below which a modal matrix counts as diagonal.
-DIAGONAL_RTOL = 1e-14
 
 
 def rotor_model(scene):
@@ -59,6 +58,7 @@ def scene_speed(scene):
 
 
 def _diagonal(a):
+    from ..modal.basis import DIAGONAL_RTOL   # scipy: not when the command line starts
     scale = np.abs(a).max(initial=0.0)
     return bool(np.abs(a - np.diag(np.diag(a))).max(initial=0.0) <= DIAGONAL_RTOL * scale)
 

@@ -11,10 +11,6 @@ import math
 import os
 import sys
 
-#: Exit status of a usage or input error (one line on stderr), as argparse exits.
-EXIT_USAGE = 2
-#: A run diverged (same value as :data:`impact_damper_sim.integrate.divergence.EXIT_DIVERGED`).
-EXIT_DIVERGED = 3
 #: Default document of ``study validate --quick`` (the full one is docs/validation.md).
 QUICK_VALIDATION_OUT = 'validation-quick.md'
 
@@ -86,5 +82,5 @@ def table(header, rows):
     return '\n'.join('  '.join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in cells)
 
 
-__all__ = ['EXIT_DIVERGED', 'EXIT_USAGE', 'OutputExists', 'QUICK_VALIDATION_OUT', 'fmt', 'print_error', 'print_json',
+__all__ = ['OutputExists', 'QUICK_VALIDATION_OUT', 'fmt', 'print_error', 'print_json',
            'refuse_existing', 'strict_json', 'table']

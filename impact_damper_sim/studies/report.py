@@ -50,7 +50,8 @@ import math
 
 import numpy as np
 
-from ..recording.batches import BATCH_SUFFIX, POINTCLOUD2, rows_of, sample_times_ns
+from ..recording.batches import rows_of, sample_times_ns
+from ..recording.node_topics import BATCH_SUFFIX, POINTCLOUD2
 from ..scene.units import G0  # standard gravity (m/s^2), exact
 from .log_reader import LogError, RosLog, _reading, printable
 from .report_output import plot, print_report, write_csv
@@ -442,7 +443,8 @@ def run_report(args):
         0 on success, 2 for a file that cannot be read or output that cannot be written.
     """
     import sys
-    from .output import EXIT_USAGE
+
+    from .._exit_status import EXIT_USAGE
     from .output import print_error as _error
     from .output import print_json as _print_json
     try:

@@ -132,11 +132,11 @@ def welch(x, fs, nperseg):
     window = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(nperseg) / nperseg)
     starts = range(0, x.shape[0] - nperseg + 1, nperseg - nperseg // 2)
     psd = 0.0
-    for k, start in enumerate(starts, 1):
+    for start in starts:
         seg = x[start:start + nperseg]
         spec = np.fft.rfft((seg - seg.mean(axis=0)) * window[:, None], axis=0)
         psd = psd + np.abs(spec) ** 2
-    psd = psd / (k * fs * np.sum(window ** 2))
+    psd = psd / (len(starts) * fs * np.sum(window ** 2))
     psd[1:-1 if nperseg % 2 == 0 else None] *= 2   # one-sided: fold negative frequencies
     return np.fft.rfftfreq(nperseg, 1.0 / fs), psd.T
 

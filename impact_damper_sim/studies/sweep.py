@@ -144,10 +144,10 @@ def peaks(point):
     """
     import numpy as np
 
-    from .analysis import refined_peak
-    from ..live.filters import scene_lowpass
-    from .measure import load_point, start, window_impact_rates
     from ..integrate.divergence import Divergence
+    from ..live.filters import scene_lowpass
+    from .analysis import refined_peak
+    from .measure import load_point, start, window_impact_rates
     scene = load_point(point)
     cfg = scene.scene['simulation']
     sim = start(scene)
