@@ -17,7 +17,7 @@ NODE_ARGS ?=
 PYTEST_ARGS ?=
 
 .PHONY: run test test-slow bench constraints clean validation convergence ros2cli \
-        impact-cost docs-tables check-validation check-docs
+        impact-cost docs-tables check-validation check-docs campbell-figures
 
 # runtime only (requirements.txt); the test tooling comes with $(DEV). The editable install
 # then becomes an ament package of the venv (tools/ament_develop.py: the ament index marker,
@@ -96,6 +96,12 @@ convergence: $(DEV)
 # CPU times: on a quiet machine), recorded in docs/generated.json
 impact-cost: $(DEV)
 	$(PY) tools/generated_docs.py make impact-cost
+
+# the Campbell figures of docs/rbs-model.md and docs/hpotp-model.md (seconds each); rerun after
+# a change to the modal model, the whirl solver or the plot
+campbell-figures: $(DEV)
+	$(VENV)/bin/study campbell rbs_kcc --speeds 0:10000:101 --plot docs/campbell/rbs_kcc.png --overwrite
+	$(VENV)/bin/study campbell hpotp --speeds 0:22918.3:101 --harmonics 1,2 --plot docs/campbell/hpotp.png --overwrite
 
 # tables printed from recorded data: docs/fidelity.md's from docs/fidelity/*.json, the copies
 # of docs/validation.md's tables in docs/hpotp-model.md and docs/rbs-model.md, the scene key

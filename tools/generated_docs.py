@@ -41,6 +41,7 @@ import fnmatch
 import hashlib
 import json
 import os
+import platform
 import re
 import shlex
 import subprocess
@@ -246,10 +247,23 @@ def stale(name, manifest=None):
             f'change cannot move a result, `tools/generated_docs.py accept {name} --reason ...`']
 
 
-def record(name, *, commit, command, date, files, accepted=None):
+def machine():
+    """The machine a page was made on, in words: CPU model and core count."""
+    try:
+        with open('/proc/cpuinfo') as fh:
+            model = next((line.split(':', 1)[1].strip() for line in fh
+                          if line.startswith('model name')), '')
+    except OSError:
+        model = ''
+    cores = os.cpu_count() or 0
+    return f'{model or platform.machine()}, {cores} core{"s" if cores != 1 else ""}'
+
+
+def record(name, *, commit, command, date, files, accepted=None, made_on=None):
     manifest = load_manifest()
     entry = {'outputs': SLOW[name]['outputs'], 'target': SLOW[name]['target'],
              'commit': commit, 'command': command, 'date': date,
+             'machine': made_on or machine(),
              'sources': SLOW[name]['sources'], 'exclude': ENGINE_EXCLUDE,
              'digest_method': DIGEST_METHOD, 'digest': total_digest(files),
              'files': dict(sorted(files.items()))}
@@ -261,15 +275,18 @@ def record(name, *, commit, command, date, files, accepted=None):
 
 
 def _stamp_page(name, entry):
-    """One visible line in the page: commit, command, date, then ``<!-- stamp:NAME -->``."""
+    """One visible line in the page: how it was made, date and machine, then
+    ``<!-- stamp:NAME -->``. No commit hash: a reader's page says when and where; the commit
+    stays in docs/generated.json for a maintainer."""
     page = ROOT / SLOW[name]['stamp_page']
     text = page.read_text()
-    line = (f'Made at commit `{entry["commit"]}` by `{entry["target"]}` '
-            f'(`{entry["command"]}`) on {entry["date"]}; sources digest `{entry["digest"]}` '
-            f'(files in `docs/generated.json`, checked by `test/test_generated_docs.py`)'
-            + (f'; sources accepted unchanged in results at commit '
-               f'`{entry["accepted"]["commit"]}`: {entry["accepted"]["reason"]}'
-               if entry.get('accepted') else '') + f'. <!-- stamp:{name} -->')
+    line = (f'Made by `{entry["target"]}` (`{entry["command"]}`) on {entry["date"]}, '
+            f'{entry.get("machine") or "machine not recorded"}; sources digest '
+            f'`{entry["digest"]}` (files in `docs/generated.json`, checked by '
+            f'`test/test_generated_docs.py`)'
+            + (f'; sources since accepted as unchanged in results: '
+               f'{entry["accepted"]["reason"]}' if entry.get('accepted') else '')
+            + f'. <!-- stamp:{name} -->')
     if f'<!-- stamp:{name} -->' in text:
         text = re.sub(rf'^.*<!-- stamp:{re.escape(name)} -->$', lambda _m: line, text,
                       flags=re.M)
@@ -323,7 +340,8 @@ def cmd_make(name):
 def cmd_accept(name, reason):
     entry = load_manifest()[name]
     record(name, commit=entry['commit'], command=entry['command'], date=entry['date'],
-           files=file_digests(name), accepted={'commit': _head(), 'reason': reason})
+           files=file_digests(name), accepted={'commit': _head(), 'reason': reason},
+           made_on=entry.get('machine', 'machine not recorded'))
     print(f'{name}: sources at {_head()} accepted without regenerating')
 
 
