@@ -126,10 +126,23 @@ import numpy as np
 # Run as a script, never as a package: its parts beside it are found either way.
 if os.path.dirname(os.path.abspath(__file__)) not in sys.path:
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from node_scenes_figures import (COLD_GOAL, IMU, NODE_NAME, analyse,  # noqa: E402
-                                 _jsonable, print_scene, print_table)
-from node_scenes_procs import (Child, CpuSampler, _cpu_ticks, _steal_percent,  # noqa: E402
-                               pick_domain, settled_script)
+from node_scenes_figures import (  # noqa: E402
+    COLD_GOAL,
+    IMU,
+    NODE_NAME,
+    _jsonable,
+    analyse,
+    print_scene,
+    print_table,
+)
+from node_scenes_procs import (  # noqa: E402
+    Child,
+    CpuSampler,
+    _cpu_ticks,
+    _steal_percent,
+    pick_domain,
+    settled_script,
+)
 from node_scenes_readers import PY_READER, RAW_READER  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -369,7 +369,10 @@ def print_scene(res):
               f'{_f(t.get("py_lag_drift"), ".3f", 6)} {_f(t.get("py_first_sim_s"), ".2f", 5)}'
               + (f'  width check: {t["width_check"]}' if t.get('width_check') not in
                  (None, 'ok') else ''))
-    pct = lambda x: _f(100.0 * x if x == x else x, '.1f', 0)
+
+    def pct(x):
+        return _f(100.0 * x if x == x else x, '.1f', 0)
+
     state = {True: 'kept up', False: 'BEHIND', None: 'not judged'}[m['ok']]
     print(f'  monitor: {state} ({m["reports"]} reports judged'
           + (f'; {m["problem_count"]} non-OK, e.g. ' + '; '.join(m['problems'])

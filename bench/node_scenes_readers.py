@@ -161,7 +161,8 @@ while not stop:
     # (about 0.4 ms a message here, 68 % of a core at 1,500 messages/s); a wait set of the
     # subscriptions alone, drained on each wake, is what a lean C++ client does
     if len(subs) != wait_size:
-        wait_set, wait_size = _rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0, node.context.handle), len(subs)
+        wait_set = _rclpy.WaitSet(len(subs), 0, 0, 0, 0, 0, node.context.handle)
+        wait_size = len(subs)
     wait_set.clear_entities()
     for sub, _ in subs:
         wait_set.add_subscription(sub.handle)

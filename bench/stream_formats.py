@@ -97,10 +97,8 @@ import numpy as np  # noqa: E402
 # either way; after the environment above, which they need before numpy and rclpy load.
 if os.path.dirname(os.path.abspath(__file__)) not in sys.path:
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from stream_formats_forms import (OPTIONS, Encoder, blocks, make_signal,  # noqa: E402
-                                  readability, topic_of)
-from stream_formats_live import (Child, _cpu_snapshot, child_publisher,  # noqa: E402
-                                 child_subscriber, wait_quiet)
+from stream_formats_forms import OPTIONS, Encoder, blocks, make_signal, readability, topic_of  # noqa: E402
+from stream_formats_live import Child, _cpu_snapshot, child_publisher, child_subscriber, wait_quiet  # noqa: E402
 
 
 def left_out():

@@ -307,14 +307,16 @@ def compare(kind, decoded, expected):
 
 def readability(keys, rate, tmp):
     """Write 1 s of each form with the project's rosbag2 MCAP writer; read it back 3 ways."""
+    from pathlib import Path
+
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rclpy.qos import qos_profile_sensor_data
     from rclpy.serialization import deserialize_message
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
+
     from impact_damper_sim.recording import Rosbag2McapWriter
-    from pathlib import Path
     typestore = get_typestore(Stores.ROS2_JAZZY)
     t_ns, sig = make_signal(rate, 1.0, seed=7)
     results = {}
@@ -336,18 +338,18 @@ def readability(keys, rate, tmp):
         res = {'mcap_bytes_per_s': os.path.getsize(path), 'messages': len(payloads)}
         readers = {}
 
-        def rosbags_read():
+        def rosbags_read(path=path, topic=topic):
             with AnyReader([Path(path)], default_typestore=typestore) as reader:
                 conns = [c for c in reader.connections if c.topic == topic]
                 return [reader.deserialize(raw, c.msgtype)
                         for c, _, raw in reader.messages(connections=conns)]
 
-        def mcap_ros2_read():
+        def mcap_ros2_read(path=path, topic=topic):
             with open(path, 'rb') as f:
                 reader = make_reader(f, decoder_factories=[DecoderFactory()])
                 return [m for _, _, _, m in reader.iter_decoded_messages(topics=[topic])]
 
-        def rclpy_read():
+        def rclpy_read(path=path, topic=topic, type_name=type_name):
             cls = msg_class(type_name)
             with open(path, 'rb') as f:
                 return [deserialize_message(m.data, cls)

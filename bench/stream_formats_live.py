@@ -35,7 +35,7 @@ def _timer_slack(ns):
 
 def child_publisher(a):
     import rclpy
-    from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     _timer_slack(1000)
     opt = OPTIONS[a.option]
     rclpy.init(domain_id=a.domain)
@@ -187,7 +187,8 @@ class Child:
             try:
                 line = self.lines.get(timeout=max(0.01, end - time.monotonic()))
             except queue.Empty:
-                raise TimeoutError(f'no answer from {self.proc.args[3:6]} in {timeout} s')
+                raise TimeoutError(f'no answer from {self.proc.args[3:6]} in {timeout} s') \
+                    from None
             if line is None:
                 raise RuntimeError(f'{self.proc.args[3:6]} ended '
                                    f'(exit {self.proc.wait()}) without an answer')

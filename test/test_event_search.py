@@ -33,8 +33,13 @@ from impact_damper_sim.integrate.kernels import event_loop as KE
 from impact_damper_sim.integrate.kernels import flow_eval as KF
 from impact_damper_sim.integrate.kernels import poly as KP
 from impact_damper_sim.integrate.kernels import search as KS
-from impact_damper_sim.integrate.kernels.scan import (FN_PLANAR, FN_RELEASE, FN_WALL_NEG,
-                                                       FN_WALL_POS, fn_values)
+from impact_damper_sim.integrate.kernels.scan import (
+    FN_PLANAR,
+    FN_RELEASE,
+    FN_WALL_NEG,
+    FN_WALL_POS,
+    fn_values,
+)
 
 EPS = np.finfo(float).eps
 #: Twin agreement, in ulps of the computation's scale (see the module docstring): a few ulps
@@ -329,7 +334,7 @@ def test_quadratic_first_root_is_the_first_positive_root(rng):
         assert r == KP.quadratic_first_root_py(g0, g1, g2, leaving)
         c0, c1, c2 = (g1, 0.5 * g2, 0.0) if leaving else (g0, g1, 0.5 * g2)
 
-        def model(s):
+        def model(s, c0=c0, c1=c1, c2=c2):
             return c0 + c1 * s + c2 * s * s
 
         roots = np.roots([c2, c1, c0]) if c2 != 0.0 else np.roots([c1, c0])

@@ -254,8 +254,8 @@ def test_a_bad_fault_command_is_refused_in_one_line():
     with pytest.raises(CommandError) as info:
         live.fault_command('{kind: gain, accelerometer: hpotp_casing, gain: 5}')
     assert str(info.value) == (
-        "key 'accel/fault_command.accelerometer': 'hpotp_casing' is not an accelerometer of "
-        f"this scene; did you mean '{ACC}'? the accelerometers: {ACC}")
+        "key 'fault command.accelerometer': 'hpotp_casing' is not an accelerometer of "
+        f"this scene; did you mean '{ACC}'? the accelerometers: {ACC}")   # the node: its topic
     with pytest.raises(CommandError, match=r"^key 'fault.duration': .*; key 'fault.gain'"):
         live.add_fault({'kind': 'gain', 'accelerometer': ACC, 'gain': 5000, 'duration': -1})
     with pytest.raises(CommandError, match="^key 'clear': no fault named 'x'; the faults: "

@@ -6,13 +6,13 @@ same context plays the simulator, in the node's format (full-rate ``accel/<name>
 sample, one WrenchStamped per impact); the monitor is spun with ``spin_once`` until a
 condition holds. Diagnostic values are text with 6 significant digits, hence ``rel=1e-5``.
 """
-from dataclasses import astuple
 import math
 import os
 import signal
 import subprocess
 import sys
 import time
+from dataclasses import astuple
 
 import numpy as np
 import pytest
@@ -26,13 +26,20 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import Imu, JointState, PointCloud2  # noqa: E402
 
+from conftest import next_domain_id  # noqa: E402
 from impact_damper_sim.recording.batches import (  # noqa: E402
-    ACCEL_DTYPE, ACCEL_FIELDS, ACCEL_POINT_STEP, BATCH_SUFFIX, BatchEncoder, FLOAT64,
-    IMPACT_DTYPE, IMPACT_FIELDS, IMPACT_POINT_STEP)
+    ACCEL_DTYPE,
+    ACCEL_FIELDS,
+    ACCEL_POINT_STEP,
+    BATCH_SUFFIX,
+    FLOAT64,
+    IMPACT_DTYPE,
+    IMPACT_FIELDS,
+    IMPACT_POINT_STEP,
+    BatchEncoder,
+)
 from impact_damper_sim.ros import interface  # noqa: E402
 from impact_damper_sim.ros.monitor import VibrationMonitor  # noqa: E402
-
-from conftest import next_domain_id  # noqa: E402
 from node_helpers import call_service  # noqa: E402
 
 pytestmark = pytest.mark.ros

@@ -3,16 +3,20 @@
 Samples are stamped ``t_k = t0 + (k + 1/2) / fs``; a window of W s ending on a sample holds
 exactly ``W fs`` of them (the one stamped ``now - W`` is outside).
 """
-from dataclasses import astuple
 import doctest
 import math
+from dataclasses import astuple
 
 import numpy as np
 import pytest
 
 from impact_damper_sim.live import monitoring
-from impact_damper_sim.live.monitoring import (G0, MAX_ACCELERATION, impactor_stuck_flags,
-                                          RollingVibrationStats)
+from impact_damper_sim.live.monitor_text import impactor_stuck_flags
+from impact_damper_sim.live.monitoring import (
+    G0,
+    MAX_ACCELERATION,
+    RollingVibrationStats,
+)
 
 FS = 1000.0   # sample rate (Hz)
 #: Largest bias of the Hann-windowed FFT peak refined by a parabola on the log-power
@@ -318,7 +322,7 @@ def test_docstring_examples():
 # --- the monitor's words (issue 38) ------------------------------------------------------------
 
 def test_waiting_for_the_first_sample_is_info_then_warn():
-    from impact_damper_sim.live.monitoring import FIRST_SAMPLE_GRACE_S, waiting_text
+    from impact_damper_sim.live.monitor_text import FIRST_SAMPLE_GRACE_S, waiting_text
     assert waiting_text('accel/s1', 0.0) == (False, 'waiting for the first sample on accel/s1')
     assert waiting_text('accel/s1', FIRST_SAMPLE_GRACE_S)[0] is False
     assert waiting_text('accel/s1', 7.5) == (
@@ -327,7 +331,7 @@ def test_waiting_for_the_first_sample_is_info_then_warn():
 
 
 def test_impacts_text_says_dampers_off_and_never_nan():
-    from impact_damper_sim.live.monitoring import dampers_off, impacts_text
+    from impact_damper_sim.live.monitor_text import dampers_off, impacts_text
     # the node's -1 efforts: dampers off, which 'stuck fraction 0 (0 of 12)' hid
     assert dampers_off([-1.0] * 24) and not dampers_off([0.0, -1.0]) and not dampers_off([])
     off = impacts_text(0.0, 0.0, 0, 12, off=True)

@@ -105,7 +105,7 @@ def test_python_command_example_reaches_the_node(ros_context, tmp_path):
         for _ in range(20):
             ex.spin_once(timeout_sec=0.05)
         assert proc.wait(timeout=5) == 0
-        assert node.live.profile.target == 1200.0
+        assert node.live.profile.target == 600.0
     finally:
         node.destroy_node()
 
@@ -261,7 +261,7 @@ def test_readme_cli_commands_run_as_written(tmp_path):
         assert 'accelerations in g' in done.stdout      # the last line: study report
         time.sleep(1.0)
         text = ''.join(out)
-        for said in ('rotor/speed_command 1200 accepted', 'rotor/unbalance_command 10 accepted',
+        for said in ('rotor/speed_command 600 accepted', 'rotor/unbalance_command 10 accepted',
                      'recording to hpotp_', 'recorded '):
             assert said in text, (said, text)
     finally:

@@ -25,8 +25,7 @@ yaml = pytest.importorskip('yaml')
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile,  # noqa: E402
-                       ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rclpy.serialization import serialize_message  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Imu, JointState  # noqa: E402
@@ -34,8 +33,7 @@ from std_msgs.msg import Float64  # noqa: E402
 
 from impact_damper_sim.live import playback  # noqa: E402
 from impact_damper_sim.ros import replay, replay_plan  # noqa: E402
-from impact_damper_sim.ros.interface import (EVENT_QOS, LATCHED_QOS,  # noqa: E402
-                                             SENSOR_QOS)
+from impact_damper_sim.ros.interface import EVENT_QOS, LATCHED_QOS, SENSOR_QOS  # noqa: E402
 
 T0 = 1_700_000_000_000_000_000   # log_time of the first message (ns)
 MS = 1_000_000
@@ -44,6 +42,7 @@ MS = 1_000_000
 # --- fixture logs -----------------------------------------------------------------------------
 
 from ament_index_python.packages import get_package_share_directory  # noqa: E402
+
 from rosbag2_rule import msgdef  # noqa: E402  (test/ helper)
 
 

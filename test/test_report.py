@@ -17,10 +17,16 @@ import pytest
 
 from impact_damper_sim.cli.study import main as study
 from impact_damper_sim.recording import Rosbag2McapWriter
-from impact_damper_sim.recording.batches import (ACCEL_DTYPE, ACCEL_FIELDS,
-                                                 ACCEL_POINT_STEP, BatchEncoder, IMPACT_DTYPE,
-                                                 IMPACT_FIELDS, IMPACT_POINT_STEP,
-                                                 POINTCLOUD2)
+from impact_damper_sim.recording.batches import (
+    ACCEL_DTYPE,
+    ACCEL_FIELDS,
+    ACCEL_POINT_STEP,
+    IMPACT_DTYPE,
+    IMPACT_FIELDS,
+    IMPACT_POINT_STEP,
+    POINTCLOUD2,
+    BatchEncoder,
+)
 from impact_damper_sim.studies.report import G0, analyze
 from impact_damper_sim.studies.report_output import csv_rows
 from impact_damper_sim.studies.report_signals import impact_rate, stuck_fractions, welch

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from impact_damper_sim.cli.study import main
+from impact_damper_sim.integrate.simulation import METHODS
 from impact_damper_sim.scene.keytable import markdown_table
 from impact_damper_sim.scene.spec import SCHEMA
-from impact_damper_sim.integrate.simulation import METHODS
 
 README = Path(__file__).resolve().parents[1] / 'README.md'
 

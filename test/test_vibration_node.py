@@ -23,8 +23,8 @@ from sensor_msgs.msg import Imu, JointState, PointCloud2  # noqa: E402
 from std_msgs.msg import Float64, String  # noqa: E402
 
 from impact_damper_sim.recording.batches import rows_of  # noqa: E402
-from impact_damper_sim.ros import interface as itf  # noqa: E402
 from impact_damper_sim.ros import handoff, vibration_node  # noqa: E402
+from impact_damper_sim.ros import interface as itf  # noqa: E402
 from impact_damper_sim.ros.vibration_node import VibrationNode, main  # noqa: E402
 from impact_damper_sim.scene.schema import SceneError  # noqa: E402
 from node_helpers import FakeClock, make_node  # noqa: E402
@@ -203,7 +203,7 @@ def test_numerical_blow_up_is_reported_and_the_node_stays_up(ros_context):
         node.live.sim.integrator._yh[:] = np.nan   # what an overflow leaves behind
         run_for(node, 0.1)
         assert node.live.failure is not None
-        # the core's blow-up check names what diverged and when (impact_damper_sim.integrate.divergence)
+        # the core's blow-up check names what diverged and when (integrate.divergence)
         assert node.live.failure.startswith('diverged at t = '), node.live.failure
         t_failed = node.live.t
         run_for(node, 0.1)
@@ -499,8 +499,9 @@ def test_spin_guarded_ends_quietly_when_ctrl_c_shuts_the_context_under_it():
     """A callback's exception is reported and spinning goes on; the error rclpy raises when
     the SIGINT handler shuts the context down while a wait set is being made ("the given
     context is not valid") ends the spin as a shutdown, not as a failed callback."""
-    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
     from rclpy.executors import ExternalShutdownException
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
     from impact_damper_sim.ros.process import spin_guarded
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
@@ -883,13 +884,19 @@ def test_runtime_parameter_checks_are_strict(ros_context):
 
 def test_fuzzed_service_requests_never_stop_the_node(ros_context, tmp_path):
     """Every service of the node, over the wire, with malformed and random requests."""
+    import os
+
     from rcl_interfaces.msg import Parameter as ParameterMsg
     from rcl_interfaces.msg import ParameterType, ParameterValue
-    from rcl_interfaces.srv import (DescribeParameters, GetParameters, GetParameterTypes,
-                                    ListParameters, SetParameters, SetParametersAtomically)
+    from rcl_interfaces.srv import (
+        DescribeParameters,
+        GetParameters,
+        GetParameterTypes,
+        ListParameters,
+        SetParameters,
+        SetParametersAtomically,
+    )
     from std_srvs.srv import SetBool
-
-    import os
     ns = f'/fuzz_{os.getpid()}'   # another node on this domain must not answer for ours
     node = VibrationNode(context=ros_context, namespace=ns, start_stepping=False,
                          clock=FakeClock(), parameter_overrides=[
@@ -1204,6 +1211,7 @@ def test_main_freezes_the_start_up_heap_before_stepping(ros_context, monkeypatch
     held the GIL ~150 ms: a 1 s window at 0.90 x real time) and only then starts stepping;
     the frozen objects are out of every generation the collector walks."""
     import gc
+
     from impact_damper_sim.ros import process
     order = []
     real_start = VibrationNode.start

@@ -438,7 +438,7 @@ def cmd_tables(check):
         if not re.search(pat, text, flags=re.S):
             bad.append(f'docs/fidelity.md has no fidelity-{kind} region')
             continue
-        new = re.sub(pat, lambda m: m.group(1) + want + m.group(2), text, flags=re.S)
+        new = re.sub(pat, lambda m, want=want: m.group(1) + want + m.group(2), text, flags=re.S)
         if new != text:
             bad.append(f'docs/fidelity.md: the {kind} table differs from docs/fidelity/'
                        f'tables.py {kind}')
@@ -526,7 +526,7 @@ def cmd_from_validation(check):
             print(f'{rel} has no {region} region', file=sys.stderr)
             status = 1
             continue
-        new = re.sub(pat, lambda m: m.group(1) + want + m.group(2), text, flags=re.S)
+        new = re.sub(pat, lambda m, want=want: m.group(1) + want + m.group(2), text, flags=re.S)
         if new == text:
             continue
         if check:

@@ -277,7 +277,7 @@ class SensorChannel:
         """
         std = float(std)
         if not (math.isfinite(std) and std >= 0):
-            raise ValueError(self._msg(f"parameter 'noise_std': must be finite and >= 0 "
+            raise ValueError(self._msg(f'noise std: must be finite and >= 0 '
                                        f'm/s^2, got {std}'))
         self.white_noise_std = std
         if seed is not None:

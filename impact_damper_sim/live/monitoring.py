@@ -13,6 +13,8 @@ most recent ``window`` seconds:
   resolution ``1 / (n dt)`` of the window's samples (:mod:`.spectrum`);
 * impacts per second and the time-weighted fraction of impactors stuck.
 
+How the monitor reads ``impactor_state`` and words what it sees is in :mod:`.monitor_text`.
+
 Conventions
 -----------
 Times are the senders' stamps (sim time), never the receiver's clock. The window is the
@@ -35,7 +37,6 @@ than a window are merged in time order.
 from __future__ import annotations
 
 import bisect
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,16 +44,10 @@ import numpy as np
 from ..scene.units import G0
 from .spectrum import dominant_frequencies
 
-#: JointState effort at or above which an impactor counts as stuck (the node sends 1.0 / 0.0).
-STUCK_EFFORT = 0.5
 #: Largest acceleration component accepted (m/s^2, about 1e11 g): beyond it a reading is not
 #: physical, and its square would overflow the sums.
 MAX_ACCELERATION = 1e12
 AXES = ('x', 'y', 'z')
-#: JointState effort below which an entry says the dampers are off (the node sends -1.0).
-DAMPERS_OFF_EFFORT = -0.5
-#: Node-clock seconds the monitor waits for a sensor's first sample before it warns.
-FIRST_SAMPLE_GRACE_S = 5.0
 #: Half the resolution of ROS stamps (s): the margin that puts a sample stamped exactly
 #: ``now - window`` outside the window despite rounding.
 _BOUNDARY = 0.5e-9
@@ -217,110 +212,6 @@ class _Sensor:
         self.name = name
         self.buffer = _SampleBuffer(3)
         self.rejected = 0
-
-
-def dampers_off(efforts):
-    """bool: an ``impactor_state`` that says the dampers are off (every effort -1).
-
-    Parameters
-    ----------
-    efforts : sequence of float
-        The JointState efforts (dimensionless: 1 stuck, 0 free, -1 dampers off).
-    """
-    efforts = np.asarray(efforts, dtype=float).reshape(-1)
-    return bool(efforts.size) and bool(np.all(efforts <= DAMPERS_OFF_EFFORT))
-
-
-def waiting_text(topic, waited_s, grace_s=FIRST_SAMPLE_GRACE_S):
-    """What the monitor says about a sensor without a valid sample yet.
-
-    Parameters
-    ----------
-    topic : str
-        The sensor's topic.
-    waited_s : float
-        Node-clock time since the monitor started watching it (s).
-    grace_s : float
-        Time a start-up may take before the silence is a problem (s).
-
-    Returns
-    -------
-    warn : bool
-        True once ``waited_s`` exceeds ``grace_s``: a WARN, not an INFO.
-    text : str
-        ``'waiting for the first sample on <topic>'`` within the grace period, else
-        ``'no valid sample received on <topic> in <waited> s'``.
-    """
-    if not waited_s > grace_s:
-        return False, f'waiting for the first sample on {topic}'
-    return True, f'no valid sample received on {topic} in {waited_s:.3g} s'
-
-
-def impacts_text(impacts_per_s, stuck_fraction, stuck_impactors, impactors, off=False):
-    """The monitor's impacts line, in words where a number is not known.
-
-    Parameters
-    ----------
-    impacts_per_s : float
-        Impact rate over the window (1/s); NaN before any impact batch.
-    stuck_fraction : float
-        Time-weighted stuck fraction (0..1); NaN before any ``impactor_state``.
-    stuck_impactors, impactors : int
-        Impactors stuck in the latest state, and how many there are.
-    off : bool
-        The latest ``impactor_state`` says the dampers are off.
-
-    Returns
-    -------
-    str
-        e.g. ``'impacts: 1.2e+04 /s, stuck fraction 0.02 (1 of 12 impactors stuck now)'``,
-        ``'impacts: 0 /s, dampers off: no impactor can stick'`` or
-        ``'impacts: no impacts received yet, no impactor_state received yet'``; never ``nan``.
-    """
-    rate = ('no impacts received yet' if impacts_per_s is None or math.isnan(impacts_per_s)
-            else f'{impacts_per_s:.4g} /s')
-    if off:
-        state = 'dampers off: no impactor can stick'
-    elif stuck_fraction is None or math.isnan(stuck_fraction):
-        state = 'no impactor_state received yet'
-    else:
-        state = (f'stuck fraction {stuck_fraction:.3g} ({stuck_impactors} of {impactors} '
-                 'impactors stuck now)')
-    return f'impacts: {rate}, {state}'
-
-
-def impactor_stuck_flags(names, efforts):
-    """Group ``impactor_state`` JointState entries into one stuck flag per impactor.
-
-    Parameters
-    ----------
-    names : sequence of str
-        Joint names, ``<impactor>/<dof>`` (a name without ``/`` is its own impactor).
-    efforts : sequence of float
-        Stuck flags (1.0 stuck, 0.0 free; dimensionless), one per name.
-
-    Returns
-    -------
-    impactors : tuple of str
-        Impactor names in order of first appearance.
-    stuck : ndarray of bool, shape (len(impactors),)
-        True if any entry of the impactor has ``effort >= STUCK_EFFORT``.
-
-    Raises
-    ------
-    ValueError
-        If the lengths differ or an effort is not finite.
-    """
-    efforts = np.asarray(efforts, dtype=float).reshape(-1)
-    if efforts.size != len(names):
-        raise ValueError(f'{len(names)} names but {efforts.size} efforts')
-    if not np.all(np.isfinite(efforts)):
-        raise ValueError('non-finite effort')
-    flags = {}
-    for name, effort in zip(names, efforts):
-        impactor = name.rsplit('/', 1)[0] if '/' in name else name
-        flags[impactor] = flags.get(impactor, False) or bool(effort >= STUCK_EFFORT)
-    return tuple(flags), np.array(list(flags.values()), dtype=bool)
 
 
 class RollingVibrationStats:
@@ -635,6 +526,5 @@ class RollingVibrationStats:
             time_resets=self._time_resets)
 
 
-__all__ = ['AXES', 'DAMPERS_OFF_EFFORT', 'FIRST_SAMPLE_GRACE_S', 'MAX_ACCELERATION',
-           'STUCK_EFFORT', 'RollingVibrationStats', 'SensorStats', 'VibrationReport',
-           'dampers_off', 'impactor_stuck_flags', 'impacts_text', 'waiting_text']
+__all__ = ['AXES', 'MAX_ACCELERATION', 'RollingVibrationStats', 'SensorStats',
+           'VibrationReport']

@@ -354,7 +354,7 @@ class LiveSimulation:
         except FaultError as exc:
             raise CommandError(_one_line(exc)) from None
 
-    def fault_command(self, command, key='accel/fault_command'):
+    def fault_command(self, command, key='fault command'):
         """Apply a fault command as the node receives it (:func:`~.fault_spec.parse_command`).
 
         Parameters
@@ -363,7 +363,7 @@ class LiveSimulation:
             YAML or JSON text (or its mapping): a fault to add (``{kind: ..., accelerometer:
             ..., ...}``), ``{clear: <name>}`` or ``{clear: all}``.
         key : str
-            The command's name in messages (the topic).
+            The command's name in messages (the node passes its topic).
 
         Returns
         -------

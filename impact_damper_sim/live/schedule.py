@@ -191,7 +191,7 @@ class Schedule:
         commanded = live.speed_commanded
         problems += self._check_faults(live)
         for i, entry in enumerate(self.entries):
-            for key, _, name, value in entry.commands:
+            for key, _, _name, value in entry.commands:
                 where = f'schedule[{i}].{key} (at {entry.at:g} s)'
                 if key in ('speed', 'speed_rate') and not commanded:
                     problems.append(f'{where}: scene {live.scene.name!r} has no commanded rotor')

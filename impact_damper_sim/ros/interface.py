@@ -44,13 +44,15 @@ noise is off: unknown); ``angular_velocity_covariance`` is all zeros (unknown).
     The tachometer at the full rate, one row per accelerometer sample time: ``t`` (s, minus
     ``header.stamp``, the first sample's time), ``angle`` (rad) the shaft angle ``phi(t)``
     the unbalance force uses, unwrapped (0 at sim time 0, never decreasing: order tracking
-    resamples on it as it is), ``speed`` (rad/s); all float64, ``header.frame_id`` empty.
+    resamples on it as it is), ``speed`` (rad/s); all float64; ``header.frame_id`` the
+    rotor's frame, ``<scene>_rotor``.
 
 ``rotor/keyphasor`` -- ``sensor_msgs/PointCloud2``, one batch per stepped chunk (rotor scenes)
     The once-per-revolution reference: one row per time ``phi`` reached ``2 pi k``: ``t``
     (s, minus ``header.stamp``, the start of the interval the batch covers, as for
-    ``impacts``), ``revolution`` (uint32, k, 1 first), ``speed`` (rad/s, float64). The
-    unbalance of phase ``p`` points at ``phi + p``: at a keyphasor time it is at ``p``.
+    ``impacts``), ``revolution`` (uint32, k, 1 first), ``speed`` (rad/s, float64);
+    ``header.frame_id`` ``<scene>_rotor``. The unbalance of phase ``p`` points at
+    ``phi + p``: at a keyphasor time it is at ``p``.
 
 ``impacts`` -- ``sensor_msgs/PointCloud2``, one batch per stepped chunk
     ``header.stamp`` the start of the interval the batch covers (an empty batch says nothing
@@ -67,10 +69,12 @@ noise is off: unknown); ``angular_velocity_covariance`` is all zeros (unknown).
     axes, named by their DOFs), ``<impactor>/<dof>`` for one-directional ones.
     ``position`` (m): the impactor's position relative to its housing centre;
     ``velocity`` (m/s): its velocity relative to the housing; ``effort``: 1.0 while the
-    impactor is stuck (rides its housing), 0.0 while free.
+    impactor is stuck (rides its housing), 0.0 while free, -1.0 on every entry while the
+    dampers are off (``dampers_enabled`` false). ``header.frame_id`` the housing's frame.
 
 ``rotor/joint_states`` -- ``sensor_msgs/JointState``, every stepped chunk
-    The rotor as the continuous joint it is, read by any ROS tool without this page:
+    The rotor as the continuous joint it is, read by any ROS tool without this page
+    (``header.frame_id`` ``<scene>_rotor``):
     ``name`` ``['rotor']``; ``position`` (rad) the shaft angle, wrapped to [0, 2 pi);
     ``velocity`` (rad/s) the applied speed; ``effort`` empty (not modelled).
 
@@ -104,12 +108,27 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from ..recording import node_topics as _topics
 from ..recording.bag_metadata import qos_dict as _qos_dict
-from ..recording.node_topics import (ACCEL_PREFIX, BATCH_SUFFIX, CLOCK, DIAGNOSTICS,  # noqa: F401
-                                     FAULT_COMMAND, IMPACTOR_STATE, IMPACTS, PARAMETER_EVENTS,
-                                     ROTOR_JOINT_STATES, ROTOR_KEYPHASOR, ROTOR_SPEED,
-                                     ROTOR_TACH, SPEED_COMMAND, TRUTH_SUFFIX, TYPES,
-                                     UNBALANCE_COMMAND, accel_batch_topic, accel_topic,
-                                     accel_truth_topic)
+from ..recording.node_topics import (  # noqa: F401
+    ACCEL_PREFIX,
+    BATCH_SUFFIX,
+    CLOCK,
+    DIAGNOSTICS,
+    FAULT_COMMAND,
+    IMPACTOR_STATE,
+    IMPACTS,
+    PARAMETER_EVENTS,
+    ROTOR_JOINT_STATES,
+    ROTOR_KEYPHASOR,
+    ROTOR_SPEED,
+    ROTOR_TACH,
+    SPEED_COMMAND,
+    TRUTH_SUFFIX,
+    TYPES,
+    UNBALANCE_COMMAND,
+    accel_batch_topic,
+    accel_topic,
+    accel_truth_topic,
+)
 from ..scene.units import G0  # standard gravity (m/s^2), for reports in g
 
 

@@ -29,52 +29,61 @@ the queued input, and computes and publishes the reports, so that a long window 
 and 20 kHz, an FFT of 1.2 million points a sensor) does not stall the executor while the
 best-effort queues fill.
 
-Diagnostics (all values as text; units in the key names):
-
-``monitor: <namespace>/<sensor>`` (hardware_id: the sensor's frame_id), one per sensor
-    ``rms_g``, ``peak_g`` (vector magnitude), ``rms_g_x|y|z``, ``peak_g_x|y|z``,
-    ``dominant_hz`` (power summed over the axes), ``dominant_hz_x|y|z``, ``resolution_hz``,
-    ``samples_per_s``, ``samples_in_window``, ``rejected_samples`` (since start),
-    ``stamp_lag_s`` (newest stamp on any topic minus the sensor's newest, sim s),
-    ``last_sample_age_s`` (node-clock s since a valid sample last arrived), ``window_s``,
-    ``window_end_s`` (sim s). OK with 'waiting for the first sample on <topic>' for the
-    first ``FIRST_SAMPLE_GRACE_S`` (5 s) of node clock, then WARN while no valid sample
-    arrived; WARN when ``stamp_lag_s`` or
-    ``last_sample_age_s`` exceeds two windows (stale), or when samples were rejected since
-    the previous report.
-``monitor: <namespace>/impacts`` (hardware_id: the frame of the impacts: a batch's
-frame_id, or the housing frame of a WrenchStamped's ``<housing>/<impactor>``)
-    ``impacts_per_s``, ``impacts_in_window``, ``stuck_fraction``, ``impactors``,
-    ``stuck_impactors``, ``rejected_impacts``, ``rejected_states``, ``time_resets``,
-    ``span_s``, ``window_s``, ``window_end_s``. WARN before any ``impactor_state`` or when
-    one was rejected since the previous report.
+Diagnostics: one status per sensor and one for impacts, their keys (units in the names) and
+levels in docs/node.md ("The monitor"); the values come from
+:mod:`impact_damper_sim.live.monitor_text`.
 """
 from __future__ import annotations
 
-from array import array
 import math
 import threading
+from array import array
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import WrenchStamped
 import numpy as np
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 import rclpy
 import rclpy.executors
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
-from ..live.monitoring import (AXES, dampers_off, FIRST_SAMPLE_GRACE_S, impactor_stuck_flags,
-                               impacts_text, RollingVibrationStats, waiting_text)
+from ..live.monitor_text import (
+    FIRST_SAMPLE_GRACE_S,
+    dampers_off,
+    impact_values,
+    impactor_stuck_flags,
+    impacts_text,
+    sensor_text,
+    sensor_values,
+    value_text,
+    waiting_text,
+)
+from ..live.monitoring import RollingVibrationStats
 from ..recording.batches import BATCH_SUFFIX, rows_of, sample_times_ns
-from .interface import (ACCEL_PREFIX, accel_topic, BATCH_QOS, DIAGNOSTICS, DIAGNOSTICS_QOS,
-                        EVENT_QOS, IMPACTOR_STATE, IMPACTS, LATCHED_QOS, SENSOR_QOS)
-from .parameters import serve_unset_parameters
+from .interface import (
+    ACCEL_PREFIX,
+    BATCH_QOS,
+    DIAGNOSTICS,
+    DIAGNOSTICS_QOS,
+    EVENT_QOS,
+    IMPACTOR_STATE,
+    IMPACTS,
+    LATCHED_QOS,
+    SENSOR_QOS,
+    accel_topic,
+)
 from .outlets import type_name
-from .process import (freeze_start_up_heap, ignore_further_interrupts, settle_interrupt,
-                      shutdown_quietly, spin_guarded)
+from .parameters import serve_unset_parameters
+from .process import (
+    freeze_start_up_heap,
+    ignore_further_interrupts,
+    settle_interrupt,
+    shutdown_quietly,
+    spin_guarded,
+)
 from .service_guard import guard_services
 
 #: Samples (or impacts) queued on one per-sample stream, or in all batch messages together
@@ -97,13 +106,6 @@ def _stamps_s(ns):
     """
     sec, nanosec = np.divmod(ns, 1_000_000_000)
     return sec + 1e-9 * nanosec
-
-
-def _text(value):
-    """Format a diagnostic value: 6 significant digits, ``nan`` for unknown."""
-    if isinstance(value, int):
-        return str(value)
-    return 'nan' if value is None or math.isnan(value) else f'{value:.6g}'
 
 
 class _Batch:
@@ -522,22 +524,12 @@ class VibrationMonitor(Node):
             problems.append(f'stale: newest sample {lag:.3g} s behind the other topics')
         if new_rejects:
             problems.append(f'{new_rejects} samples rejected (non-finite or out of range)')
-        values = [('rms_g', stats.rms_g), ('peak_g', stats.peak_g)]
-        values += [(f'rms_g_{axis}', v) for axis, v in zip(AXES, stats.rms_g_axes)]
-        values += [(f'peak_g_{axis}', v) for axis, v in zip(AXES, stats.peak_g_axes)]
-        values.append(('dominant_hz', stats.dominant_hz))
-        values += [(f'dominant_hz_{axis}', v) for axis, v in zip(AXES, stats.dominant_hz_axes)]
-        values += [('resolution_hz', stats.resolution_hz),
-                   ('samples_per_s', stats.samples_per_s),
-                   ('samples_in_window', stats.samples),
-                   ('rejected_samples', stats.rejected_samples),
-                   ('stamp_lag_s', lag), ('last_sample_age_s', age),
-                   ('window_s', window), ('window_end_s', report.t)]
+        values = sensor_values(stats, lag, age, window, report.t)
         return DiagnosticStatus(
             level=DiagnosticStatus.WARN if problems else DiagnosticStatus.OK,
             name=self._status_name(sensor), message='; '.join(problems) or waiting or 'ok',
             hardware_id=self._frames.get(sensor, ''),
-            values=[KeyValue(key=key, value=_text(v)) for key, v in values])
+            values=[KeyValue(key=key, value=value_text(v)) for key, v in values])
 
     def _impacts_status(self, report):
         new_rejects = report.rejected_states - self._rejected_states_reported
@@ -547,21 +539,12 @@ class VibrationMonitor(Node):
             problems.append(f'no {IMPACTOR_STATE} received')
         if new_rejects:
             problems.append(f'{new_rejects} {IMPACTOR_STATE} messages rejected')
-        values = [('impacts_per_s', report.impacts_per_s),
-                  ('impacts_in_window', report.impacts),
-                  ('stuck_fraction', report.stuck_fraction),
-                  ('impactors', report.impactors),
-                  ('stuck_impactors', report.stuck_impactors),
-                  ('rejected_impacts', report.rejected_impacts),
-                  ('rejected_states', report.rejected_states),
-                  ('time_resets', report.time_resets),
-                  ('span_s', report.span), ('window_s', report.window),
-                  ('window_end_s', report.t)]
+        values = impact_values(report)
         return DiagnosticStatus(
             level=DiagnosticStatus.WARN if problems else DiagnosticStatus.OK,
             name=self._status_name('impacts'), message='; '.join(problems) or 'ok',
             hardware_id=self._impact_frame,
-            values=[KeyValue(key=key, value=_text(v)) for key, v in values])
+            values=[KeyValue(key=key, value=value_text(v)) for key, v in values])
 
     def _log(self, report, array):
         logger = self.get_logger()
@@ -571,10 +554,7 @@ class VibrationMonitor(Node):
                 (logger.info if status.level == DiagnosticStatus.OK else logger.warning)(
                     f'{accel_topic(sensor)}: {status.message}')
                 continue
-            line = (f'{accel_topic(sensor)}: rms {s.rms_g:.4g} g (x {s.rms_g_axes[0]:.3g}, '
-                    f'y {s.rms_g_axes[1]:.3g}, z {s.rms_g_axes[2]:.3g}), '
-                    f'peak {s.peak_g:.4g} g, dominant {s.dominant_hz:.5g} Hz '
-                    f'(resolution {s.resolution_hz:.3g} Hz), {s.samples_per_s:.5g} samples/s')
+            line = sensor_text(accel_topic(sensor), s)
             if status.level == DiagnosticStatus.OK:
                 logger.info(line)
             else:

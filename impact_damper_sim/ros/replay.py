@@ -16,11 +16,11 @@ replay costs no decoding. Messages go out in log_time order, each at
 after playback starts; a message that is late is published at once (never dropped). On
 stdout, replay prints what it plays before the first message (the file, each topic with its
 type and message count, the log time it spans, the rate) and a line at the end (messages
-played, passes, wall time, the achieved lateness). ``/clock`` (``rosgraph_msgs/Clock``, reliable, keep
-last 1) carries the log time every ``1/--clock-hz`` s of wall time; a tick that is already late
-is skipped rather than sent in a burst. With ``--loop`` the log plays again and again; a pass
-starts one mean inter-message interval (of log time) after the previous one ended, and
-``/clock`` jumps back to the log's start.
+played, passes, wall time, the achieved lateness). ``/clock`` (``rosgraph_msgs/Clock``,
+reliable, keep last 1) carries the log time every ``1/--clock-hz`` s of wall time; a tick that
+is already late is skipped rather than sent in a burst. With ``--loop`` the log plays again
+and again; a pass starts one mean inter-message interval (of log time) after the previous one
+ended, and ``/clock`` jumps back to the log's start.
 
 Each topic's publisher gets the QoS the recording publishers offered, read from the channel's
 ``offered_qos_profiles`` metadata (or, failing that, from the ``rosbag2`` metadata record):
@@ -57,9 +57,13 @@ from rclpy.node import Node
 from ..live.playback import Player
 from ..studies.log_reader import LogError
 from .interface import CLOCK, CLOCK_QOS
+from .process import (
+    freeze_start_up_heap,
+    ignore_further_interrupts,
+    settle_interrupt,
+    shutdown_quietly,
+)
 from .replay_plan import describe, finished_line, prepare
-from .process import freeze_start_up_heap, ignore_further_interrupts, settle_interrupt, \
-    shutdown_quietly
 
 EXIT_USAGE = 2
 DEFAULT_CLOCK_HZ = 100.0

@@ -16,8 +16,13 @@ import re
 from dataclasses import dataclass, field
 
 from rclpy.duration import Duration
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
-                       ReliabilityPolicy)
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    LivelinessPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
 
 from ..live.playback import Schedule
 from ..studies.log_reader import LogError, RosLog, type_name
@@ -338,7 +343,7 @@ def prepare(path, topics=(), remaps=(), rate=1.0, start_offset=0.0, loop=False):
     if log.message_count == 0:
         raise LogError(f'{log.path}: the log has no messages')
     by_topic = {}
-    for cid, ch in sorted(log.channels.items()):
+    for _, ch in sorted(log.channels.items()):
         by_topic.setdefault(_absolute(ch.topic), []).append(ch)
     wanted = {_absolute(t) for t in topics}
     remap = parse_remaps(remaps)

@@ -43,9 +43,15 @@ from .node_publishing import Publishers
 from .node_recording import Recording
 from .notices import BusyNotice, NameClash, ThrottledLog
 from .parameters import PARAMETERS, RCLPY_PARAMETERS, ParameterError, check, declare_all
-from .process import freeze_start_up_heap, ignore_further_interrupts, settle_interrupt, \
-    shutdown_quietly, spin_guarded
+from .process import (
+    freeze_start_up_heap,
+    ignore_further_interrupts,
+    settle_interrupt,
+    shutdown_quietly,
+    spin_guarded,
+)
 from .service_guard import guard_services
+
 
 class VibrationNode(Node):
     """The live simulator node.
@@ -279,8 +285,9 @@ class VibrationNode(Node):
             with self._lock:
                 if self.recorder is not None and isinstance(msg, (Float64, float)):
                     # every command received is recorded, the rejected ones too
-                    self.recording.record(self._command_subs[which].topic_name, 'std_msgs/msg/Float64',
-                                 itf.COMMAND_QOS, float64_cdr(value))
+                    self.recording.record(self._command_subs[which].topic_name,
+                                          'std_msgs/msg/Float64', itf.COMMAND_QOS,
+                                          float64_cdr(value))
                 apply(value)
         except CommandError as exc:
             self.counters.rejected += 1

@@ -24,7 +24,16 @@ from .containers import ListOf, MapOf, Optional, Section, Vector
 from .keytable import describe, markdown_table
 from .loading import apply_overrides, load_scene, load_yaml
 from .schema import (
-    REQUIRED, Boolean, Choice, Field, Integer, KeyInfo, Quantity, SceneError, String, validate,
+    REQUIRED,
+    Boolean,
+    Choice,
+    Field,
+    Integer,
+    KeyInfo,
+    Quantity,
+    SceneError,
+    String,
+    validate,
 )
 
 __all__ = [

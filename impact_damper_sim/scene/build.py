@@ -91,8 +91,9 @@ class SceneModel:
         Active (uy, uz) DOF indices of each ``rotor.unbalance`` entry; their force inputs
         follow the ``forcing`` inputs (see :attr:`input_dofs`, :attr:`input_names`).
     speed_profile : SpeedProfile or None
-        The rotor speed profile (rad/s); a :class:`~impact_damper_sim.scene.excitation.CommandedSpeed`
-        takes run-time commands. None without ``rotor``.
+        The rotor speed profile (rad/s); a
+        :class:`~impact_damper_sim.scene.excitation.CommandedSpeed` takes run-time commands.
+        None without ``rotor``.
     unbalance : UnbalanceForce or None
         The unbalance forces (N), None without unbalance.
     impactor_dofs : tuple of tuple of int
@@ -166,8 +167,8 @@ class SceneModel:
         return profile, force
 
     def _make_forcing(self):
-        from .excitation import unbalance_forcing
         from ..integrate.forcing import Forcing, Harmonic
+        from .excitation import unbalance_forcing
         omega1 = float(self.basis.omega[0])
         forcing = Forcing(len(self.input_dofs))
         for k, f in enumerate(self.scene['forcing']):

@@ -24,7 +24,6 @@ import time
 
 import numpy as np
 
-
 #: rad/s per rpm.
 RPM = np.pi / 30.0
 
@@ -58,7 +57,7 @@ def scene_speed(scene):
 
 
 def _diagonal(a):
-    from ..modal.basis import DIAGONAL_RTOL   # scipy: not when the command line starts
+    from ..modal.basis import DIAGONAL_RTOL  # scipy: not when the command line starts
     scale = np.abs(a).max(initial=0.0)
     return bool(np.abs(a - np.diag(np.diag(a))).max(initial=0.0) <= DIAGONAL_RTOL * scale)
 

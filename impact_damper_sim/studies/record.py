@@ -366,9 +366,15 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     from ..live.schedule import Schedule
     from ..live.streams import live_scene
     from ..recording import Rosbag2McapWriter
-    from ..recording.node_messages import (FAULTS_METADATA, NodeMessages, fault_command_text,
-                                           fault_metadata, float64_cdr, run_metadata,
-                                           string_cdr)
+    from ..recording.node_messages import (
+        FAULTS_METADATA,
+        NodeMessages,
+        fault_command_text,
+        fault_metadata,
+        float64_cdr,
+        run_metadata,
+        string_cdr,
+    )
     from ..recording.node_topics import FAULT_COMMAND, FLOAT64, RECORD_CHUNK_SIZE
     from ..scene.schema import SceneError
     duration = float(duration)
