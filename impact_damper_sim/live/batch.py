@@ -59,17 +59,17 @@ class Batch:
     angular_velocity: np.ndarray
     events: np.ndarray
     states_changed: bool
-    imu_t: np.ndarray = None
-    imu_linear_acceleration: np.ndarray = None
-    imu_angular_velocity: np.ndarray = None
-    truth: np.ndarray = None
-    clipped: np.ndarray = None
-    imu_clipped: np.ndarray = None
-    shaft_angle: np.ndarray = None
-    shaft_speed: np.ndarray = None
-    keyphasor: np.ndarray = None
-    valid: np.ndarray = None
-    imu_valid: np.ndarray = None
+    imu_t: np.ndarray | None = None
+    imu_linear_acceleration: np.ndarray | None = None
+    imu_angular_velocity: np.ndarray | None = None
+    truth: np.ndarray | None = None
+    clipped: np.ndarray | None = None
+    imu_clipped: np.ndarray | None = None
+    shaft_angle: np.ndarray | None = None
+    shaft_speed: np.ndarray | None = None
+    keyphasor: np.ndarray | None = None
+    valid: np.ndarray | None = None
+    imu_valid: np.ndarray | None = None
 
 
 __all__ = ['Batch']

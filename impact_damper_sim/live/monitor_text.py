@@ -11,10 +11,11 @@ The statistics themselves are :class:`.monitoring.RollingVibrationStats`'s.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
-from .monitoring import AXES
+from .monitoring import AXES, SensorStats, VibrationReport
 
 #: JointState effort at or above which an impactor counts as stuck (the node sends 1.0 / 0.0).
 STUCK_EFFORT = 0.5
@@ -24,7 +25,7 @@ DAMPERS_OFF_EFFORT = -0.5
 FIRST_SAMPLE_GRACE_S = 5.0
 
 
-def dampers_off(efforts):
+def dampers_off(efforts: Sequence[float] | np.ndarray) -> bool:
     """bool: an ``impactor_state`` that says the dampers are off (every effort -1).
 
     Parameters
@@ -32,11 +33,12 @@ def dampers_off(efforts):
     efforts : sequence of float
         The JointState efforts (dimensionless: 1 stuck, 0 free, -1 dampers off).
     """
-    efforts = np.asarray(efforts, dtype=float).reshape(-1)
-    return bool(efforts.size) and bool(np.all(efforts <= DAMPERS_OFF_EFFORT))
+    flat = np.asarray(efforts, dtype=float).reshape(-1)
+    return bool(flat.size) and bool(np.all(flat <= DAMPERS_OFF_EFFORT))
 
 
-def waiting_text(topic, waited_s, grace_s=FIRST_SAMPLE_GRACE_S):
+def waiting_text(topic: str, waited_s: float,
+                 grace_s: float = FIRST_SAMPLE_GRACE_S) -> tuple[bool, str]:
     """What the monitor says about a sensor without a valid sample yet.
 
     Parameters
@@ -61,7 +63,8 @@ def waiting_text(topic, waited_s, grace_s=FIRST_SAMPLE_GRACE_S):
     return True, f'no valid sample received on {topic} in {waited_s:.3g} s'
 
 
-def impacts_text(impacts_per_s, stuck_fraction, stuck_impactors, impactors, off=False):
+def impacts_text(impacts_per_s: float | None, stuck_fraction: float | None,
+                 stuck_impactors: int, impactors: int, off: bool = False) -> str:
     """The monitor's impacts line, in words where a number is not known.
 
     Parameters
@@ -94,7 +97,8 @@ def impacts_text(impacts_per_s, stuck_fraction, stuck_impactors, impactors, off=
     return f'impacts: {rate}, {state}'
 
 
-def impactor_stuck_flags(names, efforts):
+def impactor_stuck_flags(names: Sequence[str], efforts: Sequence[float] | np.ndarray
+                         ) -> tuple[tuple[str, ...], np.ndarray]:
     """Group ``impactor_state`` JointState entries into one stuck flag per impactor.
 
     Parameters
@@ -116,19 +120,19 @@ def impactor_stuck_flags(names, efforts):
     ValueError
         If the lengths differ or an effort is not finite.
     """
-    efforts = np.asarray(efforts, dtype=float).reshape(-1)
-    if efforts.size != len(names):
-        raise ValueError(f'{len(names)} names but {efforts.size} efforts')
-    if not np.all(np.isfinite(efforts)):
+    flat = np.asarray(efforts, dtype=float).reshape(-1)
+    if flat.size != len(names):
+        raise ValueError(f'{len(names)} names but {flat.size} efforts')
+    if not np.all(np.isfinite(flat)):
         raise ValueError('non-finite effort')
     flags: dict[str, bool] = {}
-    for name, effort in zip(names, efforts):
+    for name, effort in zip(names, flat):
         impactor = name.rsplit('/', 1)[0] if '/' in name else name
         flags[impactor] = flags.get(impactor, False) or bool(effort >= STUCK_EFFORT)
     return tuple(flags), np.array(list(flags.values()), dtype=bool)
 
 
-def sensor_text(topic, stats):
+def sensor_text(topic: str, stats: SensorStats) -> str:
     """The monitor's line for one accelerometer with samples in its window.
 
     Parameters
@@ -150,7 +154,7 @@ def sensor_text(topic, stats):
             f'(resolution {stats.resolution_hz:.3g} Hz), {stats.samples_per_s:.5g} samples/s')
 
 
-def value_text(value):
+def value_text(value: float | None) -> str:
     """A diagnostic value as text: an int as it is, else 6 significant digits, ``nan`` for
     unknown (``diagnostic_msgs/KeyValue`` values are strings)."""
     if isinstance(value, int):
@@ -158,7 +162,8 @@ def value_text(value):
     return 'nan' if value is None or math.isnan(value) else f'{value:.6g}'
 
 
-def sensor_values(stats, lag, age, window, t):
+def sensor_values(stats: SensorStats, lag: float, age: float, window: float,
+                  t: float) -> list[tuple[str, float]]:
     """The ``/diagnostics`` values of one accelerometer, in their order.
 
     Parameters
@@ -177,7 +182,7 @@ def sensor_values(stats, lag, age, window, t):
     list of (str, number)
         Key (unit in the name) and value.
     """
-    values = [('rms_g', stats.rms_g), ('peak_g', stats.peak_g)]
+    values: list[tuple[str, float]] = [('rms_g', stats.rms_g), ('peak_g', stats.peak_g)]
     values += [(f'rms_g_{axis}', v) for axis, v in zip(AXES, stats.rms_g_axes)]
     values += [(f'peak_g_{axis}', v) for axis, v in zip(AXES, stats.peak_g_axes)]
     values.append(('dominant_hz', stats.dominant_hz))
@@ -190,7 +195,8 @@ def sensor_values(stats, lag, age, window, t):
                      ('window_s', window), ('window_end_s', t)]
 
 
-def impact_values(report):
+def impact_values(report: VibrationReport) -> list[tuple[str, float]]:
+
     """The ``/diagnostics`` values of the impacts status (a :class:`VibrationReport`), in
     their order: list of (key with its unit, value)."""
     return [('impacts_per_s', report.impacts_per_s), ('impacts_in_window', report.impacts),

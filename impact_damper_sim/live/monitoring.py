@@ -37,9 +37,11 @@ than a window are merged in time order.
 from __future__ import annotations
 
 import bisect
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..scene.units import G0
 from .spectrum import dominant_frequencies
@@ -90,10 +92,10 @@ class SensorStats:
     samples_per_s: float
     rms_g: float
     peak_g: float
-    rms_g_axes: tuple
-    peak_g_axes: tuple
+    rms_g_axes: tuple[float, ...]
+    peak_g_axes: tuple[float, ...]
     dominant_hz: float
-    dominant_hz_axes: tuple
+    dominant_hz_axes: tuple[float, ...]
     resolution_hz: float
     last_sample_t: float | None
     rejected_samples: int
@@ -137,7 +139,7 @@ class VibrationReport:
     t: float
     window: float
     span: float
-    sensors: dict
+    sensors: dict[str, SensorStats]
     impacts: int
     impacts_per_s: float
     stuck_fraction: float
@@ -152,27 +154,27 @@ class VibrationReport:
 class _SampleBuffer:
     """Time-sorted samples ``(t, values)`` in a growable array, evicted from the front."""
 
-    def __init__(self, width):
+    def __init__(self, width: int) -> None:
         self._t = np.empty(0)
         self._v = np.empty((0, width))
         self._start = 0
         self._end = 0
 
-    def __len__(self):
+    def __len__(self) -> int:
         return self._end - self._start
 
-    def clear(self):
+    def clear(self) -> None:
         self._start = self._end = 0
 
     @property
-    def last_t(self):
+    def last_t(self) -> float | None:
         return float(self._t[self._end - 1]) if self._end > self._start else None
 
-    def view(self):
+    def view(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Return the stored ``(t, values)`` (views, do not modify)."""
         return self._t[self._start:self._end], self._v[self._start:self._end]
 
-    def append(self, t, v):
+    def append(self, t: npt.NDArray[np.float64], v: npt.NDArray[np.float64]) -> None:
         """Append samples; ``t`` need not be sorted nor later than the stored ones."""
         n = t.size
         if n == 0:
@@ -192,12 +194,12 @@ class _SampleBuffer:
         self._v[self._end:self._end + n] = v
         self._end += n
 
-    def evict_until(self, t_min):
+    def evict_until(self, t_min: float) -> None:
         """Drop the samples with ``t <= t_min``."""
         t, _ = self.view()
         self._start += int(np.searchsorted(t, t_min, side='right'))
 
-    def _compact(self, extra):
+    def _compact(self, extra: int) -> None:
         live = len(self)
         capacity = max(2 * (live + extra), 1024)
         t = np.empty(capacity)
@@ -208,7 +210,7 @@ class _SampleBuffer:
 
 
 class _Sensor:
-    def __init__(self, name):
+    def __init__(self, name: str) -> None:
         self.name = name
         self.buffer = _SampleBuffer(3)
         self.rejected = 0
@@ -243,54 +245,54 @@ class RollingVibrationStats:
     3.0
     """
 
-    def __init__(self, window, sensors=()):
+    def __init__(self, window: float, sensors: Iterable[str] = ()) -> None:
         self._window = self._checked_window(window)
-        self._sensors = {}
+        self._sensors: dict[str, _Sensor] = {}
         for name in sensors:
             self.add_sensor(name)
         self._impacts = _SampleBuffer(0)
-        self._states = []          # [(t, stuck fraction)], time-sorted
+        self._states: list[tuple[float, float]] = []   # [(t, stuck fraction)], time-sorted
         self._impactors = 0
         self._stuck_impactors = 0
-        self._now = None           # latest stamp on any stream (s)
-        self._first_t = None       # earliest stamp since the start or the last reset (s)
+        self._now: float | None = None       # latest stamp on any stream (s)
+        self._first_t: float | None = None   # earliest stamp since the start or the last reset (s)
         self._rejected_impacts = 0
         self._rejected_states = 0
         self._time_resets = 0
 
     @staticmethod
-    def _checked_window(window):
+    def _checked_window(window: float) -> float:
         window = float(window)
         if not (np.isfinite(window) and window > 0.0):
             raise ValueError(f'window must be finite and > 0 s, got {window!r}')
         return window
 
     @property
-    def window(self):
+    def window(self) -> float:
         """Window length (s); setting it evicts what falls out of a shorter window."""
         return self._window
 
     @window.setter
-    def window(self, value):
+    def window(self, value: float) -> None:
         self._window = self._checked_window(value)
         self._evict()
 
     @property
-    def sensors(self):
+    def sensors(self) -> tuple[str, ...]:
         """Names of the sensors (tuple of str), in the order they were added."""
         return tuple(self._sensors)
 
     @property
-    def now(self):
+    def now(self) -> float | None:
         """Latest stamp received on any stream (s), or None before any input."""
         return self._now
 
-    def add_sensor(self, name):
+    def add_sensor(self, name: str) -> None:
         """Start reporting sensor ``name`` (str), even before it has data; idempotent."""
         if name not in self._sensors:
             self._sensors[name] = _Sensor(name)
 
-    def reset(self):
+    def reset(self) -> None:
         """Clear every history (sample, impact and stuck-state); keep the rejection counts."""
         for sensor in self._sensors.values():
             sensor.buffer.clear()
@@ -299,7 +301,8 @@ class RollingVibrationStats:
         self._impactors = self._stuck_impactors = 0
         self._now = self._first_t = None
 
-    def add_samples(self, sensor, times, accelerations):
+    def add_samples(self, sensor: str, times: npt.ArrayLike, accelerations: npt.ArrayLike
+                    ) -> int:
         """Add a batch of accelerometer samples.
 
         Parameters
@@ -348,7 +351,7 @@ class RollingVibrationStats:
         self._saw(float(t.min()), float(t.max()))
         return int(t.size)
 
-    def add_impacts(self, times, start=None):
+    def add_impacts(self, times: npt.ArrayLike, start: float | None = None) -> int:
         """Add impacts.
 
         Parameters
@@ -378,7 +381,7 @@ class RollingVibrationStats:
             self._saw(float(covered.min()), float(covered.max()))
         return int(t.size)
 
-    def reject_samples(self, sensor, count):
+    def reject_samples(self, sensor: str, count: int) -> None:
         """Count samples rejected before they reached :meth:`add_samples`.
 
         Parameters
@@ -391,7 +394,7 @@ class RollingVibrationStats:
         self.add_sensor(sensor)
         self._sensors[sensor].rejected += int(count)
 
-    def reject_impacts(self, count):
+    def reject_impacts(self, count: int) -> None:
         """Count impacts rejected before they reached :meth:`add_impacts`.
 
         Parameters
@@ -401,7 +404,7 @@ class RollingVibrationStats:
         """
         self._rejected_impacts += int(count)
 
-    def clear_sensor(self, sensor):
+    def clear_sensor(self, sensor: str) -> None:
         """Drop the sample history of a sensor whose source changed; keep its rejections.
 
         Parameters
@@ -412,7 +415,7 @@ class RollingVibrationStats:
         self.add_sensor(sensor)
         self._sensors[sensor].buffer.clear()
 
-    def update_stuck(self, time, stuck):
+    def update_stuck(self, time: float, stuck: npt.ArrayLike) -> bool:
         """Record the stuck/free state of every impactor from stamp ``time`` on.
 
         Parameters
@@ -442,11 +445,11 @@ class RollingVibrationStats:
         self._saw(time, time, covers=False)
         return True
 
-    def reject_state(self):
+    def reject_state(self) -> None:
         """Count a malformed stuck/free update that never reached :meth:`update_stuck`."""
         self._rejected_states += 1
 
-    def _saw(self, t_min, t_max, covers=True):
+    def _saw(self, t_min: float, t_max: float, covers: bool = True) -> None:
         """Advance ``now`` (and the start of the covered span if ``covers``), then evict."""
         if covers:
             self._first_t = t_min if self._first_t is None else min(self._first_t, t_min)
@@ -454,7 +457,7 @@ class RollingVibrationStats:
             self._now = t_max
             self._evict()
 
-    def _evict(self):
+    def _evict(self) -> None:
         if self._now is None:
             return
         start = self._now - self._window
@@ -467,7 +470,7 @@ class RollingVibrationStats:
         if drop > 0:
             del self._states[:drop]
 
-    def _stuck_fraction(self, start, end):
+    def _stuck_fraction(self, start: float, end: float) -> float:
         if not self._states:
             return float('nan')
         start = max(start, self._states[0][0])
@@ -481,7 +484,7 @@ class RollingVibrationStats:
                 total += fraction * overlap
         return total / (end - start)
 
-    def _sensor_stats(self, sensor, start):
+    def _sensor_stats(self, sensor: _Sensor, start: float) -> SensorStats:
         nan = float('nan')
         t, a = sensor.buffer.view()
         inside = t > start + _BOUNDARY
@@ -507,7 +510,8 @@ class RollingVibrationStats:
             resolution_hz=resolution, last_sample_t=sensor.buffer.last_t,
             rejected_samples=sensor.rejected)
 
-    def report(self):
+    def report(self) -> VibrationReport:
+
         """Return the statistics over ``(now - window, now]`` (a :class:`VibrationReport`)."""
         nan = float('nan')
         now = self._now if self._now is not None else nan

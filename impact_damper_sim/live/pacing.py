@@ -18,6 +18,7 @@ from __future__ import annotations
 import collections
 import math
 import time
+from collections.abc import Callable, Hashable, Iterable
 
 
 class PacingError(ValueError):
@@ -44,13 +45,14 @@ class Pacer:
         Wall clock (s), ``time.monotonic`` by default.
     """
 
-    def __init__(self, real_time_factor, t_sim, *, max_lag=0.25, clock=time.monotonic):
+    def __init__(self, real_time_factor: float, t_sim: float, *, max_lag: float = 0.25,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self._clock = clock
         self.max_lag = float(max_lag)
         self.deficits = 0
         self.reset(real_time_factor, t_sim)
 
-    def reset(self, real_time_factor, t_sim):
+    def reset(self, real_time_factor: float, t_sim: float) -> None:
         """Restart the schedule at sim time ``t_sim`` (s) with a new factor.
 
         Raises
@@ -65,20 +67,20 @@ class Pacer:
         self._wall0 = self._clock()
         self._sim0 = float(t_sim)
 
-    def wall_at(self, t_sim):
+    def wall_at(self, t_sim: float) -> float:
         """Wall time (s) at which sim time ``t_sim`` (s) is due; -inf as fast as possible."""
         if self.real_time_factor == 0:
             return -math.inf
         return self._wall0 + (t_sim - self._sim0) / self.real_time_factor
 
-    def sim_at(self, wall):
+    def sim_at(self, wall: float) -> float:
         """Sim time (s) due at wall time ``wall`` (s), the inverse of :meth:`wall_at`; inf as
         fast as possible (no deficit is dropped here)."""
         if self.real_time_factor == 0:
             return math.inf
         return self._sim0 + (wall - self._wall0) * self.real_time_factor
 
-    def target(self, t_sim):
+    def target(self, t_sim: float) -> tuple[float, float]:
         """Sim time to reach now (s), given the current sim time ``t_sim`` (s); inf if 0.
 
         Returns
@@ -106,6 +108,10 @@ class Pacer:
 #: What :meth:`Outbox.plan` decided: step a chunk now (``step``), which is a whole chunk
 #: behind schedule (``late``), and the stream's lag before any deficit was dropped (wall s).
 Plan = collections.namedtuple('Plan', 'step late lag')
+
+#: ``send(ns, key, payload, wire)``: publishes one queued item
+SendFn = Callable[[int, Hashable, object, bool], object]
+
 
 
 class Outbox:
@@ -146,27 +152,30 @@ class Outbox:
     #: ... in groups of at most this many samples per accelerometer (keep-last-5 readers)
     MAX_BURST = 4
 
-    def __init__(self, pacer, *, imu_rate, lookahead, chunk, t_sim=0.0, limited=()):
+    def __init__(self, pacer: Pacer, *, imu_rate: float, lookahead: float, chunk: float,
+                 t_sim: float = 0.0, limited: Iterable[Hashable] = ()) -> None:
         self.pacer = pacer
         self.imu_period = 1.0 / float(imu_rate)
         self.lookahead = float(lookahead)
         self.chunk = float(chunk)
         self.limited = frozenset(limited)
-        self.pending = collections.deque()   # (sim ns, key, payload, wire), in time order
+        # (sim ns, key, payload, wire), in time order
+        self.pending: collections.deque[tuple[int, Hashable, object, bool]] = \
+            collections.deque()
         self.t_published = float(t_sim)      # sim time up to which items are out (s)
         self._last_wake = 0.0                # wall time (s) of the last paced wake-up
 
-    def put(self, ns, key, payload, wire):
+    def put(self, ns: int, key: Hashable, payload: object, wire: bool) -> None:
         """Queue an item for sim time ``ns`` (ns); items must come in time order."""
         self.pending.append((ns, key, payload, wire))
 
-    def reset(self, real_time_factor, t_sim=None):
+    def reset(self, real_time_factor: float, t_sim: float | None = None) -> None:
         """Restart the schedule with a new factor at the published time (or ``t_sim``, s):
         what ran before is no deficit to catch up."""
         self.pacer.reset(real_time_factor, self.t_published if t_sim is None else t_sim)
 
     # -- sending --------------------------------------------------------------------------
-    def allowance(self, now):
+    def allowance(self, now: float) -> tuple[float, int]:
         """Wall horizon (s) and samples per limited stream that a paced wake-up at ``now``
         (wall s) may send, at a factor > 0.
 
@@ -184,7 +193,7 @@ class Outbox:
         burst = max(per_ms, math.floor(min(earned, self.MAX_BURST) + 1e-9))
         return now + min(self.EARLY, self.EARLY_SAMPLES * period / rtf), burst
 
-    def send_due(self, now, t_stepped, send):
+    def send_due(self, now: float, t_stepped: float, send: SendFn) -> bool:
         """One wake-up at wall time ``now`` (s): send what the pacing allows through
         ``send(ns, key, payload, wire)``; True when due samples were held back (a backlog to
         send at the next wake-up, :attr:`CATCH_UP` from now). ``t_stepped``: the stepped
@@ -197,7 +206,8 @@ class Outbox:
         self.flush(math.inf, t_stepped, send)
         return False
 
-    def flush(self, now, t_stepped, send, burst=None):
+    def flush(self, now: float, t_stepped: float, send: SendFn,
+              burst: int | None = None) -> bool:
         """Send every queued item due by wall time ``now`` (s; ``math.inf``: all).
 
         An item nobody receives (``wire`` false) does not wait for its time, so a topic
@@ -242,7 +252,7 @@ class Outbox:
         return False
 
     # -- stepping -------------------------------------------------------------------------
-    def plan(self, now, t_stepped):
+    def plan(self, now: float, t_stepped: float) -> Plan:
         """Whether to step a chunk at wall time ``now`` (s) with ``t_stepped`` (s) stepped.
 
         The lag is the stream's (the delivered time's), not the last item's: at a tiny
@@ -259,7 +269,7 @@ class Outbox:
         late = step and t_stepped < target - self.chunk < math.inf
         return Plan(step, late, lag)
 
-    def wait(self, held, now, t_stepped, longest):
+    def wait(self, held: bool, now: float, t_stepped: float, longest: float) -> float:
         """How long (wall s) to sleep after a wake-up that stepped nothing: until the next
         queued item is due, or :attr:`CATCH_UP` with a backlog held back, at most
         ``longest``."""
@@ -269,7 +279,7 @@ class Outbox:
             return self.pacer.wall_at(self.pending[0][0] * 1e-9) - now
         return min(longest, self.pacer.wall_at(t_stepped) - now)
 
-    def delivered_t(self, wall, t_stepped):
+    def delivered_t(self, wall: float, t_stepped: float) -> float:
         """Sim time (s) whose items are all out by wall time ``wall`` (s): the schedule's,
         up to the first item still queued (the queue is in time order: all before it are
         out) and the stepped time ``t_stepped`` (s); never before the published time (an

@@ -20,8 +20,11 @@ The scene it steps is loaded, and its accelerometers and output rates are chosen
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..integrate.divergence import Divergence
 from ..scene.advice import scene_advice
@@ -30,6 +33,11 @@ from .batch import Batch
 from .fault_spec import FaultError
 from .faults import FaultInjector
 from .streams import accelerometers, default_imu_rate, default_sample_rate
+
+if TYPE_CHECKING:
+    from ..scene.build import SceneModel
+    from .channel import SensorChannel
+    from .fault_spec import FaultSpec
 
 _TRANSLATIONS = ('ux', 'uy', 'uz')
 _ROTATIONS = ('rx', 'ry', 'rz')
@@ -88,9 +96,11 @@ class LiveSimulation:
         live stream does not report it).
     """
 
-    def __init__(self, scene_model, *, sample_rate=None, imu_rate=None, initial_target=None,
-                 max_speed=None, max_unbalance=100.0, noise_std=0.0, seed=0,
-                 dampers_enabled=True, method=None, ledger=False):
+    def __init__(self, scene_model: SceneModel, *, sample_rate: float | None = None,
+                 imu_rate: float | None = None, initial_target: float | None = None,
+                 max_speed: float | None = None, max_unbalance: float = 100.0,
+                 noise_std: float = 0.0, seed: int = 0, dampers_enabled: bool = True,
+                 method: str | None = None, ledger: bool = False) -> None:
         from .filters import StreamingDecimator
         sample_rate = (default_sample_rate(scene_model) if sample_rate is None
                        else float(sample_rate))
@@ -125,7 +135,7 @@ class LiveSimulation:
                              f'{default_imu_rate(sample_rate):g} Hz), got {imu_rate:g} Hz')
         self.imu_rate = sample_rate / round(factor)
         self._decimator = StreamingDecimator(round(factor), sample_rate, 6 * n_acc)
-        self._t_first = None       # time of the first one (s)
+        self._t_first: float | None = None       # time of the first one (s)
         self._v_prev = np.zeros(6 * n_acc)
         self.max_unbalance = float(max_unbalance)
         self.profile = scene_model.speed_profile
@@ -149,14 +159,14 @@ class LiveSimulation:
                                                  seed=self.noise_seed)
         self.sim.set_impacts_enabled(dampers_enabled)
         self._stuck = self._stuck_flags()
-        self.failure = None
+        self.failure: str | None = None
         self.steps = 0
         # the time (s) and rotor angle (rad) at the end of the last chunk
         self._t_end = float(self.sim.t)
         self._phi_end = (float(self.profile.angle(np.asarray(self._t_end)))
                          if self.profile is not None else 0.0)
 
-    def imu_noise_variances(self):
+    def imu_noise_variances(self) -> list[float]:
         """Variance of the white noise in each decimated (per-sample Imu) acceleration, per
         accelerometer ((m/s^2)^2 per axis): the channel's sensor noise (coloured by the
         anti-alias filter), the live ``noise_std`` noise, ADC noise and quantization, through
@@ -169,11 +179,11 @@ class LiveSimulation:
         """
         return [ch.decimated_noise_variance(self._decimator.taps) for ch in self.channels]
 
-    def _channels(self, seed):
+    def _channels(self, seed: int) -> list[SensorChannel]:
         """One measurement chain per accelerometer, from the scene's resolved channels."""
         from ..scene.channel_spec import channel_of, resonance_problem
         from .channel import SensorChannel
-        out = []
+        out: list[SensorChannel] = []
         for acc in self.accelerometers:
             spec = channel_of(self.scene, acc.node)
             # a default cutoff is known only now (from the sample rate)
@@ -191,16 +201,17 @@ class LiveSimulation:
         return out
 
     @property
-    def imu_delay(self):
+    def imu_delay(self) -> float:
         """float: Delay of the decimation filter (s): a per-sample reading is complete this
         long after the time it stands for (0 without decimation)."""
         return self._decimator.delay / self.sample_rate
 
     # -- set-up ---------------------------------------------------------------------------
-    def _output_rows(self):
+    def _output_rows(self) -> tuple[tuple[str, ...], npt.NDArray[np.float64]]:
         """Sensor names and rows: per accelerometer ux, uy, uz, rx, ry, rz (zero if clamped)."""
         scene = self.scene
-        names, rows = [], []
+        names: list[str] = []
+        rows: list[npt.NDArray[np.float64]] = []
         for acc in self.accelerometers:
             for dof in _TRANSLATIONS + _ROTATIONS:
                 names.append(f'{acc.name}/{dof}')
@@ -214,16 +225,16 @@ class LiveSimulation:
 
     # -- commands -------------------------------------------------------------------------
     @property
-    def has_rotor(self):
+    def has_rotor(self) -> bool:
         """bool: The scene has a rotor (speed commands apply)."""
         return self.profile is not None
 
     @property
-    def speed_commanded(self):
+    def speed_commanded(self) -> bool:
         """bool: The rotor's speed follows commands (a gyroscopic scene's does not)."""
         return self.profile is not None and self.profile.commanded
 
-    def command_speed(self, target):
+    def command_speed(self, target: float) -> None:
         """Command a rotor speed from now on, reached under the rate limit.
 
         Parameters
@@ -244,7 +255,7 @@ class LiveSimulation:
         target = _checked(target, 'speed', 0.0, self.max_speed, 'rad/s')
         self.profile.command(self.sim.t, target)
 
-    def set_speed_rate(self, rate):
+    def set_speed_rate(self, rate: float) -> None:
         """Set the rate limit of speed changes from now on; a ramp under way goes on at it.
 
         Parameters
@@ -266,7 +277,7 @@ class LiveSimulation:
         # re-command the target now: the remaining ramp is rebuilt at the new rate
         self.profile.command(self.sim.t, self.profile.target)
 
-    def command_unbalance(self, multiplier):
+    def command_unbalance(self, multiplier: float) -> None:
         """Set the unbalance multiplier X from now on.
 
         Parameters
@@ -285,7 +296,7 @@ class LiveSimulation:
         self.unbalance.multiplier = _checked(multiplier, 'unbalance multiplier', 0.0,
                                              self.max_unbalance, '')
 
-    def set_noise(self, std, seed=None):
+    def set_noise(self, std: float, seed: int | None = None) -> None:
         """Set the accelerometer noise (m/s^2 standard deviation) and optionally reseed it.
 
         A seed restarts the white noise of every accelerometer; the first one's is
@@ -302,7 +313,7 @@ class LiveSimulation:
                 np.random.SeedSequence([int(seed), k]).generate_state(1)[0])
             channel.set_white_noise(std, own)
 
-    def add_fault(self, spec, key='fault'):
+    def add_fault(self, spec: FaultSpec | Mapping[str, Any], key: str = 'fault') -> str:
         """Add a sensor fault from now on (:mod:`.faults`): it acts from the next output
         sample, or from its ``onset`` when that is later.
 
@@ -329,7 +340,7 @@ class LiveSimulation:
         except FaultError as exc:
             raise CommandError(_one_line(exc)) from None
 
-    def clear_faults(self, name=None, key='clear'):
+    def clear_faults(self, name: str | None = None, key: str = 'clear') -> list[str]:
         """End the sensor fault ``name`` (None: every fault) after the last stepped sample.
 
         Parameters
@@ -354,7 +365,8 @@ class LiveSimulation:
         except FaultError as exc:
             raise CommandError(_one_line(exc)) from None
 
-    def fault_command(self, command, key='fault command'):
+    def fault_command(self, command: str | Mapping[str, Any], key: str = 'fault command'
+                      ) -> tuple[str, list[str]]:
         """Apply a fault command as the node receives it (:func:`~.fault_spec.parse_command`).
 
         Parameters
@@ -385,25 +397,26 @@ class LiveSimulation:
             raise CommandError(_one_line(exc)) from None
         if cmd.action == 'clear':
             return 'clear', self.clear_faults(cmd.name, key=f'{key}.clear')
+        assert cmd.spec is not None   # parse_command gives an 'add' its spec
         return 'add', [self.add_fault(cmd.spec, key=key)]
 
-    def set_dampers_enabled(self, enabled):
+    def set_dampers_enabled(self, enabled: bool) -> None:
         """Switch the impact dampers on or off (see ``Simulation.set_impacts_enabled``)."""
         self.sim.set_impacts_enabled(bool(enabled))
         self._stuck = self._stuck_flags()
 
     @property
-    def dampers_enabled(self):
+    def dampers_enabled(self) -> bool:
         """bool: Whether the impact dampers act."""
         return self.sim.impacts_enabled
 
     # -- state ----------------------------------------------------------------------------
     @property
-    def t(self):
+    def t(self) -> float:
         """float: Simulated time (s)."""
         return self.sim.t
 
-    def rotor_state(self):
+    def rotor_state(self) -> tuple[float, float, float]:
         """Applied speed (rad/s), speed rate (rad/s^2) and multiplier X now (NaN/0 if none)."""
         if self.profile is None:
             return 0.0, 0.0, 0.0
@@ -411,19 +424,19 @@ class LiveSimulation:
         x = self.unbalance.multiplier if self.unbalance is not None else 0.0
         return (float(self.profile.speed(t)), float(self.profile.acceleration(t)), float(x))
 
-    def stuck_count(self):
+    def stuck_count(self) -> int:
         """int: Impactors stuck to their housing at the end of the last chunk."""
         return sum(self._stuck)
 
-    def _stuck_flags(self):
+    def _stuck_flags(self) -> tuple[bool, ...]:
         return tuple(bool(s) for s in self.sim.integrator._stuck)
 
-    def impactor_states(self):
+    def impactor_states(self) -> list[dict[str, Any]]:
         """The impactors' states: list of dicts (name, stuck, position m, velocity m/s).
 
         Position and velocity are relative to the housing. Disabled dampers report zeros.
         """
-        out = []
+        out: list[dict[str, Any]] = []
         _, qd = self.sim.integrator.state()
         rows = self.sim.integrator._housing_rows()
         for s, R in zip(self.sim.impactor_states(), rows):
@@ -435,7 +448,7 @@ class LiveSimulation:
         return out
 
     # -- stepping -------------------------------------------------------------------------
-    def step(self, n_samples):
+    def step(self, n_samples: int) -> Batch | None:
         """Advance ``n_samples`` output samples.
 
         Parameters
@@ -507,7 +520,8 @@ class LiveSimulation:
         return Batch(t, lin, ang, events, changed, imu_t, imu_lin, dec[:, :, 3:], truth,
                      clipped, imu_clipped, angle, speed, keyphasor, valid, imu_valid)
 
-    def _tachometer(self, t):
+    def _tachometer(self, t: npt.NDArray[np.float64]
+                    ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
         """The rotor angle and speed at the output times ``t`` (s) of the chunk just stepped,
         and its keyphasor events; (None, None, None) without a rotor.
 
@@ -533,7 +547,7 @@ class LiveSimulation:
         self._phi_end, self._t_end = float(angle[-1]), float(t[-1])
         return angle, speed, keyphasor
 
-    def linear_growth_rate(self):
+    def linear_growth_rate(self) -> float:
         """Largest real part of the free structure's eigenvalues now (1/s); > 0 = unstable.
 
         Impactors can bound an unstable linear system's response, which is why the paper
@@ -552,7 +566,7 @@ class LiveSimulation:
         return rate if rate > GROWTH_RATE_NOISE * float(np.max(np.abs(lam))) else 0.0
 
 
-def _turns(angle):
+def _turns(angle: float) -> int:
     """The largest whole number of turns k with ``2 pi k <= angle`` (angle in rad, >= 0),
     compared as the float products the keyphasor uses."""
     k = math.floor(angle / _TWO_PI)
@@ -563,21 +577,23 @@ def _turns(angle):
     return k
 
 
-def _one_line(exc):
+def _one_line(exc: SceneError) -> str:
     """A refusal's problems (a ``SceneError``'s ``errors``) on one line."""
     return '; '.join(' '.join(str(e).splitlines()) for e in exc.errors)
 
 
-def _checked(value, name, low, high, unit):
+def _checked(value: float | str, name: str, low: float, high: float, unit: str) -> float:
     try:
-        value = float(value)
+        number = float(value)
+
     except (TypeError, ValueError):
         raise CommandError(f'{name}: must be a number, got {value!r}') from None
-    if not math.isfinite(value) or not low <= value <= high:
+    if not math.isfinite(number) or not low <= number <= high:
         unit = f' {unit}' if unit else ''
-        raise CommandError(f'{name}: {value!r} is outside the allowed range '
+        raise CommandError(f'{name}: {number!r} is outside the allowed range '
                            f'[{low:g}, {high:g}]{unit}; the last good command stays in force')
-    return value
+    return number
+
 
 
 __all__ = ['CommandError', 'KEYPHASOR_DTYPE', 'LiveSimulation']

@@ -44,11 +44,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 from ..scene.containers import ListOf, Section
 from ..scene.schema import Boolean, Integer, Quantity, SceneError, String, validate
 from .fault_spec import _NAME as FAULT_NAME
 from .fault_spec import FAULT, FaultError, accelerometer_problem
+
+if TYPE_CHECKING:
+    from .realtime import LiveSimulation
 
 #: (schedule key, 'topic' or 'parameter', the node's topic or parameter name), in the order
 #: an entry's keys apply (a new rate limit before the speed command it should govern)
@@ -88,7 +94,7 @@ class ScheduleError(SceneError):
     """A schedule file is invalid, or asks what its scene cannot do; one line per problem,
     each naming the key (``schedule[2].speed``) and the allowed range."""
 
-    def __init__(self, errors, source=None):
+    def __init__(self, errors: str | Iterable[str], source: str | None = None) -> None:
         errors = [e.replace("scene key '", "key '", 1) for e in
                   ((errors,) if isinstance(errors, str) else errors)]
         super().__init__(errors, source)
@@ -112,7 +118,7 @@ class Entry:
     """
 
     at: float
-    commands: tuple
+    commands: tuple[tuple[str, str, str, Any], ...]
 
 
 class Schedule:
@@ -128,14 +134,15 @@ class Schedule:
         The file's text, kept for the log's metadata.
     """
 
-    def __init__(self, entries, source='<schedule>', text=''):
+    def __init__(self, entries: Iterable[Entry], source: str = '<schedule>',
+                 text: str = '') -> None:
         self.entries = sorted(entries, key=lambda e: e.at)   # stable: file order at one time
         self.source = source
         self.text = text
         self._next = 0
 
     @classmethod
-    def load(cls, path):
+    def load(cls, path: str | os.PathLike[str]) -> Schedule:
         """Read and check a schedule file (YAML).
 
         Parameters
@@ -149,32 +156,32 @@ class Schedule:
             Every problem, each naming its key and allowed range (a :class:`SceneError`:
             a missing file or bad YAML is reported as for a scene).
         """
-        import os
         import pathlib
 
         from ..scene.loading import load_yaml
-        path = os.fspath(path)
-        raw = load_yaml(pathlib.Path(path), source=path, kind='schedule')
+        file = os.fspath(path)
+        raw = load_yaml(pathlib.Path(file), source=file, kind='schedule')
         try:
-            value = validate(SCHEMA, raw, source=path)
+            value = validate(SCHEMA, raw, source=file)
         except SceneError as exc:
-            raise ScheduleError(exc.errors, source=path) from None
+            raise ScheduleError(exc.errors, source=file) from None
+
         entries = [Entry(e['at'], tuple((key, kind, name, e[key]) for key, kind, name in KEYS
                                         if e[key] is not None))
                    for e in value['schedule']]
-        with open(path, encoding='utf-8') as f:
+        with open(file, encoding='utf-8') as f:
             text = f.read()
-        return cls(entries, source=path, text=text)
+        return cls(entries, source=file, text=text)
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self.entries)
 
     @property
-    def done(self):
+    def done(self) -> bool:
         """bool: Every entry has been applied."""
         return self._next >= len(self.entries)
 
-    def check(self, live):
+    def check(self, live: LiveSimulation) -> None:
         """Refuse, before a run, entries the simulation ``live`` cannot take.
 
         Raises
@@ -187,7 +194,7 @@ class Schedule:
             window has passed at ``at`` or that cannot apply, a fault name given twice, a
             ``clear_fault`` of a name no earlier entry gives).
         """
-        problems = []
+        problems: list[str] = []
         commanded = live.speed_commanded
         problems += self._check_faults(live)
         for i, entry in enumerate(self.entries):
@@ -208,7 +215,7 @@ class Schedule:
         if problems:
             raise ScheduleError(problems, source=self.source)
 
-    def _check_faults(self, live):
+    def _check_faults(self, live: LiveSimulation) -> list[str]:
         """The problems of the fault entries against ``live``'s accelerometers: each added,
         in order, to an injector of the same channels at its entry's time (list of str)."""
         import re
@@ -217,7 +224,8 @@ class Schedule:
         from .faults import FaultInjector
         names = [acc.name for acc in live.accelerometers]
         dry = FaultInjector.for_channels(live.channels, live.sample_rate, seed=0)
-        problems, given = [], []
+        problems: list[str] = []
+        given: list[str] = []
         for i, entry in enumerate(self.entries):
             at = self.boundary(entry, live.sample_rate)
             for key, _, _, value in entry.commands:
@@ -251,7 +259,7 @@ class Schedule:
                                         f'{match.group(2)}' if match else line)
         return problems
 
-    def boundary(self, entry, sample_rate):
+    def boundary(self, entry: Entry, sample_rate: float) -> float:
         """The sim time (s) ``entry`` applies at: its time rounded up to a sample boundary.
 
         Parameters
@@ -262,7 +270,7 @@ class Schedule:
         """
         return math.ceil(entry.at * sample_rate - 1e-6) / sample_rate
 
-    def due(self, t, sample_rate):
+    def due(self, t: float, sample_rate: float) -> list[Entry]:
         """Entries due at sim time ``t`` (s) and not applied yet; they count as applied.
 
         Parameters
@@ -272,14 +280,15 @@ class Schedule:
         sample_rate : float
             Output sample rate (Hz).
         """
-        out = []
+        out: list[Entry] = []
         half = 0.5 / sample_rate
         while not self.done and self.boundary(self.entries[self._next], sample_rate) < t + half:
             out.append(self.entries[self._next])
             self._next += 1
         return out
 
-    def samples_to_next(self, t, sample_rate):
+    def samples_to_next(self, t: float, sample_rate: float) -> int | None:
+
         """Output samples from sim time ``t`` (s) to the next entry's boundary (None if
         none is left): a driver steps no further before applying it."""
         if self.done:

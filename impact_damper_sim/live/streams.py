@@ -18,10 +18,16 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..scene.schema import SceneError
+
+if TYPE_CHECKING:
+    from ..scene.build import SceneModel
 
 #: Default anti-alias cutoff of a sensor without a scene ``lowpass``, times the output rate
 #: (0.4 keeps a 4th-order Butterworth ~ -30 dB at the output Nyquist frequency).
@@ -36,7 +42,7 @@ FALLBACK_SAMPLE_RATE = 2000.0
 SAMPLE_RATE_OVER_CUTOFF = 2.5
 
 
-def default_sample_rate(scene_model):
+def default_sample_rate(scene_model: SceneModel) -> float:
     """The output sample rate a scene implies (Hz), used when none is requested.
 
     The lowest submultiple of the scene's integrator rate ``1/simulation.dt`` that is at least
@@ -73,7 +79,7 @@ def default_sample_rate(scene_model):
 LIVE_IMU_MAX_RATE = 1000.0
 
 
-def default_imu_rate(sample_rate, limit=LIVE_IMU_MAX_RATE):
+def default_imu_rate(sample_rate: float, limit: float = LIVE_IMU_MAX_RATE) -> float:
     """The live per-sample rate for an output rate: the highest ``sample_rate / k`` (k a
     whole number) not above ``limit`` (Hz)."""
     return sample_rate / max(1, math.ceil(sample_rate / limit - 1e-9))
@@ -102,7 +108,8 @@ class Accelerometer:
     lowpass_hz: float
 
 
-def live_scene(scene, overrides=(), *, speed_rate_limit=None):
+def live_scene(scene: str | os.PathLike[str], overrides: Iterable[str] = (), *,
+               speed_rate_limit: float | None = None) -> tuple[SceneModel, float | None]:
     """Load a scene for live stepping, with its rotor speed made commanded.
 
     Parameters
@@ -136,6 +143,7 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
     from ..scene.excitation import speed_profile
     prefetch()   # a live run follows: a cold cache starts compiling the event search now
     overrides = tuple(overrides)
+    spec: dict[str, Any]
     spec, path = validated(scene, overrides)
     if spec['offline_only']:
         raise SceneError(f"scene {spec['name']!r} is for offline studies only: "
@@ -162,7 +170,7 @@ def live_scene(scene, overrides=(), *, speed_rate_limit=None):
     return build(spec, source=str(path), overrides=overrides), final
 
 
-def accelerometers(scene_model, sample_rate):
+def accelerometers(scene_model: SceneModel, sample_rate: float) -> list[Accelerometer]:
     """The accelerometers of a scene: one per instrumented node.
 
     An accelerometer reads all three axes of its node, so scene sensors at one node (several
@@ -186,10 +194,12 @@ def accelerometers(scene_model, sample_rate):
     SceneError
         One ``frame_id`` at two nodes, or two ``frame_id`` at one node.
     """
-    by_node = {}
+    by_node: dict[int, list[dict[str, Any]]] = {}
     for s in scene_model.scene['sensors']:
         by_node.setdefault(s['node'], []).append(s)
-    out, frames = [], {}
+    out: list[Accelerometer] = []
+    frames: dict[str, int] = {}
+
     for node, sensors in by_node.items():
         named = sorted({s['frame_id'] for s in sensors if s['frame_id']})
         if len(named) > 1:
