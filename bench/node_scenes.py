@@ -116,6 +116,7 @@ import argparse
 import json
 import os
 import queue
+import signal
 import subprocess
 import sys
 import tempfile
@@ -396,6 +397,9 @@ def main(argv=None):
     print(f'load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores); '
           f'{args.seconds:g} s per scene from the first sample'
           + ('; a busy loop on the last core' if args.load else ''), flush=True)
+    # a SIGTERM (pkill, a CI timeout) unwinds like Ctrl-C, so that the busy loop, the node,
+    # its readers and the monitor are stopped, not left running in their own sessions
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     hog = None
     if args.load:
         hog = subprocess.Popen([sys.executable, '-c', HOG], start_new_session=True)
