@@ -28,6 +28,7 @@ import numpy.typing as npt
 
 from ..integrate.divergence import Divergence
 from ..scene.advice import scene_advice
+from ..scene.excitation import CommandedSpeed
 from ..scene.schema import SceneError
 from .batch import Batch
 from .fault_spec import FaultError
@@ -141,7 +142,8 @@ class LiveSimulation:
         self.profile = scene_model.speed_profile
         self.unbalance = scene_model.unbalance
         #: the rate limit at start (rad/s^2): a speed rate limit of 0 restores it
-        self.start_speed_rate = self.profile.max_rate if self.speed_commanded else None
+        self.start_speed_rate = (self.profile.max_rate
+                                 if isinstance(self.profile, CommandedSpeed) else None)
         if self.profile is not None:
             w0 = float(self.profile.speed(np.asarray(0.0)))
             reference = max(initial_target or 0.0, w0)
@@ -249,7 +251,7 @@ class LiveSimulation:
         """
         if not self.has_rotor:
             raise CommandError(f'speed: scene {self.scene.name!r} has no rotor')
-        if not self.speed_commanded:
+        if not isinstance(self.profile, CommandedSpeed):   # speed_commanded, for mypy
             raise CommandError(f'speed: scene {self.scene.name!r} has a gyroscopic coupling '
                                'built for its constant speed')
         target = _checked(target, 'speed', 0.0, self.max_speed, 'rad/s')
@@ -269,11 +271,13 @@ class LiveSimulation:
         CommandError
             No commanded rotor, or the rate is out of range; nothing changes.
         """
-        if not self.speed_commanded:
+        if not isinstance(self.profile, CommandedSpeed):   # speed_commanded, for mypy
             raise CommandError(f'speed rate limit: scene {self.scene.name!r} has no commanded '
                                'rotor')
         rate = _checked(rate, 'speed rate limit', 0.0, 1.0e6, 'rad/s^2')
+        assert self.start_speed_rate is not None   # set at start for a commanded rotor
         self.profile.max_rate = rate if rate > 0 else self.start_speed_rate
+
         # re-command the target now: the remaining ramp is rebuilt at the new rate
         self.profile.command(self.sim.t, self.profile.target)
 

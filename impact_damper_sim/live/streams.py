@@ -140,7 +140,8 @@ def live_scene(scene: str | os.PathLike[str], overrides: Iterable[str] = (), *,
     from ..integrate.kernels.prefetch import prefetch
     from ..scene.build import build
     from ..scene.catalog import validated
-    from ..scene.excitation import speed_profile
+    from ..scene.excitation import CommandedSpeed, speed_profile
+
     prefetch()   # a live run follows: a cold cache starts compiling the event search now
     overrides = tuple(overrides)
     spec: dict[str, Any]
@@ -153,7 +154,8 @@ def live_scene(scene: str | os.PathLike[str], overrides: Iterable[str] = (), *,
         return build(spec, source=str(path), overrides=overrides), None
     profile = speed_profile(rotor['speed'])
     final = profile.final_speed
-    rate = (profile.max_rate if profile.commanded else profile.steepest_rate or 100.0) \
+    rate = (profile.max_rate if isinstance(profile, CommandedSpeed)
+            else profile.steepest_rate or 100.0) \
         if speed_rate_limit is None else speed_rate_limit
     if not (math.isfinite(rate) and rate > 0):
         raise SceneError(f'speed rate limit: must be a finite rate > 0 rad/s^2, got {rate}')

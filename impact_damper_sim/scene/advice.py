@@ -7,8 +7,14 @@ rotor's unbalance, the restitution or sample period for chatter.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
 
-def scene_advice(scene, cause=None):
+if TYPE_CHECKING:
+    from ..integrate.divergence import Divergence
+    from .build import SceneModel
+
+
+def scene_advice(scene: SceneModel, cause: Divergence | None = None) -> str:
     """Which settings to change when ``scene`` diverges (one line).
 
     Parameters
@@ -25,7 +31,7 @@ def scene_advice(scene, cause=None):
         the cross-coupled stiffness and its growth rate.
     """
     cfg = scene.scene
-    hints = []
+    hints: list[str] = []
     couplings = (cfg.get('structure') or {}).get('cross_couplings') or []
     if couplings:
         growth = _linear_growth(scene)
@@ -50,7 +56,8 @@ def scene_advice(scene, cause=None):
     return 'change ' + ', '.join(hints)
 
 
-def _linear_growth(scene):
+def _linear_growth(scene: SceneModel) -> float | None:
+
     """Largest real part of the scene's linear eigenvalues without impactors (1/s)."""
     try:
         from ..modal.stability import least_damped_eigenvalue

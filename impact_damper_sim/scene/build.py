@@ -18,8 +18,12 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .catalog import validated
 from .channel_spec import accelerometer_problems
@@ -28,12 +32,22 @@ from .schema import SceneError, _Errors
 from .spec import STUCK_MODELS
 from .structure import _build_fe, _has_node
 
+if TYPE_CHECKING:
+    from ..dampers.impactors import Impactor
+    from ..fem import AssembledSystem, FEModel
+    from ..integrate.forcing import Forcing
+    from ..integrate.model import LinearModel
+    from ..integrate.simulation import Simulation
+    from ..modal.basis import ModalBasis
+    from .excitation import SpeedProfile, UnbalanceForce
+
 __all__ = ['SceneModel', 'build', 'load']
 
 _ROW_ZERO_RTOL = 1e-12   # a mode-shape row this small (relative) does not move the DOF
 
 
-def load(scene_name_or_path, overrides=()):
+def load(scene_name_or_path: str | os.PathLike[str], overrides: Iterable[str] = ()
+         ) -> SceneModel:
     """Load, override, validate and build a scene.
 
     Parameters
@@ -100,7 +114,8 @@ class SceneModel:
         Active DOF indices of each impactor housing (one for sdof, two for planar).
     """
 
-    def __init__(self, scene, source, overrides, fe, system, basis):
+    def __init__(self, scene: dict[str, Any], source: str | None, overrides: Iterable[str],
+                 fe: FEModel, system: AssembledSystem, basis: ModalBasis) -> None:
         self.scene = scene
         self.source = source
         self.overrides = tuple(overrides)
@@ -135,7 +150,8 @@ class SceneModel:
         self.model = self._make_model(impactors)
 
     # -- construction helpers --------------------------------------------------------------
-    def _dof(self, fe, node, dof, path, errors, dof_key='dof'):
+    def _dof(self, fe: FEModel, node: int, dof: str, path: str, errors: _Errors,
+             dof_key: str = 'dof') -> int:
         if not _has_node(fe, node, f'{path}.node', errors):
             return -1
         try:
@@ -145,12 +161,12 @@ class SceneModel:
             return -1
 
     @property
-    def input_dofs(self):
+    def input_dofs(self) -> tuple[int, ...]:
         """tuple of int: Active DOF of every force input: forcing entries, then (uy, uz) of
         each unbalance."""
         return self.force_dofs + tuple(d for pair in self.unbalance_dofs for d in pair)
 
-    def _make_rotor(self):
+    def _make_rotor(self) -> tuple[SpeedProfile | None, UnbalanceForce | None]:
         """The speed profile and the unbalance force (None, None without a rotor)."""
         from .excitation import UnbalanceForce, speed_profile
         rotor = self.scene['rotor']
@@ -166,7 +182,7 @@ class SceneModel:
                                n_inputs=len(self.input_dofs))
         return profile, force
 
-    def _make_forcing(self):
+    def _make_forcing(self) -> Forcing:
         from ..integrate.forcing import Forcing, Harmonic
         from .excitation import unbalance_forcing
         omega1 = float(self.basis.omega[0])
@@ -185,7 +201,7 @@ class SceneModel:
                 forcing.add(term)
         return forcing
 
-    def _housing_mass(self, i, imp, errors):
+    def _housing_mass(self, i: int, imp: dict[str, Any], errors: _Errors) -> float:
         if imp['housing_mass'] is not None:
             return imp['housing_mass']
         lumped = float(self.system.M[self.impactor_dofs[i][0], self.impactor_dofs[i][0]])
@@ -194,7 +210,7 @@ class SceneModel:
                        'so mass_ratio has no reference; give housing_mass or mass')
         return lumped
 
-    def _make_impactors(self, errors):
+    def _make_impactors(self, errors: _Errors) -> tuple[Impactor, ...]:
         from ..dampers.impactors import Impactor
         out = []
         for i, imp in enumerate(self.scene['impactors']):
@@ -213,7 +229,7 @@ class SceneModel:
                                    position=position))
         return tuple(out)
 
-    def _make_model(self, impactors):
+    def _make_model(self, impactors: tuple[Impactor, ...]) -> LinearModel:
         from ..integrate.model import LinearModel
         basis = self.basis
         n = basis.n_modes
@@ -227,7 +243,7 @@ class SceneModel:
             impactors=impactors, kind='modal',
             input_names=self.input_names)
 
-    def polar_inertia(self):
+    def polar_inertia(self) -> dict[int, float]:
         """Polar inertia of each ``rotor.gyroscopic`` node (the Campbell study's too).
 
         Returns
@@ -241,13 +257,13 @@ class SceneModel:
         gyro = rotor['gyroscopic'] if rotor else None
         if gyro is None:
             return {}
-        polar = {}
+        polar: dict[int, float] = {}
         for pm in self.scene['structure']['point_masses'] or ():
             if pm['inertia'] is not None:
                 polar[pm['node']] = polar.get(pm['node'], 0.0) + pm['inertia'][0]
         return {node: polar.get(node, 0.0) for node in gyro['nodes']}
 
-    def _gyroscopic_disks(self):
+    def _gyroscopic_disks(self) -> tuple[tuple[int, int, float], ...]:
         """``(ry, rz, Ip)`` of each ``rotor.gyroscopic`` node: active DOF indices of its tilts
         and its point-mass polar inertia (kg m^2); empty without ``rotor.gyroscopic``.
 
@@ -265,7 +281,7 @@ class SceneModel:
             raise SceneError("scene key 'rotor.gyroscopic': needs rotor.speed.kind constant "
                              '(the flow is linear time-invariant per configuration)',
                              self.source)
-        disks = []
+        disks: list[tuple[int, int, float]] = []
         for i, (node, ip) in enumerate(self.polar_inertia().items()):
             if ip <= 0.0:
                 raise SceneError(f"scene key 'rotor.gyroscopic.nodes[{i}]': node {node} has no "
@@ -278,7 +294,7 @@ class SceneModel:
                                  self.source) from None
         return tuple(disks)
 
-    def gyroscopic_terms(self):
+    def gyroscopic_terms(self) -> tuple[tuple[int, int, float], ...]:
         """The physical gyroscopic matrix: ``(ry, rz, Ip Omega)`` per ``rotor.gyroscopic`` node.
 
         Returns
@@ -289,12 +305,12 @@ class SceneModel:
             ``G[rz, ry] = -Ip Omega``. Empty without ``rotor.gyroscopic``.
         """
         disks = self._gyroscopic_disks()
-        if not disks:
+        if not disks or self.speed_profile is None:   # disks: a constant-speed rotor
             return ()
         omega = float(self.speed_profile.speed(0.0))
         return tuple((ry, rz, ip * omega) for ry, rz, ip in disks)
 
-    def _gyroscopic_coupling(self):
+    def _gyroscopic_coupling(self) -> npt.NDArray[np.float64]:
         """Modal gyroscopic coupling ``Omega Phi^T G Phi`` (1/s); zero without ``rotor.gyroscopic``.
 
         A disk of polar inertia ``Ip`` spinning at ``Omega`` about global X adds
@@ -304,8 +320,9 @@ class SceneModel:
         """
         n = self.basis.n_modes
         disks = self._gyroscopic_disks()
-        if not disks:
+        if not disks or self.speed_profile is None:   # disks: a constant-speed rotor
             return np.zeros((n, n))
+
         coupling = np.zeros((n, n))
         for ry, rz, ip in disks:
             rows = self.basis.rows([ry, rz])
@@ -314,7 +331,7 @@ class SceneModel:
         return float(self.speed_profile.speed(0.0)) * coupling
 
     @property
-    def input_names(self):
+    def input_names(self) -> tuple[str, ...]:
         """tuple of str: Name of every force input (``force<k>``, ``unbalance<i>_uy/_uz``)."""
         return (tuple(f'force{k}' for k in range(len(self.force_dofs)))
                 + tuple(f'unbalance{i}_{d}' for i in range(len(self.unbalance_dofs))
@@ -322,17 +339,17 @@ class SceneModel:
 
     # -- public -------------------------------------------------------------------------------
     @property
-    def name(self):
+    def name(self) -> str:
         """str: The scene's name."""
         return self.scene['name']
 
     @property
-    def impactors(self):
+    def impactors(self) -> tuple[Impactor, ...]:
         """tuple of Impactor: The modal model's impactors (empty for a linear scene)."""
         return self.model.impactors
 
     @functools.cached_property
-    def physical_model(self):
+    def physical_model(self) -> LinearModel:
         """LinearModel: Physical-coordinate model for ``method='direct'``, built on first use.
 
         The condensed physical matrices with the structure's dashpots, plus the scene's tare
@@ -353,7 +370,8 @@ class SceneModel:
             tare_zeta=zeta if np.any(zeta) else None, sensor_names=self.model.sensor_names,
             input_names=self.model.input_names)
 
-    def make_simulation(self, method=None, dt=None, **options):
+    def make_simulation(self, method: str | None = None, dt: float | None = None,
+                        **options: Any) -> Simulation:
         """Return a :class:`~impact_damper_sim.integrate.simulation.Simulation` of this scene.
 
         Parameters
@@ -422,7 +440,7 @@ class SceneModel:
         return Simulation(model, self.forcing, method=method, dt=dt,
                           physical_model=physical, **opts)
 
-    def _check_rotor_sampling(self, dt):
+    def _check_rotor_sampling(self, dt: float) -> None:
         """Refuse a sample period ``dt`` (s) too long for a sampled unbalance force.
 
         Off constant speed the unbalance is sampled every ``dt`` and held linearly in
@@ -445,7 +463,7 @@ class SceneModel:
                 f'speed ({max(hz):.5g} rev/s); it must be at most '
                 f'{1.0 / (MIN_SAMPLES_PER_REVOLUTION * max(hz)):.4g} s', self.source)
 
-    def dof_counts(self):
+    def dof_counts(self) -> dict[str, int]:
         """Return DOF counts: total (6 per node), active, clamped, condensed, after condensation.
 
         Returns
@@ -459,7 +477,7 @@ class SceneModel:
                 'clamped': total - self.system.n_dof, 'condensed': int(cond.slave.size),
                 'after_condensation': int(cond.master.size)}
 
-    def describe_modes(self):
+    def describe_modes(self) -> dict[str, Any]:
         """Return what ``study modes`` prints, as JSON-ready data.
 
         Returns
@@ -478,9 +496,9 @@ class SceneModel:
                   'tare_damping_ratio': float(basis.zeta[k]),
                   'damping_ratio': float(damping[k, k] / (2.0 * basis.omega[k]))}
                  for k in range(basis.n_modes)]
-        shapes = []
+        shapes: list[dict[str, Any]] = []
 
-        def add(role, name, node, dof, index):
+        def add(role: str, name: str, node: int, dof: str, index: int) -> None:
             shapes.append({'role': role, 'name': name, 'node': node, 'dof': dof,
                            'values': [float(v) for v in basis.rows([index])[0]]})
 
@@ -497,7 +515,7 @@ class SceneModel:
         for i, pair in enumerate(self.unbalance_dofs):
             for dof, idx in zip(('uy', 'uz'), pair):
                 add('unbalance', f'unbalance{i}_{dof}', rotor['unbalance'][i]['node'], dof, idx)
-        impactors = []
+        impactors: list[dict[str, Any]] = []
         for imp, dofs in zip(self.model.impactors, self.impactor_dofs):
             mob = basis.impulse_mobility(list(dofs))
             impactors.append({
@@ -510,12 +528,14 @@ class SceneModel:
                 'coupled': not basis.coupling_is_diagonal(), 'shapes': shapes,
                 'impactors': impactors}
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f'SceneModel({self.name!r}, {self.basis.n_modes} modes, '
                 f'{len(self.model.impactors)} impactors, source={self.source!r})')
 
 
-def build(scene, *, source=None, overrides=()):
+def build(scene: dict[str, Any], *, source: str | None = None,
+          overrides: Iterable[str] = ()) -> SceneModel:
+
     """Build a :class:`SceneModel` from a validated scene.
 
     Parameters

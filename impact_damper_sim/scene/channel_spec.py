@@ -188,7 +188,7 @@ def _check_highpass(values: dict[str, Any]) -> str | None:
     return None
 
 
-_ANGLE = dict(min='-180 deg', max='180 deg')
+_ANGLE: dict[str, Any] = dict(min='-180 deg', max='180 deg')
 
 _STAGE_FIELDS = {
     'orientation': Vector('angle', 3, **_ANGLE, unit='deg',

@@ -17,33 +17,42 @@ integrates exactly; otherwise they are a sampled term held first-order between s
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
 import numpy as np
+import numpy.typing as npt
 
 from ..integrate.forcing import CallableForce, Forcing, Harmonic
 
+#: what a profile returns for times ``t``: a float for a scalar ``t``, else an array
+FloatOrArray = npt.NDArray[np.float64] | float
+FloatArray = npt.NDArray[np.float64]
 
-def _finite(value, name, low=None, strict=False, unit=''):
+
+def _finite(value: float | str, name: str, low: float | None = None, strict: bool = False,
+            unit: str = '') -> float:
     """Return ``value`` as a float after checking it is finite and above ``low``."""
     try:
-        value = float(value)
+        number = float(value)
     except (TypeError, ValueError):
         raise ValueError(f'{name} must be a finite number{unit}, got {value!r}') from None
-    bad = not np.isfinite(value)
+    bad = not np.isfinite(number)
     if low is not None and not bad:
-        bad = value <= low if strict else value < low
+        bad = number <= low if strict else number < low
     if bad:
         if low is None:
             allowed = 'finite'
         else:
             allowed = f'finite and {">" if strict else ">="} {low:g}{unit}'
-        raise ValueError(f'{name} must be {allowed}, got {value}')
-    return value
+        raise ValueError(f'{name} must be {allowed}, got {number}')
+    return number
 
 
-def _shaped(t):
+def _shaped(t: npt.ArrayLike) -> tuple[FloatArray, Callable[[FloatArray], FloatOrArray]]:
     """Return ``t`` as a float array and a function restoring scalars for scalar input."""
-    t = np.asarray(t, dtype=float)
-    return t, (lambda a: a[()] if t.ndim == 0 else a)
+    array = np.asarray(t, dtype=float)
+    return array, (lambda a: a[()] if array.ndim == 0 else a)
 
 
 class _Knots:
@@ -53,7 +62,8 @@ class _Knots:
     held at ``w_0`` before ``t_0`` and at ``w_last`` after the last knot. ``phi(0) = 0``.
     """
 
-    def __init__(self, times, speeds, slopes):
+    def __init__(self, times: npt.ArrayLike, speeds: npt.ArrayLike,
+                 slopes: npt.ArrayLike) -> None:
         self.t = np.asarray(times, dtype=float)
         self.w = np.asarray(speeds, dtype=float)
         self.s = np.asarray(slopes, dtype=float)   # len(t); the last entry is the hold, 0
@@ -64,7 +74,7 @@ class _Knots:
         self.phi = np.concatenate(([0.0], np.cumsum(inc)))
         self.phi -= self._raw_angle(np.asarray(0.0))
 
-    def _locate(self, t):
+    def _locate(self, t: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
         k = np.searchsorted(self.t, t, side='right') - 1
         before = k < 0
         k = np.maximum(k, 0)
@@ -72,30 +82,30 @@ class _Knots:
         s = np.where(before, 0.0, self.s[k])   # held at w_0 before the first knot
         return k, dt, s
 
-    def _angle_at(self, k, dt, s):
+    def _angle_at(self, k: np.ndarray, dt: FloatArray, s: FloatArray) -> FloatArray:
         return self.phi[k] + self.w[k] * dt + 0.5 * s * dt * dt
 
-    def _speed_at(self, k, dt, s):
+    def _speed_at(self, k: np.ndarray, dt: FloatArray, s: FloatArray) -> FloatArray:
         return self.w[k] + s * dt
 
-    def _raw_angle(self, t):
+    def _raw_angle(self, t: FloatArray) -> FloatArray:
         return self._angle_at(*self._locate(t))
 
-    def speed(self, t):
+    def speed(self, t: FloatArray) -> FloatArray:
         return self._speed_at(*self._locate(t))
 
-    def acceleration(self, t):
+    def acceleration(self, t: FloatArray) -> FloatArray:
         return self._locate(t)[2]
 
-    def angle(self, t):
+    def angle(self, t: FloatArray) -> FloatArray:
         return self._raw_angle(t)
 
-    def state(self, t):
+    def state(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(angle, speed, acceleration)`` at ``t`` from one search of the knots."""
         k, dt, s = self._locate(t)
         return self._angle_at(k, dt, s), self._speed_at(k, dt, s), s
 
-    def time_at(self, angle):
+    def time_at(self, angle: npt.ArrayLike) -> FloatArray:
         """The first time the angle reaches each of ``angle`` (rad, non-decreasing angle).
 
         On its segment the angle is ``phi_k + w_k dt + s_k dt^2 / 2``; the root is taken in
@@ -126,23 +136,23 @@ class SpeedProfile:
     #: whether the speed follows commands (:class:`CommandedSpeed`) or is fixed in advance
     commanded = False
 
-    def _knots(self):
+    def _knots(self) -> _Knots:
         raise NotImplementedError
 
     @property
-    def final_speed(self):
+    def final_speed(self) -> float:
         """float: The speed the profile ends at and holds (rad/s): a commanded profile's
         current target."""
         return float(self._knots().w[-1])
 
     @property
-    def steepest_rate(self):
+    def steepest_rate(self) -> float:
         """float: The largest magnitude of the speed's rate of change (rad/s^2); 0 for a
         constant speed."""
         slopes = np.abs(self._knots().s[:-1])
         return float(slopes.max()) if slopes.size else 0.0
 
-    def speed(self, t):
+    def speed(self, t: npt.ArrayLike) -> FloatOrArray:
         """Rotor speed ``omega(t)``.
 
         Parameters
@@ -155,10 +165,10 @@ class SpeedProfile:
         float or ndarray
             Speed (rad/s), same shape as ``t``.
         """
-        t, out = _shaped(t)
-        return out(self._knots().speed(t))
+        times, out = _shaped(t)
+        return out(self._knots().speed(times))
 
-    def acceleration(self, t):
+    def acceleration(self, t: npt.ArrayLike) -> FloatOrArray:
         """Angular acceleration ``alpha(t) = omega'(t)``, right-continuous at knots.
 
         Parameters
@@ -171,10 +181,10 @@ class SpeedProfile:
         float or ndarray
             Angular acceleration (rad/s^2), same shape as ``t``.
         """
-        t, out = _shaped(t)
-        return out(self._knots().acceleration(t))
+        times, out = _shaped(t)
+        return out(self._knots().acceleration(times))
 
-    def angle(self, t):
+    def angle(self, t: npt.ArrayLike) -> FloatOrArray:
         """Rotor angle ``phi(t)``, the exact integral of the speed from ``t = 0``.
 
         Parameters
@@ -187,16 +197,16 @@ class SpeedProfile:
         float or ndarray
             Angle (rad), same shape as ``t``.
         """
-        t, out = _shaped(t)
-        return out(self._knots().angle(t))
+        times, out = _shaped(t)
+        return out(self._knots().angle(times))
 
-    def state(self, t):
+    def state(self, t: npt.ArrayLike) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray]:
         """Return ``(phi, omega, alpha)`` at times ``t`` (rad, rad/s, rad/s^2)."""
-        t, out = _shaped(t)
-        phi, omega, alpha = self._knots().state(t)
+        times, out = _shaped(t)
+        phi, omega, alpha = self._knots().state(times)
         return out(phi), out(omega), out(alpha)
 
-    def time_at_angle(self, angle):
+    def time_at_angle(self, angle: npt.ArrayLike) -> FloatOrArray:
         """The first time the rotor angle ``phi`` reaches ``angle``, solved exactly.
 
         ``phi`` never decreases (speeds are >= 0), so this is where ``phi`` crosses
@@ -228,7 +238,7 @@ class PiecewiseLinearSpeed(SpeedProfile):
         Finite speeds >= 0 at ``times`` (rad/s).
     """
 
-    def __init__(self, times, speeds):
+    def __init__(self, times: npt.ArrayLike, speeds: npt.ArrayLike) -> None:
         t = np.atleast_1d(np.asarray(times, dtype=float))
         w = np.atleast_1d(np.asarray(speeds, dtype=float))
         if t.ndim != 1 or t.shape != w.shape or t.size < 1:
@@ -246,7 +256,7 @@ class PiecewiseLinearSpeed(SpeedProfile):
         slopes = np.append(np.diff(w) / np.diff(t), 0.0)
         self._k = _Knots(t, w, slopes)
 
-    def _knots(self):
+    def _knots(self) -> _Knots:
         return self._k
 
 
@@ -264,7 +274,7 @@ class PaperRamp(PiecewiseLinearSpeed):
         Ramp duration, finite and > 0 (s); the paper's 5 s.
     """
 
-    def __init__(self, omega_f=2400.0, t_ramp=5.0):
+    def __init__(self, omega_f: float = 2400.0, t_ramp: float = 5.0) -> None:
         self.omega_f = _finite(omega_f, 'PaperRamp.omega_f', 0.0, True, ' rad/s')
         self.t_ramp = _finite(t_ramp, 'PaperRamp.t_ramp', 0.0, True, ' s')
         super().__init__([0.0, self.t_ramp], [0.0, self.omega_f])
@@ -279,7 +289,7 @@ class ConstantSpeed(PiecewiseLinearSpeed):
         Speed, finite and >= 0 (rad/s).
     """
 
-    def __init__(self, omega):
+    def __init__(self, omega: float) -> None:
         self.omega = _finite(omega, 'ConstantSpeed.omega', 0.0, False, ' rad/s')
         super().__init__([0.0], [self.omega])
 
@@ -305,7 +315,7 @@ class CommandedSpeed(SpeedProfile):
 
     commanded = True
 
-    def __init__(self, initial, max_rate, t0=0.0):
+    def __init__(self, initial: float, max_rate: float, t0: float = 0.0) -> None:
         initial = _finite(initial, 'CommandedSpeed.initial', 0.0, False, ' rad/s')
         self.max_rate = _finite(max_rate, 'CommandedSpeed.max_rate', 0.0, True, ' rad/s^2')
         t0 = _finite(t0, 'CommandedSpeed.t0', 0.0, False, ' s')
@@ -314,19 +324,19 @@ class CommandedSpeed(SpeedProfile):
         self._slopes = [0.0]
         self.target = initial
         self.t_last_command = t0
-        self._k = None
+        self._k: _Knots | None = None
 
-    def _knots(self):
+    def _knots(self) -> _Knots:
         if self._k is None:   # rebuilt lazily: commands are rare, queries frequent
             self._k = _Knots(self._times, self._speeds, self._slopes)
         return self._k
 
     @property
-    def t_reached(self):
+    def t_reached(self) -> float:
         """float: Time at which the current target is (or was) reached (s)."""
         return self._times[-1]
 
-    def command(self, t_now, target):
+    def command(self, t_now: float, target: float) -> CommandedSpeed:
         """Set a new target speed from time ``t_now`` on.
 
         Parameters
@@ -365,7 +375,7 @@ class CommandedSpeed(SpeedProfile):
         return self
 
 
-def speed_profile(spec):
+def speed_profile(spec: Mapping[str, Any]) -> SpeedProfile:
     """The speed profile a validated ``rotor.speed`` mapping describes (SI).
 
     Parameters
@@ -413,7 +423,9 @@ class UnbalanceForce:
     ``(len(t), n_inputs)``, as :class:`~.integrate.forcing.CallableForce` expects.
     """
 
-    def __init__(self, profile, unbalances, input_pairs, multiplier=1.0, *, n_inputs=None):
+    def __init__(self, profile: SpeedProfile, unbalances: Sequence[Sequence[float]] | np.ndarray,
+                 input_pairs: Sequence[Sequence[int]] | np.ndarray, multiplier: float = 1.0, *,
+                 n_inputs: int | None = None) -> None:
         if not isinstance(profile, SpeedProfile):
             raise TypeError(f'UnbalanceForce.profile must be a SpeedProfile, got {profile!r}')
         ub = np.asarray(unbalances, dtype=float).reshape(-1, 2) if len(unbalances) else \
@@ -451,16 +463,16 @@ class UnbalanceForce:
         self.multiplier = multiplier
 
     @property
-    def multiplier(self):
+    def multiplier(self) -> float:
         """float: Unbalance multiplier ``X`` (dimensionless), finite and >= 0; settable."""
         return self._multiplier
 
     @multiplier.setter
-    def multiplier(self, value):
+    def multiplier(self, value: float) -> None:
         self._multiplier = _finite(value, 'UnbalanceForce.multiplier', 0.0, False,
                                    ' (dimensionless)')
 
-    def forces(self, t, n_inputs=None):
+    def forces(self, t: npt.ArrayLike, n_inputs: int | None = None) -> FloatArray:
         """Bearing forces at times ``t``.
 
         Parameters
@@ -476,10 +488,10 @@ class UnbalanceForce:
         ndarray, shape (len(t), n_inputs)
             Forces (N) on the model's force inputs.
         """
-        t = np.atleast_1d(np.asarray(t, dtype=float)).ravel()
+        times = np.atleast_1d(np.asarray(t, dtype=float)).ravel()
         n = self.n_inputs if n_inputs is None else int(n_inputs)
-        out = np.zeros((t.size, n))
-        phi, omega, alpha = self.profile.state(t)
+        out = np.zeros((times.size, n))
+        phi, omega, alpha = self.profile.state(times)
         w2 = omega * omega
         for m_e, p, (iy, iz) in zip(self.m_e, self.phase, self.input_pairs):
             angle = phi + p
@@ -489,15 +501,15 @@ class UnbalanceForce:
             out[:, iz] += a * (w2 * s - alpha * c)
         return out
 
-    def __call__(self, t):
+    def __call__(self, t: npt.ArrayLike) -> FloatArray:
         return self.forces(t)
 
     @property
-    def is_constant_speed(self):
+    def is_constant_speed(self) -> bool:
         """bool: True when the profile is a :class:`ConstantSpeed` (forces are harmonic)."""
         return isinstance(self.profile, ConstantSpeed)
 
-    def harmonic_terms(self):
+    def harmonic_terms(self) -> list[Harmonic]:
         """The forces as exact :class:`Harmonic` terms (constant speed only).
 
         With ``phi = omega t``: ``F_y = A cos(omega t + p)`` and
@@ -509,11 +521,11 @@ class UnbalanceForce:
         list of Harmonic
             Two terms per bearing with a non-zero amplitude (N, rad/s, rad).
         """
-        if not self.is_constant_speed:
+        if not isinstance(self.profile, ConstantSpeed):   # is_constant_speed, for mypy
             raise ValueError('UnbalanceForce.harmonic_terms needs a ConstantSpeed profile, '
                              f'got {type(self.profile).__name__}')
         omega = self.profile.omega
-        terms = []
+        terms: list[Harmonic] = []
         for m_e, p, (iy, iz) in zip(self.m_e, self.phase, self.input_pairs):
             amp = float(self._multiplier * m_e * omega * omega)
             if amp != 0.0:
@@ -522,7 +534,9 @@ class UnbalanceForce:
         return terms
 
 
-def unbalance_forcing(n_inputs, force, *, exact_harmonics=True):
+def unbalance_forcing(n_inputs: int, force: UnbalanceForce, *,
+                      exact_harmonics: bool = True) -> Forcing:
+
     """Build a :class:`Forcing` carrying an unbalance force.
 
     Parameters

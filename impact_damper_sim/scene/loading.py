@@ -18,11 +18,13 @@ import re
 import reprlib
 import stat
 import unicodedata
+from collections.abc import Iterable, Iterator, Mapping
+from typing import Any
 
 import yaml
 
 from .model_budget import MAX_IMPACTORS
-from .schema import SceneError, _describe, _got, _join, validate
+from .schema import Field, SceneError, _describe, _got, _join, validate
 
 try:   # libyaml's parser: the pre-scan reads a 1 MB file's events in 0.1 s, not 2.5 s
     from yaml.cyaml import CParser as _CParser
@@ -37,16 +39,17 @@ __all__ = ['MAX_SCENE_BYTES', 'MAX_SCENE_DEPTH', 'MAX_SCENE_NODES', 'MAX_SCENE_V
 
 #: What a typed tag's value must look like, for the message when its constructor cannot
 #: convert it (``dof: !!int uy``)
-_TAG_EXPECTS = {'int': 'an integer', 'float': 'a number', 'bool': 'true or false',
-                'timestamp': 'a date or time, e.g. 2024-01-31 or 2024-01-31T12:00:00Z',
-                'null': 'null or ~', 'binary': 'base64 text'}
+_TAG_EXPECTS: dict[str | None, str] = {
+    'int': 'an integer', 'float': 'a number', 'bool': 'true or false',
+    'timestamp': 'a date or time, e.g. 2024-01-31 or 2024-01-31T12:00:00Z',
+    'null': 'null or ~', 'binary': 'base64 text'}
 
 
 class _StrictLoader(yaml.SafeLoader):
     """SafeLoader that rejects duplicate keys, reads ``1e-3`` as a float (YAML 1.2) and
     reports a tagged value it cannot convert as a YAML error, with its line and column."""
 
-    def construct_object(self, node, deep=False):
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
         try:
             return super().construct_object(node, deep=deep)
         except yaml.YAMLError:
@@ -62,9 +65,9 @@ class _StrictLoader(yaml.SafeLoader):
                 None, None, f'cannot read {reprlib.repr(value)} as '
                 f'{"!!" + short if short else tag} ({expects})', node.start_mark) from None
 
-    def construct_mapping(self, node, deep=False):
+    def construct_mapping(self, node: yaml.Node, deep: bool = False) -> dict[Any, Any]:
         if isinstance(node, yaml.MappingNode):
-            seen = {}
+            seen: dict[object, yaml.Node] = {}
             for key_node, _ in node.value:
                 if key_node.tag == 'tag:yaml.org,2002:merge':
                     continue   # '<<' merges may legitimately be overridden
@@ -102,19 +105,21 @@ MAX_SCENE_VALUES = 1_000_000
 MAX_SCENE_NODES = 100_000
 
 
-def _check_budget(root, source):
+def _check_budget(root: yaml.Node, source: str) -> None:
     """Refuse a composed YAML node graph deeper than :data:`MAX_SCENE_DEPTH`, with more than
     :data:`MAX_SCENE_VALUES` values when its aliases are expanded, or with a recursive alias.
 
     Each node is visited once (sizes and depths memoised by node), so a bomb costs its
     size in text, not its expansion.
     """
-    sizes, depths, active = {}, {}, set()
+    sizes: dict[int, int] = {}
+    depths: dict[int, int] = {}
+    active: set[int] = set()
     stack = [(root, False)]
     while stack:
         node, done = stack.pop()
         key = id(node)
-        children = []
+        children: list[yaml.Node] = []
         if isinstance(node, yaml.MappingNode):
             children = [n for pair in node.value for n in pair]
         elif isinstance(node, yaml.SequenceNode):
@@ -141,7 +146,7 @@ def _check_budget(root, source):
         stack.extend((c, False) for c in children if id(c) not in sizes)
 
 
-def _events(text, libyaml=True):
+def _events(text: str, libyaml: bool = True) -> Iterator[yaml.Event]:
     """The YAML events of ``text``: from libyaml when PyYAML has it and ``libyaml``, else
     from the pure-Python parser (the composer's)."""
     parser = _CParser(text) if libyaml and _CParser is not None else yaml.SafeLoader(text)
@@ -152,7 +157,7 @@ def _events(text, libyaml=True):
         parser.dispose()
 
 
-def _prescan(text, source, kind):
+def _prescan(text: str, source: str, kind: str) -> None:
     """Refuse a document over :data:`MAX_SCENE_NODES` values, :data:`MAX_SCENE_DEPTH` levels
     or (a scene) :data:`~impact_damper_sim.scene.model_budget.MAX_IMPACTORS` items in its
     top-level ``impactors`` list, reading its events only as far as the first excess.
@@ -176,10 +181,11 @@ def _prescan(text, source, kind):
     return _count_events(_events(text, libyaml=False), source, kind)
 
 
-def _count_events(events, source, kind):
+def _count_events(events: Iterable[yaml.Event], source: str, kind: str) -> None:
     # one frame per open collection: [is a mapping, next child is a key, last key,
     # items counted (the scene's impactors only, else None)]
-    stack, nodes = [], 0
+    stack: list[list[Any]] = []
+    nodes = 0
     for event in events:
         if isinstance(event, yaml.CollectionEndEvent):
             stack.pop()
@@ -221,14 +227,14 @@ def _count_events(events, source, kind):
                           0 if counted else None])
 
 
-def _is_path(path_or_text):
+def _is_path(path_or_text: str | os.PathLike[str]) -> bool:
     # A one-line string naming a .yaml file is a path; anything else is YAML text.
     return isinstance(path_or_text, os.PathLike) or (
         isinstance(path_or_text, str) and '\n' not in path_or_text
         and path_or_text.strip().endswith(('.yaml', '.yml')))
 
 
-def file_kind(path):
+def file_kind(path: str | os.PathLike[str] | int) -> str | None:
     """What a path (or open file descriptor) is when it is not a regular file, else None.
 
     Parameters
@@ -258,7 +264,7 @@ def file_kind(path):
     return 'not a regular file'
 
 
-def _reader_problem(text, exc):
+def _reader_problem(text: str, exc: yaml.reader.ReaderError) -> str:
     """One line for PyYAML's ReaderError on ``text``: the character (as U+XXXX: a raw
     control character would garble the terminal) and where it is."""
     char = exc.character
@@ -279,7 +285,8 @@ def _reader_problem(text, exc):
     return f'{what} U+{code:04X} at line {line}, column {column} ({why})'
 
 
-def load_yaml(path_or_text, *, source=None, kind='scene'):
+def load_yaml(path_or_text: str | os.PathLike[str], *, source: str | None = None,
+              kind: str = 'scene') -> Mapping[str, Any]:
     """Read a scene file or YAML text into a raw mapping (no validation).
 
     Parameters
@@ -328,7 +335,7 @@ def load_yaml(path_or_text, *, source=None, kind='scene'):
         except UnicodeDecodeError:
             raise SceneError(f'{source}: not a {kind} file (not UTF-8 text)') from None
     else:
-        text, source = path_or_text, source or '<text>'
+        text, source = str(path_or_text), source or '<text>'   # not a path: the text
         if len(text) > MAX_SCENE_BYTES:
             raise SceneError(f'{source}: over {MAX_SCENE_BYTES} characters of scene text')
     try:
@@ -368,9 +375,10 @@ _NAME_RE = re.compile(r'\s*([^.\[\]\s][^.\[\]]*?)\s*')
 _INDEX_RE = re.compile(r'\[\s*(\d+)\s*\]')
 
 
-def _override_tokens(path):
+def _override_tokens(path: str) -> list[tuple[str, int | str]] | None:
     """Split ``'a.b[2].c'`` / ``'a.b.2.c'`` into ``[('name', 'a'), ..., ('index', 2), ...]``."""
-    tokens, pos = [], 0
+    tokens: list[tuple[str, int | str]] = []
+    pos = 0
     while pos < len(path):
         if path.startswith('[', pos):
             match = _INDEX_RE.match(path, pos)
@@ -392,16 +400,16 @@ def _override_tokens(path):
     return tokens or None
 
 
-def _end_of_name(path, pos):
+def _end_of_name(path: str, pos: int) -> int:
     stops = [i for i in (path.find('.', pos), path.find('[', pos)) if i >= 0]
     return min(stops) if stops else len(path)
 
 
-def _parse_yaml_value(text):
+def _parse_yaml_value(text: str) -> Any:
     return yaml.load(text, Loader=_StrictLoader) if text.strip() else None
 
 
-def apply_overrides(raw, overrides):
+def apply_overrides(raw: object, overrides: Iterable[str]) -> dict[str, Any]:
     """Return a copy of a raw scene with ``key=value`` overrides applied.
 
     Parameters
@@ -431,7 +439,7 @@ def apply_overrides(raw, overrides):
     if not isinstance(raw, dict):
         raise SceneError(f'scene: expected a mapping at top level, {_got(raw)}')
     data = copy.deepcopy(raw)
-    problems = []
+    problems: list[str] = []
     for text in overrides:
         try:
             _apply_one(data, text)
@@ -442,7 +450,8 @@ def apply_overrides(raw, overrides):
     return data
 
 
-def _apply_one(data, text):
+def _apply_one(data: dict[object, Any], text: str) -> None:
+
     if not isinstance(text, str) or '=' not in text:
         raise SceneError(f'override {text!r}: expected "key=value"')
     path, value_text = text.split('=', 1)
@@ -492,7 +501,9 @@ def _apply_one(data, text):
 
 # --- load, override, validate ----------------------------------------------------------------
 
-def load_scene(schema, path_or_text, overrides=(), *, source=None):
+def load_scene(schema: Field, path_or_text: str | os.PathLike[str],
+               overrides: Iterable[str] = (), *, source: str | None = None) -> Any:
+
     """Load, override and validate a scene in one call.
 
     Parameters

@@ -9,6 +9,9 @@ configurations it keeps) are :mod:`impact_damper_sim.integrate.memory`.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
+from typing import Any
+
 from ..integrate import memory
 from ..integrate.memory import (
     MAX_CACHED_CONFIGURATIONS,
@@ -50,7 +53,7 @@ class ModelTooLarge(ValueError):
         The limit (bytes).
     """
 
-    def __init__(self, estimate, limit):
+    def __init__(self, estimate: ModelEstimate, limit: int) -> None:
         self.estimate, self.limit = estimate, int(limit)
         if estimate.n_impactors > MAX_IMPACTORS:
             text = (f"scene key 'impactors': {estimate.n_impactors:,} impactors, over the "
@@ -74,13 +77,22 @@ class ModelEstimate:
     kind: ``dofs``, ``modes``, ``impactors``, ``configurations``); ``total`` their sum.
     """
 
-    def __init__(self, **fields):
+    # set from the keyword arguments of __init__ (see the class docstring)
+    n_nodes: int
+    n_dof: int
+    n_modes: int
+    n_impactors: int
+    n_configurations: int
+    stuck_model: str
+    terms: dict[str, int]
+
+    def __init__(self, **fields: object) -> None:
         self.__dict__.update(fields)
         self.total = int(sum(self.terms.values()))
 
-    def describe(self):
+    def describe(self) -> str:
         """The sizes, largest term first, e.g. ``'10,000 impactors, 4,096 stuck ...'``."""
-        def count(n, what):
+        def count(n: int, what: str) -> str:
             return f'{n:,} {what}' + ('' if n == 1 else 's')
 
         parts = {
@@ -93,24 +105,24 @@ class ModelEstimate:
         order = sorted(parts, key=lambda k: -self.terms[k])
         return ', '.join(parts[k] for k in order)
 
-    def advice(self):
+    def advice(self) -> str:
         """Which keys to change, for the largest term."""
-        top = max(self.terms, key=self.terms.get)
+        top = max(self.terms, key=self.terms.__getitem__)
         if top == 'dofs':
             return ('use fewer nodes (structure.lines[].n_elements, structure.nodes)')
         if top == 'modes':
             return 'retain fewer modes (modal.n_modes, modal.f_max, modal.cutoff)'
         return 'use fewer impactors (impactors) or fewer modes (modal.n_modes)'
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f'ModelEstimate({self.describe()}: {self.total} bytes)'
 
 
-def _impactor_groups(impactors):
+def _impactor_groups(impactors: Iterable[Mapping[str, Any]]) -> list[int]:
     """Sizes of the groups of interchangeable impactors (same housing and mass), as
     :func:`impact_damper_sim.integrate.exact._interchangeable_groups` finds them in the
     built model, approximated from the scene entries."""
-    sizes = {}
+    sizes: dict[tuple[object, ...], int] = {}
     for imp in impactors:
         where = (imp.get('node'), imp.get('kind'), imp.get('dof'),
                  tuple(imp.get('plane') or ()))
@@ -119,7 +131,7 @@ def _impactor_groups(impactors):
     return list(sizes.values())
 
 
-def model_estimate(scene):
+def model_estimate(scene: Mapping[str, Any]) -> ModelEstimate:
     """Estimate the memory a scene's model allocates, before building it.
 
     Calibrated against the peak resident memory (``ru_maxrss``, ``/usr/bin/time -v``) of
@@ -181,7 +193,8 @@ def model_estimate(scene):
                          n_configurations=n_configs, stuck_model=stuck_model, terms=terms)
 
 
-def check_model(scene, limit=None):
+def check_model(scene: Mapping[str, Any], limit: int | None = None) -> ModelEstimate:
+
     """Refuse a scene whose model would not fit in memory, before building it.
 
     Parameters

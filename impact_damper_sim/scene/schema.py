@@ -48,7 +48,8 @@ import copy
 import difflib
 import re
 import reprlib
-from typing import NamedTuple
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any, NamedTuple
 
 import yaml
 
@@ -63,7 +64,7 @@ __all__ = [
 class _Required:
     """Sentinel: the key has no default and must be given."""
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return 'REQUIRED'
 
 
@@ -82,7 +83,7 @@ class SceneError(ValueError):
         File name or other origin of the scene, if known.
     """
 
-    def __init__(self, errors, source=None):
+    def __init__(self, errors: str | Iterable[str], source: str | None = None) -> None:
         self.errors = (errors,) if isinstance(errors, str) else tuple(errors)
         self.source = source
         lines = list(self.errors)
@@ -98,21 +99,21 @@ class _Errors:
     once: the schema's, the structure's and the model's (:mod:`.structure`, :mod:`.modes`,
     :mod:`.build`), one ``scene key 'path': message`` line each."""
 
-    def __init__(self):
-        self.items = []
+    def __init__(self) -> None:
+        self.items: list[tuple[str, str]] = []
 
-    def add(self, path, message):
+    def add(self, path: str, message: str) -> None:
         """Record ``message`` for the scene key ``path`` (``''``: the scene as a whole)."""
         self.items.append((path, message))
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self.items)
 
-    def lines(self):
+    def lines(self) -> list[str]:
         """The problems, one line each, in the order found (list of str)."""
         return [f"scene key '{p}': {m}" if p else f'scene: {m}' for p, m in self.items]
 
-    def call(self, path, fn, *args, **kwargs):
+    def call(self, path: str, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         """Return ``fn(*args, **kwargs)``; a ValueError, KeyError or TypeError becomes a
         problem of ``path`` instead, and the result ``None``."""
         try:
@@ -121,17 +122,17 @@ class _Errors:
             self.add(path, exc.args[0] if exc.args else str(exc))
             return None
 
-    def raise_if_any(self, source=None):
+    def raise_if_any(self, source: str | None = None) -> None:
         """Raise :class:`SceneError` with every problem so far, if there is one."""
         if self.items:
             raise SceneError(self.lines(), source=source)
 
 
-def _join(path, key):
+def _join(path: str, key: object) -> str:
     return f'{path}.{key}' if path else str(key)
 
 
-def _num(x):
+def _num(x: float) -> str:
     return f'{x:.12g}'
 
 
@@ -140,21 +141,22 @@ _REPR.maxlevel, _REPR.maxstring, _REPR.maxother = 3, 50, 50
 _REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 6
 
 
-def _describe(value):
+def _describe(value: object) -> str:
     # bounded: a huge or aliased value (a YAML alias bomb) is never printed whole
     text = _REPR.repr(value)
     return text if len(text) <= 60 else text[:57] + '...'
 
 
-def _got(value):
+def _got(value: object) -> str:
     return f'got {type(value).__name__} {_describe(value)}'
 
 
-def _article(word):
+def _article(word: str) -> str:
     return ('an ' if word[:1] in 'aeiou' else 'a ') + word
 
 
-def _interval(lo, hi, lo_inc, hi_inc, fmt=_num):
+def _interval(lo: float | None, hi: float | None, lo_inc: bool, hi_inc: bool,
+              fmt: Callable[[float], str] = _num) -> str:
     if lo is None and hi is None:
         return ''
     # An absent bound is open: infinity itself is never a valid value.
@@ -163,13 +165,14 @@ def _interval(lo, hi, lo_inc, hi_inc, fmt=_num):
     return f'{left}, {right}'
 
 
-def _outside(x, lo, hi, lo_inc, hi_inc):
+def _outside(x: float, lo: float | None, hi: float | None, lo_inc: bool, hi_inc: bool
+             ) -> bool:
     if lo is not None and (x < lo or (x == lo and not lo_inc)):
         return True
     return hi is not None and (x > hi or (x == hi and not hi_inc))
 
 
-def _yaml_text(value):
+def _yaml_text(value: object) -> str:
     if isinstance(value, bool):
         return 'true' if value else 'false'
     if isinstance(value, (list, dict)):
@@ -200,32 +203,32 @@ class Field:
         One-line description for :func:`~.keytable.describe`.
     """
 
-    def __init__(self, default=REQUIRED, doc=''):
+    def __init__(self, default: object = REQUIRED, doc: str = '') -> None:
         self.default = default
         self.doc = doc
 
     # -- to be provided by subclasses --------------------------------------------------------
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         raise NotImplementedError
 
-    def kind(self):
+    def kind(self) -> str:
         """Return the type or dimension name shown to users (str)."""
         raise NotImplementedError
 
-    def range_text(self):
+    def range_text(self) -> str:
         """Return the allowed range or options as text ('' if unrestricted)."""
         return ''
 
-    def _subfields(self):
+    def _subfields(self) -> tuple[Field, ...]:
         return ()
 
     # -- shared machinery ---------------------------------------------------------------------
-    def expects(self):
+    def expects(self) -> str:
         """Return what this field accepts, for error messages (str)."""
         rng = self.range_text()
         return _article(self.kind()) + (f' in {rng}' if rng else '')
 
-    def default_text(self):
+    def default_text(self) -> str:
         """Return the default as text for :func:`~.keytable.describe`."""
         if self.default is REQUIRED:
             return 'required'
@@ -233,7 +236,7 @@ class Field:
             return 'none'
         return _yaml_text(self.default)
 
-    def _check_default(self):
+    def _check_default(self) -> None:
         # Fail when the schema is built, not when a user's scene happens to omit the key.
         if self.default is REQUIRED or self.default is None:
             return
@@ -243,7 +246,8 @@ class Field:
             problems = '; '.join(m for _, m in errors.items)
             raise ValueError(f'invalid default {self.default!r} for {self.kind()}: {problems}')
 
-    def resolve(self, present, raw, path, errors):
+    def resolve(self, present: bool, raw: object, path: str, errors: _Errors) -> Any:
+
         """Return the converted value of one key (or a placeholder after an error).
 
         Parameters
@@ -272,19 +276,19 @@ class Field:
             return _INVALID
         return self._convert(raw, path, errors)
 
-    def _rows(self, path):
+    def _rows(self, path: str) -> Iterator[KeyInfo]:
         yield KeyInfo(path, self.kind(), self.default_text(), self.range_text(), self.doc)
         yield from self._child_rows(path)
 
-    def _child_rows(self, path):
+    def _child_rows(self, path: str) -> Iterable[KeyInfo]:
         return iter(())
 
-    def _walk(self):
+    def _walk(self) -> Iterator[Field]:
         yield self
         for sub in self._subfields():
             yield from sub._walk()
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f'{type(self).__name__}({self.kind()!r}, default={self.default!r})'
 
 
@@ -308,8 +312,10 @@ class Quantity(Field):
         unit, else SI.
     """
 
-    def __init__(self, dimension, default=REQUIRED, min=None, max=None, min_inclusive=True,
-                 max_inclusive=True, doc='', unit=None):
+    def __init__(self, dimension: str, default: object = REQUIRED,
+                 min: float | str | None = None, max: float | str | None = None,
+                 min_inclusive: bool = True, max_inclusive: bool = True, doc: str = '',
+                 unit: str | None = None) -> None:
         super().__init__(default, doc)
         if dimension not in UNITS:
             raise ValueError(f'unknown dimension {dimension!r}; known: {", ".join(UNITS)}')
@@ -327,35 +333,35 @@ class Quantity(Field):
             raise ValueError(f'display unit {self.unit!r} is not a {dimension}')
         self._check_default()
 
-    def _schema_value(self, value, what):
+    def _schema_value(self, value: object, what: str) -> tuple[float, float, str | None]:
         try:
             return _parse(value, self.dimension)
         except UnitError as exc:
             raise ValueError(
                 f'invalid {what} {value!r} for {self.dimension}: {exc.reason}') from None
 
-    def kind(self):
+    def kind(self) -> str:
         return self.dimension
 
-    def si_unit(self):
+    def si_unit(self) -> str:
         """Return the SI unit of this quantity (str, '' if dimensionless)."""
         return SI_UNIT[self.dimension]
 
-    def range_text(self):
+    def range_text(self) -> str:
         rng = _interval(self.min, self.max, self.min_inclusive, self.max_inclusive)
         return f'{rng} {self.si_unit()}'.rstrip() if rng else ''
 
-    def expects(self):
+    def expects(self) -> str:
         units = ', '.join(u or '(no unit)' for u in allowed_units(self.dimension))
         return f'{super().expects()} (units: {units})'
 
-    def default_text(self):
+    def default_text(self) -> str:
         if self.default is REQUIRED or self.default is None:
             return super().default_text()
         si = _parse(self.default, self.dimension)[0]
         return format_quantity(si, self.unit, dimension=self.dimension, digits=12)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         try:
             si, number, unit = _parse(raw, self.dimension)
         except UnitError as exc:
@@ -366,7 +372,7 @@ class Quantity(Field):
             return _INVALID
         return si
 
-    def _range_problem(self, si, number, unit):
+    def _range_problem(self, si: float, number: float, unit: str | None) -> str:
         si_unit = self.si_unit()
         shown = f'{_num(si)} {si_unit}'.rstrip()
         extra = ''
@@ -393,18 +399,20 @@ class Integer(Field):
         Description.
     """
 
-    def __init__(self, default=REQUIRED, min=None, max=None, doc=''):
+    def __init__(self, default: object = REQUIRED, min: int | None = None,
+                 max: int | None = None, doc: str = '') -> None:
         super().__init__(default, doc)
         self.min, self.max = min, max
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return 'integer'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return _interval(self.min, self.max, True, True, fmt=str)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
+
         if isinstance(raw, bool) or not isinstance(raw, int):
             errors.add(path, f'expected an integer, {_got(raw)}')
             return _INVALID
@@ -417,17 +425,17 @@ class Integer(Field):
 class Boolean(Field):
     """A YAML boolean (``true``/``false``); numbers and strings are rejected."""
 
-    def __init__(self, default=REQUIRED, doc=''):
+    def __init__(self, default: object = REQUIRED, doc: str = '') -> None:
         super().__init__(default, doc)
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return 'boolean'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return 'true | false'
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         if not isinstance(raw, bool):
             errors.add(path, f'expected true or false, {_got(raw)}')
             return _INVALID
@@ -447,20 +455,21 @@ class Choice(Field):
         Description.
     """
 
-    def __init__(self, options, default=REQUIRED, doc=''):
+    def __init__(self, options: Iterable[object], default: object = REQUIRED,
+                 doc: str = '') -> None:
         super().__init__(default, doc)
         self.options = tuple(options)
         if not self.options:
             raise ValueError('Choice needs at least one option')
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return 'choice'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return ' | '.join(_yaml_text(o) for o in self.options)
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         # type check too: True == 1 in Python, but 'true' is not the option 1.
         if any(type(raw) is type(o) and raw == o for o in self.options):
             return raw
@@ -486,20 +495,21 @@ class String(Field):
         Whether ``''`` is accepted.
     """
 
-    def __init__(self, default=REQUIRED, doc='', pattern=None, allow_empty=False):
+    def __init__(self, default: object = REQUIRED, doc: str = '', pattern: str | None = None,
+                 allow_empty: bool = False) -> None:
         super().__init__(default, doc)
         self.pattern = pattern
         self._regex = re.compile(pattern) if pattern is not None else None
         self.allow_empty = allow_empty
         self._check_default()
 
-    def kind(self):
+    def kind(self) -> str:
         return 'string'
 
-    def range_text(self):
+    def range_text(self) -> str:
         return f'matches {self.pattern}' if self.pattern else ''
 
-    def _convert(self, raw, path, errors):
+    def _convert(self, raw: object, path: str, errors: _Errors) -> object:
         if not isinstance(raw, str):
             errors.add(path, f'expected a string, {_got(raw)}')
         elif not raw and not self.allow_empty:
@@ -513,7 +523,8 @@ class String(Field):
 
 # --- validation ------------------------------------------------------------------------------
 
-def validate(schema, raw, *, source=None):
+def validate(schema: Field, raw: object, *, source: str | None = None) -> Any:
+
     """Validate a raw scene and return it with defaults applied and units converted to SI.
 
     Parameters

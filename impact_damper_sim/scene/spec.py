@@ -311,7 +311,7 @@ _STRUCTURE = Section(doc='the linear structure', fields={
 
 # --- modal ----------------------------------------------------------------------------------
 
-_RATIO = dict(min=0, max=1, max_inclusive=False)
+_RATIO: dict[str, Any] = dict(min=0, max=1, max_inclusive=False)
 
 #: Default margin of ``modal.cutoff: auto`` over the highest frequency of interest.
 CUTOFF_FACTOR = 1.5

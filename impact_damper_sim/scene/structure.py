@@ -11,14 +11,22 @@ nothing of modes, forcing, sensors or impactors.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+import numpy.typing as npt
 
 from .schema import _Errors
 from .spec import DOF_NAMES, ROTATIONS, SDOF_NODE
 from .units import UNITS
 
+if TYPE_CHECKING:
+    from ..fem import AssembledSystem, FEModel, Material
+    from ..fem.sections import Section
 
-def _has_node(fe, node, path, errors):
+
+def _has_node(fe: FEModel, node: int, path: str, errors: _Errors) -> bool:
     nodes = fe.nodes
     if node in nodes:
         return True
@@ -30,7 +38,7 @@ def _has_node(fe, node, path, errors):
 
 # --- structure ------------------------------------------------------------------------------
 
-def _build_sdof(st, fe):
+def _build_sdof(st: Mapping[str, Any], fe: FEModel) -> None:
     """One node with a point mass, a grounded spring (and dashpot) in one DOF."""
     mass = st['mass']
     if st['stiffness'] is not None:
@@ -48,7 +56,7 @@ def _build_sdof(st, fe):
     fe.clamp(SDOF_NODE, [c for c in DOF_NAMES if c != dof])
 
 
-def _make_section(spec):
+def _make_section(spec: Mapping[str, Any]) -> Section:
     from ..fem import GeneralSection, HollowCircular, SolidCircular
     shape = spec['shape']
     if shape == 'solid_circular':
@@ -59,7 +67,8 @@ def _make_section(spec):
                           kappa_y=spec['kappa_y'], kappa_z=spec['kappa_z'])
 
 
-def _section_of(name, sections, path, errors):
+def _section_of(name: str, sections: Mapping[str, Section | None], path: str,
+                errors: _Errors) -> Section | None:
     if name in sections:
         return sections[name]
     errors.add(path, f"unknown section '{name}' (defined sections: "
@@ -67,16 +76,17 @@ def _section_of(name, sections, path, errors):
     return None
 
 
-def _beam_options(item):
+def _beam_options(item: Mapping[str, Any]) -> dict[str, Any]:
     return dict(shear=item['shear'], rotary_inertia=item['rotary_inertia'],
                 orientation=item['orientation'])
 
 
-def _xyz(point):
+def _xyz(point: Iterable[float]) -> str:
     return '[' + ', '.join(f'{float(v):.6g}' for v in point) + ']'
 
 
-def _add_line(fe, line, path, material, sections, errors):
+def _add_line(fe: FEModel, line: Mapping[str, Any], path: str, material: Material | None,
+              sections: Mapping[str, Section | None], errors: _Errors) -> None:
     """Nodes and elements of one straight line (consecutive node ids)."""
     section = _section_of(line['section'], sections, f'{path}.section', errors)
     p0, p1 = np.asarray(line['from']), np.asarray(line['to'])
@@ -105,7 +115,8 @@ def _add_line(fe, line, path, material, sections, errors):
                     **_beam_options(line))
 
 
-def _super_element_matrix(rows, dofs, force_unit, length_unit):
+def _super_element_matrix(rows: npt.ArrayLike, dofs: Sequence[Mapping[str, Any]],
+                          force_unit: str, length_unit: str) -> npt.NDArray[np.float64]:
     """Matrix in SI from entries in (force_unit, length_unit, rad)."""
     f = UNITS['force'][force_unit]
     length = UNITS['length'][length_unit]
@@ -115,14 +126,14 @@ def _super_element_matrix(rows, dofs, force_unit, length_unit):
     return np.asarray(rows, dtype=float) * scale
 
 
-def _build_beam(st, fe, errors):
+def _build_beam(st: Mapping[str, Any], fe: FEModel, errors: _Errors) -> None:
     from ..fem import Material
-    material = None
+    material: Material | None = None
     if st['material'] is not None:
         m = st['material']
         material = errors.call('structure.material', Material.from_poisson, m['E'], m['nu'],
                                m['rho'])
-    sections = {}
+    sections: dict[str, Section | None] = {}
     for name, spec in (st['sections'] or {}).items():
         sections[name] = errors.call(f'structure.sections.{name}', _make_section, spec)
     for i, node in enumerate(st['nodes'] or []):
@@ -138,9 +149,9 @@ def _build_beam(st, fe, errors):
     _build_lumped(st, fe, errors)
 
 
-def _build_lumped(st, fe, errors):
+def _build_lumped(st: Mapping[str, Any], fe: FEModel, errors: _Errors) -> None:
     """Point masses, springs, dampers, super elements, clamps and cross-couplings."""
-    def each(key):
+    def each(key: str) -> Iterator[tuple[str, Any]]:
         for i, item in enumerate(st[key] or []):
             path = f'structure.{key}[{i}]'
             if 'node' not in item or _has_node(fe, item['node'], f'{path}.node', errors):
@@ -170,7 +181,9 @@ def _build_lumped(st, fe, errors):
         errors.call(path, fe.add_cross_coupling, cc['node'], cc['kcc'], tuple(cc['dofs']))
 
 
-def _build_fe(structure, source):
+def _build_fe(structure: Mapping[str, Any], source: str | None
+              ) -> tuple[FEModel, AssembledSystem]:
+
     from ..fem import FEModel
     fe = FEModel()
     errors = _Errors()

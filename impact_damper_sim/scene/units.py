@@ -82,7 +82,7 @@ PSI = float(_PSI)
 """One psi in pascals (Pa): lbf / in^2."""
 
 
-def _table(*pairs):
+def _table(*pairs: tuple[str, float | Fraction]) -> dict[str, float]:
     return {name: float(factor) for name, factor in pairs}
 
 
@@ -197,13 +197,13 @@ class UnitError(ValueError):
         The problem, without the key.
     """
 
-    def __init__(self, reason, key=None):
+    def __init__(self, reason: str, key: str | None = None) -> None:
         self.key = key
         self.reason = reason
         super().__init__(f"'{key}': {reason}" if key else reason)
 
 
-def dimensions():
+def dimensions() -> tuple[str, ...]:
     """Return the names of all known dimensions.
 
     Returns
@@ -214,14 +214,14 @@ def dimensions():
     return tuple(UNITS)
 
 
-def _table_for(dimension):
+def _table_for(dimension: str) -> dict[str, float]:
     try:
         return UNITS[dimension]
     except KeyError:
         raise ValueError(f'unknown dimension {dimension!r}; known: {", ".join(UNITS)}') from None
 
 
-def allowed_units(dimension):
+def allowed_units(dimension: str) -> tuple[str, ...]:
     """Return the accepted unit spellings of a dimension, SI unit first.
 
     Parameters
@@ -237,11 +237,11 @@ def allowed_units(dimension):
     return tuple(_table_for(dimension))
 
 
-def _units_text(dimension):
+def _units_text(dimension: str) -> str:
     return ', '.join(u if u else '(no unit)' for u in allowed_units(dimension))
 
 
-def normalize_unit(unit):
+def normalize_unit(unit: str) -> str:
     """Return the canonical spelling of a unit string (see the module notes).
 
     Parameters
@@ -265,16 +265,16 @@ def normalize_unit(unit):
     return text
 
 
-def _a(word):
+def _a(word: str) -> str:
     return ('an ' if word[:1] in 'aeiou' else 'a ') + word
 
 
-def _dimensions_of(unit):
+def _dimensions_of(unit: str) -> str:
     names = [dim for dim, table in UNITS.items() if unit in table and dim != 'modulus']
     return ' or '.join(_a(n) for n in names)
 
 
-def unit_factor(unit, dimension):
+def unit_factor(unit: str, dimension: str) -> float:
     """Return the factor that converts a value in ``unit`` to SI.
 
     Parameters
@@ -301,7 +301,7 @@ def unit_factor(unit, dimension):
     raise UnitError(_unit_problem(unit, canon, dimension))
 
 
-def _unit_problem(unit, canon, dimension):
+def _unit_problem(unit: str, canon: str, dimension: str) -> str:
     allowed = _units_text(dimension)
     other = _dimensions_of(canon)
     if other:
@@ -316,22 +316,23 @@ def _unit_problem(unit, canon, dimension):
     return f"unknown unit '{unit}' for {_a(dimension)}; {hint}use one of {allowed}"
 
 
-def _describe(value):
+def _describe(value: object) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + '...'
 
 
-def _check_number(number, key, shown):
+def _check_number(number: object, key: str | None, shown: str) -> float:
     if isinstance(number, bool) or not isinstance(number, Real):
         raise UnitError(f'expected a number, got {type(number).__name__} {_describe(number)}',
                         key)
-    number = float(number)
-    if not math.isfinite(number):
+    value = float(number)
+    if not math.isfinite(value):
         raise UnitError(f'{shown} is not a finite number', key)
-    return number
+    return value
 
 
-def _parse(value, dimension, key=None):
+def _parse(value: object, dimension: str, key: str | None = None
+           ) -> tuple[float, float, str | None]:
     """Return ``(si_value, number, unit)``: the SI float and the number and unit as given.
 
     ``unit`` is the canonical spelling, or ``None`` when the value was a bare number.
@@ -340,6 +341,8 @@ def _parse(value, dimension, key=None):
     if isinstance(value, bool):
         # bool is an int subclass in Python; 'clearance: true' is never a length.
         raise UnitError(f'expected {_a(dimension)}, got boolean {value!r}', key)
+    number: float
+    unit: str | None
     if isinstance(value, Real):
         return _check_number(value, key, _describe(value)), float(value), None
     if isinstance(value, str):
@@ -362,7 +365,7 @@ def _parse(value, dimension, key=None):
     return si, number, canon
 
 
-def _split(text, dimension, key):
+def _split(text: str, dimension: str, key: str | None) -> tuple[float, str | None]:
     if _NONFINITE_RE.match(text):
         raise UnitError(f'{text!r} is not a finite number', key)
     match = _QUANTITY_RE.match(text)
@@ -377,7 +380,7 @@ def _split(text, dimension, key):
     return number, (unit if unit else None)
 
 
-def _split_mapping(mapping, key):
+def _split_mapping(mapping: dict[object, object], key: str | None) -> tuple[float, str]:
     expected = {'value', 'unit'}
     extra = [k for k in mapping if k not in expected]
     if extra:
@@ -399,7 +402,7 @@ def _split_mapping(mapping, key):
     return number, unit
 
 
-def parse_quantity(value, dimension, *, key=None):
+def parse_quantity(value: object, dimension: str, *, key: str | None = None) -> float:
     """Read a physical quantity and return it in SI.
 
     Parameters
@@ -435,7 +438,7 @@ def parse_quantity(value, dimension, *, key=None):
     return _parse(value, dimension, key)[0]
 
 
-def _unique_factor(unit, dimension):
+def _unique_factor(unit: str, dimension: str | None) -> tuple[float, str]:
     canon = normalize_unit(unit)
     if dimension is not None:
         return unit_factor(canon, dimension), canon
@@ -448,7 +451,7 @@ def _unique_factor(unit, dimension):
     return factors.pop(), canon
 
 
-def to_unit(value_si, unit, *, dimension=None):
+def to_unit(value_si: float, unit: str, *, dimension: str | None = None) -> float:
     """Convert an SI value to ``unit``.
 
     Parameters
@@ -469,7 +472,9 @@ def to_unit(value_si, unit, *, dimension=None):
     return float(value_si) / factor
 
 
-def format_quantity(value_si, unit, *, dimension=None, digits=6):
+def format_quantity(value_si: float, unit: str, *, dimension: str | None = None,
+                    digits: int = 6) -> str:
+
     """Format an SI value in an engineering unit, for reports.
 
     Parameters
