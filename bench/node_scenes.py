@@ -95,6 +95,13 @@ Usage::
     .venv/bin/python bench/node_scenes.py [--scenes sdof,hpotp] [--seconds 12] [--load]
         [--json FILE] [--keep-logs DIR] [--namespace NS] [--start-timeout 300]
         [--lag-limit 0.1] [--raw-no-drain] [--node-arg ARG ...] [--strict] [--cold]
+        [--page FILE]
+    .venv/bin/python bench/node_scenes.py --render RESULTS.json --page FILE
+
+``--page FILE`` writes the results as a markdown page (docs/bench/node-scenes.md): the date,
+the machine (CPU model, cores), the command line and the load once in its header, then the
+summary table printed at the end, the verdicts and what each column means. ``--render
+RESULTS.json --page FILE`` writes the same page from a ``--json`` file, without a run.
 
 ``--cold`` runs each scene twice: first with the node's ``NUMBA_CACHE_DIR`` an empty
 directory (row ``<scene> cold``: its start column is the cold start, the compile included, and
@@ -113,9 +120,11 @@ print-out of a run).
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import queue
+import shlex
 import signal
 import subprocess
 import sys
@@ -133,6 +142,8 @@ from node_scenes_figures import (  # noqa: E402
     NODE_NAME,
     _jsonable,
     analyse,
+    machine,
+    page,
     print_scene,
     print_table,
 )
@@ -372,6 +383,10 @@ def main(argv=None):
     parser.add_argument('--load', action='store_true',
                         help='a busy-loop process on the last core during the runs')
     parser.add_argument('--json', metavar='FILE', help='write the results as JSON')
+    parser.add_argument('--page', metavar='FILE',
+                        help='write the results as a markdown page (docs/bench/node-scenes.md)')
+    parser.add_argument('--render', metavar='RESULTS_JSON',
+                        help='no run: write --page from a file --json wrote')
     parser.add_argument('--namespace', default='', help='run node and monitor in it')
     parser.add_argument('--start-timeout', type=float, default=300.0,
                         help='longest wait for the first sample (s; a cold Numba cache '
@@ -390,11 +405,24 @@ def main(argv=None):
                         help='run each scene first from an empty Numba cache (its cold start, '
                              'and the real-time factor right after it), then warm')
     args = parser.parse_args(argv)
+    if args.render:
+        if not args.page:
+            parser.error('--render needs --page FILE')
+        with open(args.render) as f:
+            data = json.load(f)
+        with open(args.page, 'w') as f:
+            f.write(page(data))
+        print(f'{args.page}: {len(data["results"])} results from {args.render}')
+        return 0
+    command = shlex.join(['bench/node_scenes.py',
+                          *(sys.argv[1:] if argv is None else argv)])
+    date = datetime.date.today().isoformat()
+    load_before = os.getloadavg()[0]
     args.namespace = '/' + args.namespace.strip('/') if args.namespace.strip('/') else ''
     scenes = [s.strip() for s in args.scenes.split(',') if s.strip()]
     if not os.path.exists(NODE_EXE):
         sys.exit(f'{NODE_EXE} not found: run make run (or make test) first')
-    print(f'load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores); '
+    print(f'load before: {load_before:.2f} (1-min average, {os.cpu_count()} cores); '
           f'{args.seconds:g} s per scene from the first sample'
           + ('; a busy loop on the last core' if args.load else ''), flush=True)
     # a SIGTERM (pkill, a CI timeout) unwinds like Ctrl-C, so that the busy loop, the node,
@@ -464,10 +492,15 @@ def main(argv=None):
             hog.wait()
     print_table(results)
     print(f'load after: {os.getloadavg()[0]:.2f}; bench took {time.monotonic() - t0:.0f} s')
+    data = _jsonable({'date': date, 'machine': machine(), 'command': command,
+                      'load_before': load_before, 'load': os.getloadavg()[0],
+                      'seconds': args.seconds, 'load_hog': args.load, 'results': results})
     if args.json:
         with open(args.json, 'w') as f:
-            json.dump(_jsonable({'load': os.getloadavg()[0], 'seconds': args.seconds,
-                                 'load_hog': args.load, 'results': results}), f, indent=1)
+            json.dump(data, f, indent=1)
+    if args.page:
+        with open(args.page, 'w') as f:
+            f.write(page(data))
     failed = [r for r in results if r['status'] == 'error' or
               (r['status'] == 'ran' and not r['pass'])]
     return 1 if args.strict and failed else 0

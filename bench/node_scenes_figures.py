@@ -4,13 +4,15 @@ From what the readers left (the node's ``/diagnostics`` windows, every topic's s
 arrival times, the Python readers' stamps) and the CPU samples: the real-time factor and CPU
 windows, the delivered fractions (:func:`delivered`), the stamp lags against the node's sim
 time (:class:`SimClock`, :func:`lag_stats`), whether the monitor kept up (:func:`analyse`),
-the verdict against issue 24's goals (:func:`verdict`) and the per-scene lines and summary
-table. Apart from the driver because it runs no process: it reads arrays and dicts, so it
-can be checked on recorded data.
+the verdict against issue 24's goals (:func:`verdict`), the per-scene lines, the summary
+table and its markdown page (:func:`page`). Apart from the driver because it runs no process:
+it reads arrays and dicts, so it can be checked on recorded data.
 """
 from __future__ import annotations
 
 import math
+import os
+import platform
 
 import numpy as np
 
@@ -399,26 +401,142 @@ def print_scene(res):
     print(f'  verdict: {"PASS" if res["pass"] else "FAIL: " + "; ".join(res["why"])}')
 
 
+#: the summary table: (heading, width in the print-out, what the column means)
+SUMMARY = (
+    ('scene', 11, 'the scene (`config/scenes/<scene>.yaml`); `cold`: its run from an empty '
+                  'Numba cache (`--cold`), the row after it the same scene warm'),
+    ('start s', 7, 'from spawning the node to the first sample (or first node `/diagnostics`) '
+                   'the raw reader received (s): imports, loading or compiling the kernels, '
+                   'DDS discovery'),
+    ('RTF min', 7, 'the worst 1 s window of the node\'s `real_time_factor_achieved` (its '
+                   '`/diagnostics`)'),
+    ('median', 6, 'the median window of it'),
+    ('CPU med', 7, 'the node\'s `cpu_percent` (its process, % of one core), median window'),
+    ('peak', 5, 'the same, peak window'),
+    ('samples/s', 9, 'samples a second per accelerometer (the node\'s counter)'),
+    ('impacts/s', 9, 'impacts per second of sim time over the run'),
+    ('py % min', 8, 'the lowest share (%) of the samples sent that a stock Python reader '
+                    '(`qos_profile_sensor_data`, one process per `Imu` topic) received'),
+    ('py lag', 6, 'the largest stamp lag of that reader (s): the node\'s sim time when a '
+                  'sample arrived minus its header stamp'),
+    ('py CPU', 6, 'that reader\'s CPU (% of one core, mean over its span)'),
+    ('monitor', 7, '`ok`: every report of the monitor from 3.5 s on was OK, read at least 99 % '
+                   'of its topic\'s sample rate and 90 % of the impacts; `BEHIND` otherwise; '
+                   '`-` not judged'),
+    ('verdict', 7, '`PASS` when every goal is met (the reasons are listed under the table)'),
+)
+
+
+def _num(x):
+    """A figure read back from JSON (where NaN was written as null) as a float."""
+    return math.nan if x is None else x
+
+
+def summary_cells(r):
+    """The summary table's cells of one result (strings, in :data:`SUMMARY`'s order), or
+    ``None`` when the scene did not run."""
+    if r['status'] != 'ran':
+        return None
+    imu = [t for t in r['topics'] if t['type'] == IMU]
+    return [r['scene'] + (' cold' if r.get('cold') else ''),
+            _f(_num(r['start_s']), '.1f', 0), _f(_num(r['rtf_worst']), '.3f', 0),
+            _f(_num(r['rtf_median']), '.3f', 0), _f(_num(r['cpu_median']), '.1f', 0),
+            _f(_num(r['cpu_peak']), '.1f', 0), _f(_num(r['samples_per_s']), '.0f', 0),
+            _f(_num(r['impacts_per_s']), '.0f', 0),
+            _f(_nanmin([_num(t.get('py_percent')) for t in imu]), '.1f', 0),
+            _f(_nanmax([_num(t.get('py_lag_max')) for t in imu]), '.3f', 0),
+            _f(_nanmax([_num(t.get('py_cpu')) for t in imu]), '.0f', 0),
+            {True: 'ok', False: 'BEHIND', None: '-'}[r['monitor']['ok']],
+            'PASS' if r['pass'] else 'FAIL']
+
+
 def print_table(results):
     print()
-    print(f'{"scene":11s} {"start s":>7s} {"RTF min":>7s} {"median":>6s} {"CPU med":>7s} '
-          f'{"peak":>5s} {"samples/s":>9s} {"impacts/s":>9s} {"py % min":>8s} '
-          f'{"py lag":>6s} {"py CPU":>6s} {"monitor":>7s}  verdict')
+    print(' '.join(f'{h:{w}s}' if i == 0 else f'{h:>{w}s}'
+                   for i, (h, w, _) in enumerate(SUMMARY)))
     for r in results:
-        name = r['scene'] + (' cold' if r.get('cold') else '')
-        if r['status'] != 'ran':
+        cells = summary_cells(r)
+        if cells is None:
+            name = r['scene'] + (' cold' if r.get('cold') else '')
             print(f'{name:11s} {r["status"]}: {r["reason"]}')
             continue
-        imu = [t for t in r['topics'] if t['type'] == IMU]
-        print(f'{name:11s} {_f(r["start_s"], ".1f", 7)} {_f(r["rtf_worst"], ".3f", 7)} '
-              f'{_f(r["rtf_median"], ".3f", 6)} {_f(r["cpu_median"], ".1f", 7)} '
-              f'{_f(r["cpu_peak"], ".1f", 5)} {_f(r["samples_per_s"], ".0f", 9)} '
-              f'{_f(r["impacts_per_s"], ".0f", 9)} '
-              f'{_f(_nanmin([t.get("py_percent", math.nan) for t in imu]), ".1f", 8)} '
-              f'{_f(_nanmax([t.get("py_lag_max", math.nan) for t in imu]), ".3f", 6)} '
-              f'{_f(_nanmax([t.get("py_cpu", math.nan) for t in imu]), ".0f", 6)} '
-              f'{ {True: "ok", False: "BEHIND", None: "-"}[r["monitor"]["ok"]]:>7s}  '
-              f'{"PASS" if r["pass"] else "FAIL"}')
+        print(' '.join(f'{c:{w}s}' if i == 0 else f'{c:>{w}s}'
+                       for i, (c, (_, w, _)) in enumerate(zip(cells, SUMMARY))))
+
+
+def machine():
+    """This machine in words: CPU model and core count."""
+    try:
+        with open('/proc/cpuinfo') as fh:
+            model = next((line.split(':', 1)[1].strip() for line in fh
+                          if line.startswith('model name')), '')
+    except OSError:
+        model = ''
+    cores = os.cpu_count() or 0
+    return f'{model or platform.machine()}, {cores} core{"s" if cores != 1 else ""}'
+
+
+def page(data):
+    """A markdown page of a run's results (what ``--json`` writes: date, machine, command,
+    load, results): the header once, the summary table, the verdicts, the machine's state
+    per scene and what each column means."""
+    def said(key, fmt='', missing='not recorded'):
+        value = data.get(key)
+        return missing if value is None else f'{value:{fmt}}'
+
+    results = data['results']
+    lines = [
+        '# vibration_node on every shipped scene: measured',
+        '',
+        '<!-- written by bench/node_scenes.py --page; do not edit: run it again -->',
+        '',
+        f'- **Date**: {said("date")}',
+        f'- **Machine**: {said("machine")}',
+        f'- **Command**: `{said("command")}` ({said("seconds", "g")} s per scene from the '
+        'first sample)',
+        f'- **Load** (1-min average): {said("load_before", ".2f")} before, '
+        f'{said("load", ".2f")} after; '
+        + ('a busy loop pinned to the last core during every run (`--load`)'
+           if data.get('load_hog') else 'no added load'),
+        '',
+        'What is measured and the goals: [node.md](../node.md#performance); every figure '
+        'below, and how it is taken, in `bench/node_scenes.py`\'s docstring.',
+        '',
+        '| ' + ' | '.join(h for h, _, _ in SUMMARY) + ' |',
+        '|' + '---|' * len(SUMMARY),
+    ]
+    for r in results:
+        cells = summary_cells(r)
+        if cells is None:
+            name = r['scene'] + (' cold' if r.get('cold') else '')
+            cells = [name, f'{r["status"]}: {r.get("reason", "")}'.replace('|', '\\|')] + \
+                [''] * (len(SUMMARY) - 2)
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    lines += ['', '**Verdicts** (goals: worst 1 s window >= '
+              f'{RTF_GOAL}, peak window CPU <= {CPU_GOAL:.0f} % of a core, every Python '
+              f'`Imu` reader >= {DELIVERY_GOAL:.0f} % with its lag under the limit, the '
+              f'monitor kept up; a cold start <= {COLD_GOAL:g} s):', '']
+    for r in results:
+        name = r['scene'] + (' (cold start)' if r.get('cold') else '')
+        if r['status'] != 'ran':
+            lines.append(f'- {name}: {r["status"]}: {r.get("reason", "")}')
+        else:
+            lines.append(f'- {name}: ' + ('PASS' if r['pass'] else
+                                          'FAIL: ' + '; '.join(r.get('why', []))))
+    ran = [r for r in results if r['status'] == 'ran']
+    if ran:
+        lines += ['', 'The machine during each scene (over 25 % of a core taken by other '
+                  'processes, or over 2 % of the CPU time stolen by the hypervisor, is not a '
+                  'quiet machine):', '',
+                  '| scene | other processes, % of a core | hypervisor\'s steal, % |',
+                  '|---|---|---|']
+        for r in ran:
+            lines.append(f'| {r["scene"] + (" cold" if r.get("cold") else "")} | '
+                         f'{_f(_num(r.get("others_cpu")), ".0f", 0)} | '
+                         f'{_f(_num(r.get("steal_percent")), ".1f", 0)} |')
+    lines += ['', '## What the columns mean', '']
+    lines += [f'- **{h}**: {meaning}' for h, _, meaning in SUMMARY]
+    return '\n'.join(lines) + '\n'
 
 
 def _jsonable(x):
