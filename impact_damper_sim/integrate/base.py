@@ -9,10 +9,18 @@ energy ledger and switching the impact dampers off and on during a run.
 from __future__ import annotations
 
 import abc
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
-from .events import STICK_RULES, EnergyLedger
+from .events import STICK_RULES, EnergyLedger, Samples
+
+if TYPE_CHECKING:
+    from .forcing import Forcing
+    from .model import LinearModel
+
+FloatArray = npt.NDArray[np.float64]
 
 #: Half-travel given to disabled impactors (m): larger than any structural motion, so they
 #: fly free and never reach a wall (1e6 m also keeps the planar gap ``L^2 - r^2`` well scaled).
@@ -71,8 +79,9 @@ class IntegratorBase(abc.ABC):
     and :meth:`_release_now`.
     """
 
-    def __init__(self, model, forcing, dt, *, law, stick_rule, stick_fraction,
-                 max_events_per_step, ledger, t0):
+    def __init__(self, model: LinearModel, forcing: Forcing, dt: float, *, law: str,
+                 stick_rule: str, stick_fraction: float, max_events_per_step: int,
+                 ledger: bool, t0: float) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f'dt must be a positive time in s, got {dt}')
         if stick_rule not in STICK_RULES:
@@ -89,7 +98,7 @@ class IntegratorBase(abc.ABC):
         self.max_events_per_step = int(max_events_per_step)
         self.ledger_on = bool(ledger)
         self.t = float(t0)
-        self.stick_time = None
+        self.stick_time: float | None = None
         impactors = model.impactors
         ni = len(impactors)
         self._imp_dim = np.array([imp.dim for imp in impactors], dtype=np.int64)
@@ -105,56 +114,59 @@ class IntegratorBase(abc.ABC):
         self._imp_last_t = np.full(ni, -np.inf)
         self._ledger = np.zeros(5)
         self._initial_energy = 0.0
-        self._events = []
+        # exact: arrays of EVENT_DTYPE; Newmark: one record tuple per event
+        self._events: list[Any] = []
         self._config_changes = 0
         self.max_impacts_per_step = 0
         self.grazing_undecided = 0
         self.impacts_enabled = True
 
-    def _place_impactors(self, q):
+    def _place_impactors(self, q: FloatArray) -> None:
         """Put every impactor at its housing plus its initial offset, with its initial
         velocity, for coordinates ``q`` of the model."""
         for j, imp in enumerate(self.model.impactors):
+            assert imp.position is not None   # an array after Impactor.__post_init__
             self._imp_z[j, :imp.dim] = imp.rows @ q + imp.position
+
             self._imp_v[j, :imp.dim] = imp.velocity
 
-    def _start_ledger(self):
+    def _start_ledger(self) -> None:
         """Take the energy now as the ledger's initial energy (J)."""
         self._initial_energy = sum(self._energy_now())
 
     @property
-    def n_config_changes(self):
+    def n_config_changes(self) -> int:
         """int: Changes of configuration so far (stick and release; dimensionless)."""
         return self._config_changes
 
     # -- what a subclass implements --------------------------------------------------------
     @abc.abstractmethod
-    def state(self):
+    def state(self) -> tuple[FloatArray, FloatArray]:
         """Return ``(q, qd)``: coordinates and their velocities now (copies)."""
 
     @abc.abstractmethod
-    def advance(self, n_steps):
+    def advance(self, n_steps: int) -> Samples:
         """Advance ``n_steps`` output steps of ``dt`` and return their
         :class:`~.events.Samples` (sensor outputs at the end of each step)."""
 
     @abc.abstractmethod
-    def take_events(self):
+    def take_events(self) -> np.ndarray:
         """Return the events recorded since the last call (``EVENT_DTYPE``) and clear."""
 
     @abc.abstractmethod
-    def _housing_rows(self):
+    def _housing_rows(self) -> list[FloatArray]:
         """Housing rows of each impactor in the current coordinates (list of arrays)."""
 
     @abc.abstractmethod
-    def _structure_energy(self, q, qd):
+    def _structure_energy(self, q: FloatArray, qd: FloatArray) -> float:
         """Kinetic plus potential energy of the structure alone (J)."""
 
     @abc.abstractmethod
-    def _release_now(self, j):
+    def _release_now(self, j: int) -> None:
         """Release stuck impactor ``j`` at the current time with its housing's velocity."""
 
     # -- what follows from them ------------------------------------------------------------
-    def set_impacts_enabled(self, enabled):
+    def set_impacts_enabled(self, enabled: bool) -> None:
         """Switch the impact dampers on or off during a run.
 
         Off: stuck impactors are released with their housing's velocity and every impactor
@@ -173,8 +185,8 @@ class IntegratorBase(abc.ABC):
         if enabled == self.impacts_enabled:
             return
         if not enabled:
-            for j in np.flatnonzero(self._stuck):
-                self._release_now(int(j))
+            for index in np.flatnonzero(self._stuck):
+                self._release_now(int(index))
             self._limits_enabled = self._imp_limit.copy()
             self._imp_limit[:] = DISABLED_LIMIT
         else:
@@ -191,7 +203,7 @@ class IntegratorBase(abc.ABC):
             self._initial_energy += self._energy_now()[1] - before
         self.impacts_enabled = enabled
 
-    def impactor_states(self):
+    def impactor_states(self) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_]]:
         """Return relative positions (m), absolute velocities (m/s) and stuck flags.
 
         Returns
@@ -217,13 +229,14 @@ class IntegratorBase(abc.ABC):
                 vel[j, :d] = self._imp_v[j, :d]
         return rel, vel, self._stuck.astype(bool)
 
-    def _energy_now(self):
+    def _energy_now(self) -> tuple[float, float]:
         q, qd = self.state()
         _, vel, _ = self.impactor_states()
         impactors = 0.5 * float(np.sum(self._imp_mass * np.sum(vel * vel, axis=1)))
         return self._structure_energy(q, qd), impactors
 
-    def energy(self):
+    def energy(self) -> EnergyLedger:
+
         """Return the :class:`~.events.EnergyLedger` now (J)."""
         structure, impactors = self._energy_now()
         led = self._ledger

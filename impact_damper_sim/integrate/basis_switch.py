@@ -35,12 +35,26 @@ uses the stuck housing acceleration instead of the frictionless criterion.
 """
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, TypeVar
 
-from ..modal.basis import modal_reduction
+import numpy as np
+import numpy.typing as npt
+
+from ..modal.basis import ModalBasis, modal_reduction
 from ..modal.stuck import add_point_mass
 from .memory import MAX_CACHED_CONFIGURATIONS
 from .model import LinearModel
+
+if TYPE_CHECKING:
+    from ..fem import AssembledSystem
+    from ..scene.build import SceneModel
+
+FloatArray = npt.NDArray[np.float64]
+#: stuck flags as a hashable tuple of 0/1
+Key = tuple[int, ...]
+#: stuck flags as given: a sequence of bool or int
+Flags = Iterable[int] | np.ndarray
 
 __all__ = ['BasisSwitch']
 
@@ -48,7 +62,12 @@ __all__ = ['BasisSwitch']
 _ROWS_RTOL = 1e-9
 
 
-def _bound(cache, keep=None):
+_CacheKey = TypeVar('_CacheKey')
+_Cached = TypeVar('_Cached')
+
+
+def _bound(cache: dict[_CacheKey, _Cached], keep: _CacheKey | None = None) -> None:
+
     """Drop the oldest entries of ``cache`` (never ``keep``) beyond
     :data:`~impact_damper_sim.integrate.memory.MAX_CACHED_CONFIGURATIONS`: a run visiting many
     stuck sets keeps a bounded number of bases (each a modal reduction and its dense
@@ -57,7 +76,7 @@ def _bound(cache, keep=None):
         del cache[next(k for k in cache if k != keep)]
 
 
-def _key(stuck):
+def _key(stuck: Flags) -> Key:
     """Stuck flags as a hashable tuple of 0/1 (the cache key of a configuration)."""
     return tuple(int(bool(s)) for s in stuck)
 
@@ -104,8 +123,11 @@ class BasisSwitch:
     impactor sits on a massless DOF).
     """
 
-    def __init__(self, system, free_basis, model, housing_indices, *, sensor_indices=None,
-                 force_indices=None, method='auto', gyroscopic=()):
+    def __init__(self, system: AssembledSystem, free_basis: ModalBasis, model: LinearModel,
+                 housing_indices: Iterable[int | Sequence[int]], *,
+                 sensor_indices: Iterable[int] | None = None,
+                 force_indices: Iterable[int] | None = None, method: str = 'auto',
+                 gyroscopic: Iterable[tuple[int, int, float]] = ()) -> None:
         n = free_basis.n_modes
         if model.n != n:
             raise ValueError(f'model has {model.n} coordinates, free basis {n} modes')
@@ -136,13 +158,13 @@ class BasisSwitch:
         self._check_gyroscopic()
         free = _key([0] * len(model.impactors))
         self._free_key = free
-        self._bases = {free: free_basis}
-        self._models = {free: model}
-        self._K_sym = {}
-        self._transforms = {}
+        self._bases: dict[Key, ModalBasis] = {free: free_basis}
+        self._models: dict[Key, LinearModel] = {free: model}
+        self._K_sym: dict[Key, FloatArray] = {}
+        self._transforms: dict[tuple[Key, Key], FloatArray] = {}
 
     @classmethod
-    def from_scene(cls, scene_model):
+    def from_scene(cls, scene_model: SceneModel) -> BasisSwitch:
         """Build the provider of a :class:`~impact_damper_sim.scene.build.SceneModel`.
 
         Parameters
@@ -162,7 +184,7 @@ class BasisSwitch:
                    method=scene_model.scene['modal']['solver'],
                    gyroscopic=scene_model.gyroscopic_terms())
 
-    def _gyroscopic_coupling(self, basis):
+    def _gyroscopic_coupling(self, basis: ModalBasis) -> FloatArray:
         """``Phi^T G Phi`` of :attr:`gyroscopic` on ``basis`` (1/s), skew-symmetric."""
         n = basis.n_modes
         coupling = np.zeros((n, n))
@@ -171,7 +193,7 @@ class BasisSwitch:
             coupling += c * (np.outer(rows[0], rows[1]) - np.outer(rows[1], rows[0]))
         return coupling
 
-    def _check_gyroscopic(self):
+    def _check_gyroscopic(self) -> None:
         """Refuse a model whose damping's skew part is not :attr:`gyroscopic` projected on
         the free basis: the stuck models would lose (or invent) the coupling."""
         C = self.base.C
@@ -184,24 +206,26 @@ class BasisSwitch:
                              f'{np.abs(skew - expected).max():.3g} 1/s); pass the rotor\'s '
                              'gyroscopic terms so that the stuck bases keep the coupling')
 
-    def _indices(self, rows, given, what):
+    def _indices(self, rows: FloatArray, given: Iterable[int] | None, what: str
+                 ) -> tuple[int, ...]:
         """Active DOF index of each row of ``rows`` (free-basis mode-shape rows)."""
         if given is not None:
-            given = tuple(int(k) for k in given)
-            if len(given) != rows.shape[0]:
-                raise ValueError(f'{len(given)} {what} indices for {rows.shape[0]} {what} rows')
-            if given:
-                check = self.free_basis.rows(list(given))
+            indices = tuple(int(k) for k in given)
+            if len(indices) != rows.shape[0]:
+                raise ValueError(f'{len(indices)} {what} indices for {rows.shape[0]} {what} '
+                                 'rows')
+            if indices:
+                check = self.free_basis.rows(list(indices))
                 scale = max(np.abs(check).max(), np.abs(rows).max(), 1e-300)
                 if not np.allclose(check, rows, rtol=0, atol=_ROWS_RTOL * scale):
-                    raise ValueError(f'{what} indices {list(given)} do not give the model\'s '
+                    raise ValueError(f'{what} indices {list(indices)} do not give the model\'s '
                                      f'{what} rows')
-            return given
+            return indices
         if rows.shape[0] == 0:
             return ()
         every = self.free_basis.rows(np.arange(self.system.n_dof))
         scale = max(np.abs(every).max(), 1e-300)
-        found = []
+        found: list[int] = []
         for r, row in enumerate(rows):
             match = np.flatnonzero(np.all(np.abs(every - row) <= _ROWS_RTOL * scale, axis=1))
             if match.size != 1:
@@ -211,7 +235,7 @@ class BasisSwitch:
         return tuple(found)
 
     # -- bases and models ---------------------------------------------------------------------
-    def basis(self, stuck):
+    def basis(self, stuck: Flags) -> ModalBasis:
         """Return the :class:`~impact_damper_sim.modal.ModalBasis` of a stuck set.
 
         Parameters
@@ -248,7 +272,8 @@ class BasisSwitch:
         _bound(self._bases, self._free_key)
         return basis
 
-    def model(self, stuck):
+    def model(self, stuck: Flags
+              ) -> tuple[LinearModel, tuple[float, ...], tuple[float, ...]]:
         """Return ``(LinearModel, stuck_masses, carried_masses)`` of a stuck set.
 
         Parameters
@@ -285,7 +310,7 @@ class BasisSwitch:
         carried = tuple(imp.mass if flag else 0.0 for imp, flag in zip(self.base.impactors, key))
         return found, (0.0,) * len(key), carried
 
-    def transform(self, stuck_from, stuck_to):
+    def transform(self, stuck_from: Flags, stuck_to: Flags) -> FloatArray | None:
         """Return ``T = Phi_b^T M_b Phi_a`` mapping coordinates of ``a`` to ``b`` (provider).
 
         Parameters
@@ -314,14 +339,14 @@ class BasisSwitch:
         return T
 
     # -- energies -------------------------------------------------------------------------------
-    def _k_sym(self, key):
+    def _k_sym(self, key: Key) -> FloatArray:
         K = self._K_sym.get(key)
         if K is None:
             K = self._K_sym[key] = self.model(key)[0].K_sym
             _bound(self._K_sym)
         return K
 
-    def _kinetic(self, key, which, qd):
+    def _kinetic(self, key: Key, which: Iterable[bool | int], qd: FloatArray) -> float:
         """``sum_j 0.5 m_j |R_j qd|^2`` over impactors flagged in ``which`` (J).
 
         ``R_j`` are the housing rows of configuration ``key``, the one ``qd`` belongs to.
@@ -330,7 +355,7 @@ class BasisSwitch:
         return sum(0.5 * imp.mass * float(np.sum((imp.rows @ qd) ** 2))
                    for imp, w in zip(model.impactors, which) if w)
 
-    def structure_energy(self, stuck, q, qd):
+    def structure_energy(self, stuck: Flags, q: npt.ArrayLike, qd: npt.ArrayLike) -> float:
         """Return the structure's kinetic plus strain energy, without stuck impactors (J).
 
         Parameters
@@ -354,7 +379,8 @@ class BasisSwitch:
         qd = np.asarray(qd, dtype=float)
         return self.carried_energy(key, (0,) * len(key), q, qd)
 
-    def carried_energy(self, stuck, carried, q, qd):
+    def carried_energy(self, stuck: Flags, carried: Flags, q: npt.ArrayLike,
+                       qd: npt.ArrayLike) -> float:
         """Return the energy of the structure plus the impactors it carries (J).
 
         Parameters
@@ -375,15 +401,16 @@ class BasisSwitch:
             impactor the basis does not hold, minus that of each impactor the basis holds but
             that is not carried (J); :meth:`structure_energy` carries none.
         """
-        key, carried = _key(stuck), _key(carried)
+        key, carried_key = _key(stuck), _key(carried)
         q = np.asarray(q, dtype=float)
         qd = np.asarray(qd, dtype=float)
-        add = [c and not s for c, s in zip(carried, key)]
-        drop = [s and not c for c, s in zip(carried, key)]
+        add = [c and not s for c, s in zip(carried_key, key)]
+        drop = [s and not c for c, s in zip(carried_key, key)]
         return (0.5 * float(qd @ qd) + 0.5 * float(q @ self._k_sym(key) @ q)
                 + self._kinetic(key, add, qd) - self._kinetic(key, drop, qd))
 
-    def switch_loss(self, stuck_from, stuck_to, q, qd):
+    def switch_loss(self, stuck_from: Flags, stuck_to: Flags, q: FloatArray,
+                    qd: FloatArray) -> float:
         """Return the energy one switch loses (J), at a stick or a release.
 
         The propagator gives a sticking impactor its housing's velocity before the switch and
@@ -412,7 +439,7 @@ class BasisSwitch:
         q2, qd2 = (q, qd) if T is None else (T @ q, T @ qd)
         return self.carried_energy(a, b, q, qd) - self.carried_energy(b, b, q2, qd2)
 
-    def round_trip_loss(self, q, qd, stuck):
+    def round_trip_loss(self, q: npt.ArrayLike, qd: npt.ArrayLike, stuck: Flags) -> float:
         """Return the relative energy change of a free -> stuck -> free round trip.
 
         Parameters
@@ -438,5 +465,7 @@ class BasisSwitch:
         if before == 0.0 or key == free:
             return 0.0
         there, back = self.transform(free, key), self.transform(key, free)
+        assert there is not None and back is not None   # key != free: a real change
+
         q2, qd2 = back @ (there @ q), back @ (there @ qd)
         return 1.0 - self.structure_energy(free, q2, qd2) / before

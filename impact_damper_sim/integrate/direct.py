@@ -17,15 +17,23 @@ system's discrete dampers (condensed like ``K``), plus optionally
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..dampers.impactors import Impactor
 from .model import LinearModel
 
+if TYPE_CHECKING:
+    from ..fem import AssembledSystem
 
-def modal_damping_matrix(M, K, zeta):
+
+def modal_damping_matrix(M: npt.NDArray[np.float64], K: npt.NDArray[np.float64],
+                         zeta: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Physical damping matrix equivalent to per-mode damping ratios over all modes.
 
     Parameters
@@ -45,13 +53,19 @@ def modal_damping_matrix(M, K, zeta):
     K_sym = 0.5 * (K + K.T)
     w2, phi = sla.eigh(K_sym, M)
     omega = np.sqrt(np.clip(w2, 0.0, None))
-    zeta = np.broadcast_to(np.asarray(zeta, dtype=float), omega.shape)
+    ratios = np.broadcast_to(np.asarray(zeta, dtype=float), omega.shape)
     Mphi = M @ phi
-    return (Mphi * (2.0 * zeta * omega)) @ Mphi.T
+    return (Mphi * (2.0 * ratios * omega)) @ Mphi.T
 
 
-def physical_model(system, *, force_indices, sensor_indices, impactors=(), rayleigh=None,
-                   damping=None, tare_zeta=None, sensor_names=(), input_names=()):
+def physical_model(system: AssembledSystem, *, force_indices: Sequence[int],
+                   sensor_indices: Sequence[int],
+                   impactors: Iterable[tuple[Impactor, Sequence[int]]] = (),
+                   rayleigh: tuple[float, float] | None = None,
+                   damping: npt.ArrayLike | sp.spmatrix | None = None,
+                   tare_zeta: npt.ArrayLike | None = None, sensor_names: Iterable[str] = (),
+                   input_names: Iterable[str] = ()) -> LinearModel:
+
     """Build the condensed physical-coordinate model of ``system``.
 
     Parameters
@@ -91,7 +105,10 @@ def physical_model(system, *, force_indices, sensor_indices, impactors=(), rayle
     C = np.array(cond.C, dtype=float)
     n_active = cond.n_active
     if damping is not None:
-        D = damping.toarray() if sp.issparse(damping) else np.asarray(damping, dtype=float)
+        # (sp.issparse narrows nothing for mypy: scipy has no type stubs here)
+        D = (damping.toarray() if sp.issparse(damping)  # type: ignore[union-attr]
+             else np.asarray(damping, dtype=float))
+
         if D.shape != (n_active, n_active):
             raise ValueError(f'damping must be ({n_active}, {n_active}) over the active DOFs '
                              f'(N s/m), got {D.shape}')

@@ -15,10 +15,13 @@ chunk it advances, the ``study`` command turns :class:`Divergence` into exit sta
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from .._exit_status import EXIT_DIVERGED
+from .events import Samples
 
 #: Sensor displacement beyond which a run has diverged (m).
 MAX_DISPLACEMENT = 1.0e3
@@ -51,24 +54,25 @@ class Divergence(RuntimeError):
 
     code = EXIT_DIVERGED
 
-    def __init__(self, what, t, setting=None):
+    def __init__(self, what: str, t: float, setting: str | None = None) -> None:
         self.what = str(what)
         self.t = float(t)
         self.setting = setting
         super().__init__(self.message())
 
-    def message(self):
+    def message(self) -> str:
         """Return the one-line message: ``diverged at t = ... s: what; change ...``."""
         text = f'diverged at t = {self.t:.6g} s: {self.what}'
         return f'{text}; {self.setting}' if self.setting else text
 
-    def __str__(self):
+    def __str__(self) -> str:
         return self.message()
 
-    def __reduce__(self):   # picklable across process pools, with its fields
+    def __reduce__(self) -> tuple[type[Divergence], tuple[str, float, str | None]]:
+        # picklable across process pools, with its fields
         return (Divergence, (self.what, self.t, self.setting))
 
-    def with_setting(self, setting):
+    def with_setting(self, setting: str) -> Divergence:
         """Return a copy whose advice is ``setting`` (str)."""
         return Divergence(self.what, self.t, setting)
 
@@ -83,7 +87,7 @@ class StudyDiverged(RuntimeError):
     code = EXIT_DIVERGED
 
 
-def check_state(q, qd, t):
+def check_state(q: npt.ArrayLike, qd: npt.ArrayLike, t: float) -> None:
     """Raise :class:`Divergence` if the modal state is not finite.
 
     Parameters
@@ -93,14 +97,15 @@ def check_state(q, qd, t):
     t : float
         Time of the state (s).
     """
-    for name, v in (('modal coordinates', q), ('modal velocities', qd)):
-        v = np.asarray(v)
+    for name, given in (('modal coordinates', q), ('modal velocities', qd)):
+        v = np.asarray(given)
         if not np.all(np.isfinite(v)):
             bad = np.flatnonzero(~np.isfinite(v.ravel()))
             raise Divergence(f'{name} not finite (mode {int(bad[0]) + 1} of {v.size})', t)
 
 
-def check_samples(samples, names=(), max_displacement=MAX_DISPLACEMENT):
+def check_samples(samples: Samples, names: Sequence[str] = (),
+                  max_displacement: float = MAX_DISPLACEMENT) -> None:
     """Raise :class:`Divergence` at the first sample that is not finite or too large.
 
     Parameters
@@ -145,7 +150,8 @@ def check_samples(samples, names=(), max_displacement=MAX_DISPLACEMENT):
     raise Divergence(what, float(samples.t[k]))
 
 
-def from_engine_error(exc, t):
+def from_engine_error(exc: BaseException, t: float) -> Divergence | None:
+
     """Return the :class:`Divergence` an engine error stands for, or None.
 
     ``FloatingPointError`` and the engine's ``RuntimeError`` for unresolved chatter or a

@@ -23,7 +23,7 @@ EVENT_DTYPE = np.dtype([('t', 'f8'), ('impactor', 'i8'), ('kind', 'i8'), ('norma
 STICK_RULES = ('paper', 'accumulation', 'none')
 
 
-def empty_events(capacity=0):
+def empty_events(capacity: int = 0) -> np.ndarray:
     """Return an empty event array."""
     return np.zeros(capacity, dtype=EVENT_DTYPE)
 
@@ -83,18 +83,19 @@ class EnergyLedger:
     initial: float
 
     @property
-    def total(self):
+    def total(self) -> float:
         """float: Structure plus impactor energy now (J)."""
         return self.structure + self.impactors
 
     @property
-    def residual(self):
+    def residual(self) -> float:
         """float: ``total - (initial + work - dissipation)`` (J); zero for an exact ledger."""
         return self.total - (self.initial + self.forcing + self.circulatory
                              - self.impacts - self.sticking - self.damping)
 
     @property
-    def relative_residual(self):
+    def relative_residual(self) -> float:
+
         """float: residual over the largest energy in the ledger (dimensionless)."""
         scale = max(abs(self.initial), abs(self.total), abs(self.forcing), abs(self.damping),
                     abs(self.impacts), abs(self.circulatory), 1e-300)

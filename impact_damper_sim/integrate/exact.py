@@ -9,11 +9,15 @@ is :class:`~.basis_switch.BasisSwitch`.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
+
 import numpy as np
+import numpy.typing as npt
 
 from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples
-from .flow import build_flow
+from .flow import FlowConfig, build_flow
 from .kernels import event_loop as kernels
 from .kernels import flow_eval as flow_kernels
 from .kernels import ledger as ledger_kernels
@@ -26,6 +30,29 @@ from .memory import (
     cache_limit,
     configuration_bytes,
 )
+
+if TYPE_CHECKING:
+    from .forcing import Forcing
+    from .model import LinearModel
+
+FloatArray = npt.NDArray[np.float64]
+#: stuck flags (one 0/1 per impactor), or a table's stuck counts per group
+Key = tuple[int, ...]
+
+
+class Configurations(Protocol):
+    """What an ``ExactPropagator``'s ``configurations`` provides (:class:`MassUpdate`,
+    :class:`~.basis_switch.BasisSwitch`); see :class:`MassUpdate`."""
+
+    def model(self, stuck: Key) -> (tuple[LinearModel, Sequence[float]]
+                                    | tuple[LinearModel, Sequence[float], Sequence[float]]):
+        ...
+
+    def transform(self, stuck_from: Key, stuck_to: Key) -> FloatArray | None:
+        ...
+
+    def structure_energy(self, stuck: Key, q: FloatArray, qd: FloatArray) -> float:
+        ...
 
 
 class MassUpdate:
@@ -44,18 +71,18 @@ class MassUpdate:
     Here the coordinates never change, so switching is exact (no loss).
     """
 
-    def __init__(self, model):
+    def __init__(self, model: LinearModel) -> None:
         self.base = model
         self._K_sym = model.K_sym
 
-    def model(self, stuck):
+    def model(self, stuck: Key) -> tuple[LinearModel, tuple[float, ...]]:
         masses = tuple(imp.mass if s else 0.0 for imp, s in zip(self.base.impactors, stuck))
         return self.base, masses
 
-    def transform(self, stuck_from, stuck_to):
+    def transform(self, stuck_from: Key, stuck_to: Key) -> None:
         return None
 
-    def structure_energy(self, stuck, q, qd):
+    def structure_energy(self, stuck: Key, q: FloatArray, qd: FloatArray) -> float:
         return 0.5 * qd @ self.base.M @ qd + 0.5 * q @ self._K_sym @ q
 
 
@@ -75,7 +102,7 @@ PREBUILD_SLOTS = 64
 TAYLOR_ORDER = 6
 
 
-def _interchangeable_groups(model):
+def _interchangeable_groups(model: LinearModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Housing sites and interchangeable groups of the model's impactors.
 
     Returns ``rep`` (per impactor, the first impactor with the same housing rows: they share
@@ -85,8 +112,9 @@ def _interchangeable_groups(model):
     imps = model.impactors
     rep = np.arange(len(imps), dtype=np.int64)
     group = np.zeros(len(imps), dtype=np.int64)
-    keys = {}
-    sites = {}   # equal rows -> first impactor: linear in the impactors, not quadratic
+    keys: dict[tuple[int, float], int] = {}
+    # equal rows -> first impactor: linear in the impactors, not quadratic
+    sites: dict[tuple[int, tuple[int, ...], bytes], int] = {}
     for j, imp in enumerate(imps):
         rows = np.asarray(imp.rows, dtype=float) + 0.0   # -0.0 as 0.0, like array_equal
         rep[j] = sites.setdefault((imp.dim, rows.shape, rows.tobytes()), j)
@@ -101,7 +129,8 @@ class _Table:
     FIELDS = ('lam', 'V', 'Vinv', 'W', 'part_plus', 'part_minus', 'sensor_q', 'sensor_v',
               'house_q', 'kick', 'house_mobility', 'mobility', 'release_map')
 
-    def __init__(self, n_slots, flow, dt, ledger_on, n_q, k_skew):
+    def __init__(self, n_slots: int, flow: FlowConfig, dt: float, ledger_on: bool, n_q: int,
+                 k_skew: FloatArray) -> None:
         self.dt = dt
         self.ledger_on = ledger_on
         self.built = np.zeros(n_slots, dtype=np.int64)
@@ -122,7 +151,7 @@ class _Table:
         self.v_counts = np.zeros((n_slots, n_q), dtype=np.int64)
         self.v_modal = np.zeros(n_slots, dtype=np.bool_)   # one coordinate per velocity row
 
-    def fill(self, slot, flow):
+    def fill(self, slot: int, flow: FlowConfig) -> None:
         """Store configuration ``flow`` (a :class:`~.flow.FlowConfig`) in ``slot``."""
         for name in self.FIELDS:
             self.arrays[name][slot] = getattr(flow, name)
@@ -142,7 +171,7 @@ class _Table:
             self.vt[slot] = ledger_kernels.rows_transposed(flow.V[n:], kvq)
         self.built[slot] = 1
 
-    def kernel_args(self, ni):
+    def kernel_args(self, ni: int) -> tuple[np.ndarray, ...]:
         """The ``tb_*`` arguments of :func:`.kernels.event_loop.advance` (impactors ``[:ni]``)."""
         a = self.arrays
         return (self.built, a['lam'], self.lam_max, a['V'], a['Vinv'], a['W'], a['part_plus'],
@@ -192,9 +221,13 @@ class ExactPropagator(IntegratorBase):
         setting only, the events found do not depend on it.
     """
 
-    def __init__(self, model, forcing, dt, *, law='effective_mass', stick_rule='paper',
-                 stick_fraction=0.002, max_events_per_step=64, ledger=True, q0=None, qd0=None,
-                 t0=0.0, event_capacity=4096, configurations=None, taylor_order=TAYLOR_ORDER):
+    def __init__(self, model: LinearModel, forcing: Forcing, dt: float, *,
+                 law: str = 'effective_mass', stick_rule: str = 'paper',
+                 stick_fraction: float = 0.002, max_events_per_step: int = 64,
+                 ledger: bool = True, q0: npt.ArrayLike | None = None,
+                 qd0: npt.ArrayLike | None = None, t0: float = 0.0, event_capacity: int = 4096,
+                 configurations: Configurations | None = None,
+                 taylor_order: int = TAYLOR_ORDER) -> None:
         super().__init__(model, forcing, dt, law=law, stick_rule=stick_rule,
                          stick_fraction=stick_fraction, max_events_per_step=max_events_per_step,
                          ledger=ledger, t0=t0)
@@ -202,7 +235,8 @@ class ExactPropagator(IntegratorBase):
             raise ValueError(f'taylor_order must be an integer in [2, 12], got {taylor_order}')
         if len(model.impactors):   # a cold cache compiles the event search while the rest is set up
             prefetch()
-        self.configurations = MassUpdate(model) if configurations is None else configurations
+        self.configurations: Configurations = (MassUpdate(model) if configurations is None
+                                               else configurations)
         self.taylor_order = int(taylor_order)
         self._omegas, self._amps = forcing.harmonic_table()
         n = model.n
@@ -222,8 +256,9 @@ class ExactPropagator(IntegratorBase):
         self._cache_limit = cache_limit(per_config) if isinstance(
             self.configurations, MassUpdate) else MAX_CACHED_CONFIGURATIONS
         self._n_slots = n_keys if self._table_mode else 1
-        self._flows = {}      # configuration key -> (FlowConfig, LinearModel)
-        self._tables = {}     # table key -> _Table
+        # configuration key -> (FlowConfig, LinearModel)
+        self._flows: dict[Key, tuple[FlowConfig, LinearModel]] = {}
+        self._tables: dict[Key | str, _Table] = {}     # table key ('all' in table mode)
         self._slot_state = np.zeros(1, dtype=np.int64)
         cfg = self._config()
         # highest retained mode sets the paper's sticking time
@@ -233,10 +268,12 @@ class ExactPropagator(IntegratorBase):
         self._place_impactors(q)
         self._imp_grace = np.zeros(ni, dtype=np.int64)
         self._count_step = np.zeros(ni, dtype=np.int64)
-        self._c_pattern = None
+        # (C, None for a diagonal C, else the columns and counts of its non-zeros per row)
+        self._c_pattern: tuple[FloatArray, tuple[np.ndarray, np.ndarray] | None] | None = None
         self._info = np.zeros(4, dtype=np.int64)
         self.counters = np.zeros(kernels.N_COUNTERS, dtype=np.int64)
-        self._work = None        # the kernel's work arrays, (sizes, tuple); see _work_arrays
+        # the kernel's work arrays, (sizes, tuple); see _work_arrays
+        self._work: tuple[tuple[int, ...], tuple[np.ndarray, ...]] | None = None
         self._cap = int(event_capacity)
         self._python_switches = 0
         self._start_ledger()
@@ -250,17 +287,17 @@ class ExactPropagator(IntegratorBase):
                     pass
 
     # -- configuration ----------------------------------------------------------------------
-    def _key(self):
+    def _key(self) -> Key:
         """Configuration key: the stuck count of each group (table mode) or the stuck flags."""
         if self._table_mode:
             return tuple(int(c) for c in np.bincount(self._imp_group, weights=self._stuck,
                                                      minlength=self._radix.size))
         return tuple(int(s) for s in self._stuck)
 
-    def _slot(self, key):
+    def _slot(self, key: Key) -> int:
         return int(np.dot(key, self._radix)) if self._table_mode else 0
 
-    def _stuck_for(self, key):
+    def _stuck_for(self, key: Key) -> Key:
         """Stuck flags standing for ``key`` (the first impactors of each group)."""
         if not self._table_mode:
             return key
@@ -269,7 +306,7 @@ class ExactPropagator(IntegratorBase):
             stuck[np.flatnonzero(self._imp_group == g)[:count]] = 1
         return tuple(int(s) for s in stuck)
 
-    def _config(self, key=None):
+    def _config(self, key: Key | None = None) -> FlowConfig:
         key = self._key() if key is None else key
         entry = self._flows.get(key)
         if entry is not None and not self._table_mode:   # most recently used last
@@ -288,11 +325,11 @@ class ExactPropagator(IntegratorBase):
             self._flows[key] = entry
         return entry[0]
 
-    def _config_model(self):
+    def _config_model(self) -> LinearModel:
         self._config()
         return self._flows[self._key()][1]
 
-    def _table(self, key=None):
+    def _table(self, key: Key | None = None) -> _Table:
         """The kernel's table holding configuration ``key``, built on first use."""
         key = self._key() if key is None else key
         table_key = 'all' if self._table_mode else key
@@ -308,11 +345,11 @@ class ExactPropagator(IntegratorBase):
         return table
 
     @property
-    def n_config_changes(self):
+    def n_config_changes(self) -> int:
         """int: Changes of configuration so far (stick and release; dimensionless)."""
         return int(self.counters[kernels.CNT_SWITCHES]) + self._python_switches
 
-    def work_counters(self):
+    def work_counters(self) -> dict[str, int]:
         """Work done so far, by kind: a dict of counts (see ``kernels.codes.CNT_*``)."""
         names = ('steps', 'searches', 'candidates', 'taylor_expansions', 'flow_evaluations',
                  'ledger_panels', 'fallback_scans', 'kernel_switches', 'segments',
@@ -321,7 +358,7 @@ class ExactPropagator(IntegratorBase):
         counts['python_switches'] = self._python_switches
         return counts
 
-    def _particular(self, cfg, t):
+    def _particular(self, cfg: FlowConfig, t: float) -> npt.NDArray[np.complex128]:
         yp = np.zeros(cfg.lam.size, dtype=complex)
         for h, om in enumerate(self._omegas):
             e = np.exp(1j * om * t)
@@ -329,18 +366,18 @@ class ExactPropagator(IntegratorBase):
         return yp
 
     # -- state --------------------------------------------------------------------------------
-    def state(self):
+    def state(self) -> tuple[FloatArray, FloatArray]:
         """Return ``(q, qd)``: coordinates and their velocities now."""
         cfg = self._config()
         return cfg.from_state(self._yh + self._particular(cfg, self.t))
 
-    def _housing_rows(self):
+    def _housing_rows(self) -> list[FloatArray]:
         return [imp.rows for imp in self._config_model().impactors]
 
-    def _structure_energy(self, q, qd):
+    def _structure_energy(self, q: FloatArray, qd: FloatArray) -> float:
         return self.configurations.structure_energy(self._stuck_for(self._key()), q, qd)
 
-    def _release_now(self, j):
+    def _release_now(self, j: int) -> None:
         old_key, old_cfg = self._key(), self._config()
         q, qd = self.state()
         R = self._housing_rows()[j]
@@ -352,7 +389,7 @@ class ExactPropagator(IntegratorBase):
         self._count_step[j] = 0
         self._switch(self.t, old_cfg, old_key)
 
-    def take_events(self):
+    def take_events(self) -> np.ndarray:
         """Return the events recorded since the last call (see ``EVENT_DTYPE``) and clear."""
         if not self._events:
             return np.zeros(0, dtype=EVENT_DTYPE)
@@ -361,7 +398,7 @@ class ExactPropagator(IntegratorBase):
         return out
 
     # -- stepping -----------------------------------------------------------------------------
-    def advance(self, n_steps):
+    def advance(self, n_steps: int) -> Samples:
         """Advance ``n_steps`` output steps of ``dt``.
 
         Parameters
@@ -449,7 +486,9 @@ class ExactPropagator(IntegratorBase):
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
 
-    def _ledger_model(self, model):
+    def _ledger_model(self, model: LinearModel
+                      ) -> tuple[tuple[FloatArray, FloatArray, FloatArray] | None,
+                                 tuple[np.ndarray, np.ndarray] | None]:
         """The ``ledger_model`` and ``c_pattern`` arguments of :func:`.kernels.event_loop.advance`.
 
         ``(None, None)`` without the ledger. Otherwise ``(C, K_skew, B)`` of ``model``, and
@@ -469,7 +508,7 @@ class ExactPropagator(IntegratorBase):
             self._c_pattern = (C, None if diagonal else (cols, counts))
         return (C, model.K_skew, model.B), self._c_pattern[1]
 
-    def _work_arrays(self, ni, n):
+    def _work_arrays(self, ni: int, n: int) -> tuple[np.ndarray, ...]:
         """The kernel's work arrays, made again only when a size changes. Kept here, so
         alive while the kernel runs (kernels hold no references to arrays)."""
         sizes = (self._yh.size, self.forcing.n_inputs, ni, self._omegas.size, n,
@@ -478,7 +517,7 @@ class ExactPropagator(IntegratorBase):
             self._work = (sizes, kernels.advance_work(*sizes))
         return self._work[1]
 
-    def _key_of_slot(self, key, slot):
+    def _key_of_slot(self, key: Key | None, slot: int) -> Key:
         """The key of ``slot`` (table mode); the given key otherwise."""
         if not self._table_mode:
             # the stuck flags now include the change: undo it for the old key
@@ -486,13 +525,14 @@ class ExactPropagator(IntegratorBase):
             old = list(self._key())
             old[j] = 1 - old[j]
             return tuple(old)
-        counts = []
+        counts: list[int] = []
         for g in range(self._radix.size):
             size = int(np.count_nonzero(self._imp_group == g))
             counts.append((slot // int(self._radix[g])) % (size + 1))
         return tuple(counts)
 
-    def _switch(self, t_event, old_cfg, old_key):
+    def _switch(self, t_event: float, old_cfg: FlowConfig, old_key: Key) -> None:
+
         """Carry the state across a change of the stuck set (same coordinates by default)."""
         y = self._yh + self._particular(old_cfg, t_event)
         q, qd = old_cfg.from_state(y)

@@ -23,11 +23,19 @@ on about ``n`` coordinates instead of ``2 n``.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..dampers.law import law_mobility
+from .model import LinearModel
+
+FloatArray = npt.NDArray[np.float64]
+ComplexArray = npt.NDArray[np.complex128]
+#: eigenvalues, eigenvectors (columns) and their inverse
+Eigensystem = tuple[ComplexArray, ComplexArray, ComplexArray]
 
 #: Largest condition number of the eigenvector matrix accepted before refusing the flow.
 MAX_EIGENVECTOR_CONDITION = 1e10
@@ -91,23 +99,23 @@ class FlowConfig:
     mass: np.ndarray
     condition: float
 
-    def to_state(self, q, qd):
+    def to_state(self, q: npt.ArrayLike, qd: npt.ArrayLike) -> ComplexArray:
         """Return ``y`` for coordinates ``q`` and velocities ``qd``."""
         return self.Vinv @ np.concatenate([q, qd]).astype(complex)
 
-    def from_state(self, y):
+    def from_state(self, y: ComplexArray) -> tuple[FloatArray, FloatArray]:
         """Return ``(q, qd)`` for the modal state ``y`` (real parts)."""
         x = (self.V @ y).real
         n = x.size // 2
         return x[:n], x[n:]
 
 
-def _is_diagonal(a):
+def _is_diagonal(a: np.ndarray) -> bool:
     off = a - np.diag(np.diag(a))
     return not np.any(off)
 
 
-def _diagonal_eigensystem(K, C):
+def _diagonal_eigensystem(K: FloatArray, C: FloatArray) -> Eigensystem:
     """Closed-form eigenvalues/vectors of uncoupled modes (M = I)."""
     n = K.shape[0]
     omega2 = np.diag(K).copy()
@@ -139,7 +147,7 @@ def _diagonal_eigensystem(K, C):
     return lam, V, Vinv
 
 
-def _conjugate_half(lam, V, Vinv):
+def _conjugate_half(lam: ComplexArray, V: ComplexArray, Vinv: ComplexArray) -> Eigensystem:
     """Keep one coordinate of each conjugate pair (see the module notes).
 
     Returns ``(lam, V, Vinv)`` of the kept coordinates, with the kept eigenvector of a pair
@@ -148,7 +156,9 @@ def _conjugate_half(lam, V, Vinv):
     n2 = lam.size
     scale = np.maximum(np.abs(lam), 1e-300)
     real = np.abs(lam.imag) <= 1e-12 * scale
-    keep, weight, used = [], [], np.zeros(n2, dtype=bool)
+    keep: list[int] = []
+    weight: list[float] = []
+    used = np.zeros(n2, dtype=bool)
     for k in np.argsort(-lam.imag, kind='stable'):
         if used[k]:
             continue
@@ -168,11 +178,11 @@ def _conjugate_half(lam, V, Vinv):
         used[partner] = True
         keep.append(k)
         weight.append(2.0)
-    keep = np.array(keep)
-    return lam[keep], V[:, keep] * np.array(weight), Vinv[keep]
+    kept = np.array(keep)
+    return lam[kept], V[:, kept] * np.array(weight), Vinv[kept]
 
 
-def _general_eigensystem(M, C, K):
+def _general_eigensystem(M: FloatArray, C: FloatArray, K: FloatArray) -> Eigensystem:
     n = K.shape[0]
     Minv_K = np.linalg.solve(M, K)
     Minv_C = np.linalg.solve(M, C)
@@ -183,8 +193,10 @@ def _general_eigensystem(M, C, K):
     return lam.astype(complex), V, Vinv
 
 
-def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
-               carried_masses=None, release_masses=None):
+def build_flow(model: LinearModel, stuck_masses: Sequence[float] | np.ndarray,
+               omegas: npt.ArrayLike, amplitudes: npt.ArrayLike, law: str = 'effective_mass',
+               carried_masses: Sequence[float] | np.ndarray | None = None,
+               release_masses: Sequence[float] | np.ndarray | None = None) -> FlowConfig:
     """Build the exact-flow arrays for one configuration.
 
     Parameters
@@ -237,7 +249,9 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
     mobility = np.zeros((n_i, 2, 2))
     house_mobility = np.zeros((n_i, 2, 2))
     release_map = np.tile(np.eye(2), (n_i, 1, 1))
-    site_terms = {}   # impactors in one housing share its rows: the same products
+    # impactors in one housing share its rows: the same products
+    site_terms: dict[tuple[object, ...], tuple[ComplexArray, ComplexArray, FloatArray]] = {}
+    release_terms: dict[tuple[object, ...], FloatArray] = {}
     for j, imp in enumerate(model.impactors):
         d = imp.dim
         R = imp.rows
@@ -252,9 +266,10 @@ def build_flow(model, stuck_masses, omegas, amplitudes, law='effective_mass',
         if release_masses is not None:
             riding = release_masses[j]
         if riding:
-            if (key, riding) not in site_terms:
-                site_terms[key, riding] = np.linalg.inv(np.eye(d) - riding * RMR)
-            release_map[j, :d, :d] = site_terms[key, riding]
+            if (key, riding) not in release_terms:
+                release_terms[key, riding] = np.linalg.inv(np.eye(d) - riding * RMR)
+            release_map[j, :d, :d] = release_terms[key, riding]
+
     omegas = np.asarray(omegas, dtype=float)
     amplitudes = np.asarray(amplitudes, dtype=complex).reshape(omegas.size, model.n_inputs)
     part_plus = np.zeros((omegas.size, lam.size), dtype=complex)

@@ -7,22 +7,26 @@ Every value is in newtons (or N m on rotational inputs) and every time in second
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
 
 
-def _check_input(index, n_inputs, name):
+def _check_input(index: int, n_inputs: int, name: str) -> int:
     if not 0 <= int(index) < n_inputs:
         raise ValueError(f'{name}: force input index {index} out of range 0..{n_inputs - 1}')
     return int(index)
 
 
-def _finite(value, name):
-    value = float(value)
-    if not np.isfinite(value):
-        raise ValueError(f'{name} must be finite, got {value}')
-    return value
+def _finite(value: float, name: str) -> float:
+    number = float(value)
+    if not np.isfinite(number):
+        raise ValueError(f'{name} must be finite, got {number}')
+    return number
 
 
 @dataclass(frozen=True)
@@ -46,7 +50,7 @@ class Harmonic:
     omega: float
     phase: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         _finite(self.amplitude, 'Harmonic.amplitude')
         if not (np.isfinite(self.omega) and self.omega >= 0.0):
             raise ValueError(f'Harmonic.omega must be finite and >= 0 rad/s, got {self.omega}')
@@ -74,11 +78,11 @@ class Ramp:
     rate: float
     t0: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name in ('value0', 'rate', 't0'):
             _finite(getattr(self, name), f'Ramp.{name}')
 
-    def __call__(self, t):
+    def __call__(self, t: FloatArray) -> FloatArray:
         return np.where(t >= self.t0, self.value0 + self.rate * (t - self.t0), 0.0)
 
 
@@ -97,10 +101,10 @@ class Tabulated:
     """
 
     input_index: int
-    times: tuple
-    values: tuple
+    times: Sequence[float] | FloatArray
+    values: Sequence[float] | FloatArray
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         t = np.asarray(self.times, dtype=float)
         v = np.asarray(self.values, dtype=float)
         if t.ndim != 1 or t.shape != v.shape or t.size < 2:
@@ -110,7 +114,7 @@ class Tabulated:
         if np.any(np.diff(t) <= 0):
             raise ValueError('Tabulated: times must be strictly increasing')
 
-    def __call__(self, t):
+    def __call__(self, t: FloatArray) -> FloatArray:
         return np.interp(t, self.times, self.values)
 
 
@@ -124,13 +128,18 @@ class CallableForce:
         Maps a 1-D array of times (s) to an array of shape ``(len(t), n_inputs)`` (N).
     """
 
-    fn: object
+    fn: Callable[[FloatArray], npt.ArrayLike]
 
-    def __call__(self, t):
+    def __call__(self, t: FloatArray) -> npt.ArrayLike:
         return self.fn(t)
 
 
+#: what :meth:`Forcing.add` takes: a term, or a callable that it wraps in a CallableForce
+ForcingTerm = Harmonic | Ramp | Tabulated | CallableForce | Callable[[FloatArray], npt.ArrayLike]
+
+
 class Forcing:
+
     """Sum of forcing terms on ``n_inputs`` force inputs.
 
     Parameters
@@ -141,14 +150,14 @@ class Forcing:
         :class:`Harmonic`, :class:`Ramp`, :class:`Tabulated` or :class:`CallableForce` objects.
     """
 
-    def __init__(self, n_inputs, terms=()):
+    def __init__(self, n_inputs: int, terms: Iterable[ForcingTerm] = ()) -> None:
         self.n_inputs = int(n_inputs)
-        self.harmonics = []
-        self.sampled = []
+        self.harmonics: list[Harmonic] = []
+        self.sampled: list[Ramp | Tabulated | CallableForce] = []
         for term in terms:
             self.add(term)
 
-    def add(self, term):
+    def add(self, term: ForcingTerm) -> Forcing:
         """Add one forcing term (see the class docstring)."""
         if isinstance(term, Harmonic):
             _check_input(term.input_index, self.n_inputs, 'Harmonic')
@@ -163,11 +172,11 @@ class Forcing:
         return self
 
     @property
-    def has_sampled(self):
+    def has_sampled(self) -> bool:
         """bool: True when some term needs first-order-hold sampling."""
         return bool(self.sampled)
 
-    def harmonic_table(self):
+    def harmonic_table(self) -> tuple[FloatArray, npt.NDArray[np.complex128]]:
         """Group harmonic terms by frequency.
 
         Returns
@@ -183,7 +192,7 @@ class Forcing:
             table[omegas.index(h.omega), h.input_index] += h.amplitude * np.exp(1j * h.phase)
         return np.asarray(omegas, dtype=float), table
 
-    def sample(self, t):
+    def sample(self, t: npt.ArrayLike) -> FloatArray:
         """Return the sampled (non-harmonic) part at times ``t``.
 
         Parameters
@@ -196,25 +205,26 @@ class Forcing:
         ndarray, shape (len(t), n_inputs)
             Forces (N). Raises ValueError if a callable returns a wrong shape or non-finite value.
         """
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        out = np.zeros((t.size, self.n_inputs))
+        times = np.atleast_1d(np.asarray(t, dtype=float))
+        out = np.zeros((times.size, self.n_inputs))
         for term in self.sampled:
             if isinstance(term, CallableForce):
-                value = np.asarray(term(t), dtype=float)
+                value = np.asarray(term(times), dtype=float)
                 if value.shape != out.shape:
                     raise ValueError(f'forcing callable returned shape {value.shape}, '
                                      f'expected {out.shape}')
                 out += value
             else:
-                out[:, term.input_index] += term(t)
+                out[:, term.input_index] += term(times)
         if not np.all(np.isfinite(out)):
             raise ValueError('forcing produced a non-finite value')
         return out
 
-    def evaluate(self, t):
+    def evaluate(self, t: npt.ArrayLike) -> FloatArray:
         """Return the total forcing (harmonic plus sampled) at times ``t`` (N)."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        out = self.sample(t)
+        times = np.atleast_1d(np.asarray(t, dtype=float))
+        out = self.sample(times)
         for h in self.harmonics:
-            out[:, h.input_index] += h.amplitude * np.cos(h.omega * t + h.phase)
+            out[:, h.input_index] += h.amplitude * np.cos(h.omega * times + h.phase)
+
         return out

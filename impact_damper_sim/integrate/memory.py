@@ -58,7 +58,8 @@ class TooLarge(ValueError):
         The model's estimate that shares the limit (bytes).
     """
 
-    def __init__(self, n_steps, n_bytes, limit, context=None, model_bytes=0):
+    def __init__(self, n_steps: int, n_bytes: int, limit: int, context: str | None = None,
+                 model_bytes: int = 0) -> None:
         self.n_steps, self.n_bytes, self.limit = int(n_steps), int(n_bytes), int(limit)
         self.model_bytes = int(model_bytes)
         lead = f'{context}: ' if context else ''
@@ -69,12 +70,12 @@ class TooLarge(ValueError):
             'simulation.duration (--duration)')
 
 
-def gib(n_bytes):
+def gib(n_bytes: float) -> str:
     """``n_bytes`` (bytes) as text in GiB, three significant digits, e.g. ``'4 GiB'``."""
     return f'{n_bytes / 2 ** 30:.3g} GiB'
 
 
-def sample_bytes(n_steps, n_outputs):
+def sample_bytes(n_steps: int, n_outputs: int) -> int:
     """Size of the sample arrays of ``n_steps`` samples of ``n_outputs`` sensors (bytes).
 
     Time plus displacement, velocity and acceleration per sensor, float64, and as much again
@@ -83,7 +84,7 @@ def sample_bytes(n_steps, n_outputs):
     return 2 * 8 * int(n_steps) * (1 + 3 * int(n_outputs))
 
 
-def memory_limit():
+def memory_limit() -> int:
     """The allocation limit: :data:`MAX_SAMPLE_BYTES` or half the physical memory (bytes)."""
     try:
         physical = os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES')
@@ -92,7 +93,8 @@ def memory_limit():
     return min(MAX_SAMPLE_BYTES, physical // 2) if physical > 0 else MAX_SAMPLE_BYTES
 
 
-def configuration_bytes(n_modes, n_impactors, n_sensors=0, n_inputs=0, n_harmonics=1):
+def configuration_bytes(n_modes: int, n_impactors: int, n_sensors: int = 0, n_inputs: int = 0,
+                        n_harmonics: int = 1) -> int:
     """Bytes of one stuck configuration of the exact propagator: its flow and table slot.
 
     Per configuration the flow (:func:`~impact_damper_sim.integrate.flow.build_flow`) and
@@ -122,7 +124,7 @@ def configuration_bytes(n_modes, n_impactors, n_sensors=0, n_inputs=0, n_harmoni
     return per_impactor * ni + modal
 
 
-def cache_limit(per_configuration):
+def cache_limit(per_configuration: int) -> int:
     """How many configurations of ``per_configuration`` bytes are kept when switching
     through Python: :data:`MAX_CACHE_BYTES` worth, between
     :data:`MAX_CACHED_CONFIGURATIONS` and :data:`MAX_TABLE_SLOTS` (int)."""
@@ -130,7 +132,9 @@ def cache_limit(per_configuration):
     return int(max(MAX_CACHED_CONFIGURATIONS, min(MAX_TABLE_SLOTS, fit)))
 
 
-def check_allocation(n_steps, n_outputs, limit=None, model_bytes=0):
+def check_allocation(n_steps: int, n_outputs: int, limit: int | None = None,
+                     model_bytes: int = 0) -> None:
+
     """Refuse a run whose samples would not fit in memory.
 
     Parameters

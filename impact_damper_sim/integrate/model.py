@@ -6,9 +6,11 @@ modal coordinates; a *physical* model has the condensed physical matrices and un
 """
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from ..dampers.impactors import Impactor
 
@@ -42,13 +44,13 @@ class LinearModel:
     K: np.ndarray
     B: np.ndarray
     sensors: np.ndarray
-    sensor_names: tuple = ()
-    impactors: tuple = ()
+    sensor_names: tuple[str, ...] = ()
+    impactors: tuple[Impactor, ...] = ()
     kind: str = 'modal'
-    input_names: tuple = ()
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+    input_names: tuple[str, ...] = ()
+    _cache: dict[object, object] = field(default_factory=dict, repr=False, compare=False)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         n = np.shape(self.K)[0]
         for name in ('M', 'C', 'K'):
             value = np.asarray(getattr(self, name), dtype=float)
@@ -75,26 +77,27 @@ class LinearModel:
             raise ValueError('LinearModel.M must be symmetric')
 
     @property
-    def n(self):
+    def n(self) -> int:
         """int: Number of coordinates."""
         return self.K.shape[0]
 
     @property
-    def n_inputs(self):
+    def n_inputs(self) -> int:
         """int: Number of force inputs."""
         return self.B.shape[1]
 
     @property
-    def K_sym(self):
+    def K_sym(self) -> npt.NDArray[np.float64]:
         """ndarray: Symmetric (conservative) part of ``K``."""
         return 0.5 * (self.K + self.K.T)
 
     @property
-    def K_skew(self):
+    def K_skew(self) -> npt.NDArray[np.float64]:
         """ndarray: Skew (circulatory) part of ``K``."""
         return 0.5 * (self.K - self.K.T)
 
-    def stuck_mass_matrix(self, stuck_masses):
+    def stuck_mass_matrix(self, stuck_masses: Sequence[float] | np.ndarray
+                          ) -> npt.NDArray[np.float64]:
         """Return ``M + sum_j m_j R_j^T R_j`` for impactors moving with their housing.
 
         Parameters
@@ -113,7 +116,8 @@ class LinearModel:
                 M += m * imp.rows.T @ imp.rows
         return M
 
-    def with_impactors(self, impactors):
+    def with_impactors(self, impactors: Iterable[Impactor]) -> LinearModel:
+
         """Return a copy with other impactors (e.g. none, to run the linear path)."""
         return LinearModel(self.M, self.C, self.K, self.B, self.sensors, self.sensor_names,
                            tuple(impactors), self.kind, self.input_names)

@@ -25,7 +25,11 @@ round-off, not O(dt^2).
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -36,6 +40,12 @@ from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples
 from .kernels import newmark_step as kernels
 from .newmark_events import NewmarkEventsMixin
+
+if TYPE_CHECKING:
+    from .forcing import Forcing
+    from .model import LinearModel
+
+FloatArray = npt.NDArray[np.float64]
 
 IMPACT_MODES = ('located', 'step_end')
 SOLVERS = ('auto', 'dense', 'sparse')
@@ -51,7 +61,7 @@ _SPARSE_MIN_N = 400
 MIN_STEPS_PER_PERIOD = 10
 
 
-def _omega_max(M, C, K, sparse):
+def _omega_max(M: FloatArray, C: FloatArray, K: FloatArray, sparse: bool) -> float:
     """Largest ``|lambda|`` of the first-order system (1/s): sets the paper's stick time.
 
     Up to 200 coordinates this is the exact propagator's definition (eigenvalues of the
@@ -76,7 +86,9 @@ def _omega_max(M, C, K, sparse):
 class _Config:
     """Matrices of one stuck configuration: ``M + sum m R^T R`` and its solves."""
 
-    def __init__(self, model, rows, stuck_masses, law, sparse, C, K):
+    def __init__(self, model: LinearModel, rows: FloatArray, stuck_masses: Sequence[float],
+                 law: str, sparse: bool, C: FloatArray | sp.spmatrix,
+                 K: FloatArray | sp.spmatrix) -> None:
         self.sparse = sparse
         self.C = C
         self.K = K
@@ -100,19 +112,20 @@ class _Config:
             self.house_mobility[j, :d, :d] = G
             self.mobility[j, :d, :d] = law_mobility(G, imp.housing_mass, law)
             self.rel_T[j, :d, :d] = np.linalg.inv(np.eye(d) - stuck_masses[j] * G)
-        self._S = {}
+        # inverse (dense) or LU (sparse) of S(h) by step size h
+        self._S: dict[float, Any] = {}
 
-    def solve_M(self, r):
+    def solve_M(self, r: FloatArray) -> FloatArray:
         """``M^{-1} r`` for this configuration."""
         if self.sparse:
             return self._lu_M.solve(np.asarray(r, dtype=float))
         return self.Minv @ r
 
-    def S(self, h):
+    def S(self, h: float) -> Any:
         """``M + h/2 C + h^2/4 K`` (the effective stiffness times ``h^2/4``)."""
         return self.M + (0.5 * h) * self.C + (0.25 * h * h) * self.K
 
-    def Sinv(self, h):
+    def Sinv(self, h: float) -> Any:
         """Cached inverse (dense) or LU (sparse) of ``S(h)`` for the main step size."""
         fac = self._S.get(h)
         if fac is None:
@@ -123,7 +136,7 @@ class _Config:
             self._S[h] = fac
         return fac
 
-    def solve_S(self, h, r, cached):
+    def solve_S(self, h: float, r: FloatArray, cached: bool) -> FloatArray:
         """``S(h)^{-1} r``; ``cached`` for the recurring step size, else a fresh solve."""
         if cached:
             fac = self.Sinv(h)
@@ -175,9 +188,12 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         the modal integrator's ``stick_time`` to apply the same rule to both.
     """
 
-    def __init__(self, model, forcing, dt, *, impacts='located', law='effective_mass',
-                 stick_rule='paper', stick_fraction=0.002, max_events_per_step=64, ledger=True,
-                 q0=None, qd0=None, t0=0.0, substeps=1, solver='auto', stick_time=None):
+    def __init__(self, model: LinearModel, forcing: Forcing, dt: float, *,
+                 impacts: str = 'located', law: str = 'effective_mass', stick_rule: str = 'paper',
+                 stick_fraction: float = 0.002, max_events_per_step: int = 64,
+                 ledger: bool = True, q0: npt.ArrayLike | None = None,
+                 qd0: npt.ArrayLike | None = None, t0: float = 0.0, substeps: int = 1,
+                 solver: str = 'auto', stick_time: float | None = None) -> None:
         super().__init__(model, forcing, dt, law=law, stick_rule=stick_rule,
                          stick_fraction=stick_fraction, max_events_per_step=max_events_per_step,
                          ledger=ledger, t0=t0)
@@ -210,7 +226,7 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         self._rows = np.zeros((ni, 2, n))
         for j, imp in enumerate(model.impactors):
             self._rows[j, :imp.dim] = imp.rows
-        self._configs = {}
+        self._configs: dict[tuple[int, ...], _Config] = {}
         if stick_time is None:
             stick_time = stick_fraction * 2 * np.pi / _omega_max(model.M, model.C, model.K,
                                                                 self._sparse)
@@ -243,7 +259,7 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         self._start_ledger()
 
     # -- configuration and dynamics ----------------------------------------------------------
-    def _config(self):
+    def _config(self) -> _Config:
         key = tuple(int(s) for s in self._stuck)
         cfg = self._configs.get(key)
         if cfg is None:
@@ -253,13 +269,14 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
             self._configs[key] = cfg
         return cfg
 
-    def _force_at(self, t):
+    def _force_at(self, t: float) -> FloatArray:
         return self._B @ self.forcing.evaluate(t)[0]
 
-    def _accel(self, cfg, f):
+    def _accel(self, cfg: _Config, f: FloatArray) -> FloatArray:
         return cfg.solve_M(f - self._C @ self._v - self._K @ self._q)
 
-    def _trial(self, cfg, h, f1, cached):
+    def _trial(self, cfg: _Config, h: float, f1: FloatArray, cached: bool
+               ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """One Newmark step of ``h`` (s) from the current state; returns ``(q1, v1, a1)``."""
         q0, v0, a0 = self._q, self._v, self._a
         if cached and not self._sparse:
@@ -271,7 +288,8 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         a1 = cfg.solve_S(h, f1 - self._C @ vp - self._K @ qp, cached)
         return qp + 0.25 * h * h * a1, vp + 0.5 * h * a1, a1
 
-    def _commit(self, h, f1, q1, v1, a1):
+    def _commit(self, h: float, f1: FloatArray, q1: FloatArray, v1: FloatArray,
+                a1: FloatArray) -> None:
         """Accept a step of ``h`` (s): ledger, state, impactor flight."""
         if self.ledger_on and h > 0.0:
             vb = 0.5 * (self._v + v1)
@@ -286,17 +304,17 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         self._imp_z[free] += self._imp_v[free] * h
 
     # -- public state ------------------------------------------------------------------------
-    def state(self):
+    def state(self) -> tuple[FloatArray, FloatArray]:
         """Return ``(q, qd)``: coordinates and their velocities now (copies)."""
         return self._q.copy(), self._v.copy()
 
-    def _housing_rows(self):
+    def _housing_rows(self) -> list[FloatArray]:
         return [self._rows[j, :d] for j, d in enumerate(self._imp_dim)]
 
-    def _structure_energy(self, q, qd):
+    def _structure_energy(self, q: FloatArray, qd: FloatArray) -> float:
         return 0.5 * float(qd @ (self.model.M @ qd)) + 0.5 * float(q @ (self._K_sym @ q))
 
-    def take_events(self):
+    def take_events(self) -> np.ndarray:
         """Return the events recorded since the last call (see ``EVENT_DTYPE``) and clear."""
         out = np.array(self._events, dtype=EVENT_DTYPE) if self._events \
             else np.zeros(0, dtype=EVENT_DTYPE)
@@ -304,11 +322,11 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         return out
 
     # -- stepping ----------------------------------------------------------------------------
-    def _time(self, t_base, k):
+    def _time(self, t_base: float, k: np.ndarray) -> FloatArray:
         """Time (s) of internal step end ``k``; output instants are exactly ``t_base + i dt``."""
         return t_base + (k // self.substeps) * self.dt + (k % self.substeps) * self.h
 
-    def advance(self, n_steps):
+    def advance(self, n_steps: int) -> Samples:
         """Advance ``n_steps`` output steps of ``dt``.
 
         Parameters
@@ -367,7 +385,8 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         self.t = t_base + n_steps * self.dt if n_steps else t_base
         return Samples(times, disp, vel, acc)
 
-    def _run(self, k, k_stop, k0, u_grid, outs):
+    def _run(self, k: int, k_stop: int, k0: int, u_grid: FloatArray,
+             outs: tuple[FloatArray, ...]) -> tuple[int, int]:
         """Event-free steps from local step ``k``; returns ``(status, step reached)``."""
         cfg = self._config()
         h = self.h
@@ -401,7 +420,7 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
             k += 1
         return kernels.DONE, k
 
-    def _step_end_step(self, t_b, u_b):
+    def _step_end_step(self, t_b: float, u_b: FloatArray) -> None:
         """Paper's baseline: full free-flight step, then the impact law at the step end."""
         cfg = self._config()
         f_b = self._B @ u_b
@@ -422,7 +441,8 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
                 if nrm[:d] @ (self._imp_v[j, :d] - R @ self._v) > 0.0:
                     self._contact(j, t_b, nrm, project=False)
 
-    def _located_step(self, t_a, t_b, u_b):
+    def _located_step(self, t_a: float, t_b: float, u_b: FloatArray) -> None:
+
         """One step with every event inside it located and stepped to."""
         f_b = self._B @ u_b
         t = t_a
@@ -456,6 +476,8 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
             if self._stuck[j]:
                 self._release(j, t)
             else:
+                assert nrm is not None   # an event (j >= 0) has its normal
                 self._contact(j, t, nrm, project=True)
+
         raise RuntimeError(f'chatter not resolved at t = {t:.6g} s: more than {cap} events in '
                            f'one step of {self.h:.3g} s')

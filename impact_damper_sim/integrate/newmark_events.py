@@ -35,10 +35,24 @@ press), above ``4 max_events_per_step + 16`` a ``RuntimeError`` is raised.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import numpy as np
+import numpy.typing as npt
 
 from .events import EVENT_KINDS
 from .kernels import newmark_step as kernels
+
+if TYPE_CHECKING:
+    from .base import IntegratorBase as _Integrator
+    from .newmark import _Config
+else:
+    _Integrator = object
+
+FloatArray = npt.NDArray[np.float64]
+#: a gap or force polynomial's coefficients, ascending
+Coefficients = Sequence[float] | FloatArray
 
 _EV_IMPACT = EVENT_KINDS.index('impact')
 _EV_STICK = EVENT_KINDS.index('stick')
@@ -46,14 +60,14 @@ _EV_RELEASE = EVENT_KINDS.index('release')
 _EPS = np.finfo(float).eps
 
 
-def _poly_eval(p, s):
+def _poly_eval(p: Coefficients, s: float) -> float:
     acc = 0.0
     for c in p[::-1]:
         acc = acc * s + c
     return acc
 
 
-def _first_crossing(p, H, tol):
+def _first_crossing(p: Coefficients, H: float, tol: float) -> float | None:
     """First ``s`` in ``(0, H]`` where the polynomial ``p`` (ascending) reaches 0 from above.
 
     The caller has decided already that ``s = 0`` is not an event (``p`` starts positive, or
@@ -83,7 +97,7 @@ def _first_crossing(p, H, tol):
     return None
 
 
-def _quadratic_roots(a, b, c):
+def _quadratic_roots(a: float, b: float, c: float) -> list[float]:
     """Real roots of ``a s^2 + b s + c`` (a double root once), numerically stable."""
     if a == 0.0:
         return [-c / b] if b != 0.0 else []
@@ -96,7 +110,7 @@ def _quadratic_roots(a, b, c):
     return [qq / a, c / qq]
 
 
-def _refine(p, a, b, fa, fb, tol):
+def _refine(p: Coefficients, a: float, b: float, fa: float, fb: float, tol: float) -> float:
     """Illinois regula falsi on ``fa > 0 >= fb``; returns the ``b`` side."""
     side = 0
     for _ in range(200):
@@ -119,18 +133,39 @@ def _refine(p, a, b, fa, fb, tol):
     return b
 
 
-class NewmarkEventsMixin:
+class NewmarkEventsMixin(_Integrator):
     """Event location and impact physics of
     :class:`~impact_damper_sim.integrate.newmark.NewmarkIntegrator` (a mixin of that
     integrator; no state of its own)."""
 
+    if TYPE_CHECKING:   # the integrator's state and steps it works on (for mypy only)
+        _q: FloatArray
+        _v: FloatArray
+        _a: FloatArray
+        _f: FloatArray
+        _rows: FloatArray
+        _grace: npt.NDArray[np.bool_]
+        _count: npt.NDArray[np.int64]
+
+        def _config(self) -> _Config: ...
+
+        def _force_at(self, t: float) -> FloatArray: ...
+
+        def _accel(self, cfg: _Config, f: FloatArray) -> FloatArray: ...
+
+        def _trial(self, cfg: _Config, h: float, f1: FloatArray, cached: bool
+                   ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
+
     # -- event location ----------------------------------------------------------------------
-    def _find_event(self, t, H, q1, v1, a1):
+    def _find_event(self, t: float, H: float, q1: FloatArray,
+                    v1: FloatArray, a1: FloatArray) -> tuple[float, int, FloatArray | None]:
         """Earliest event in ``[0, H]`` from the current state and the trial step end.
 
         Returns ``(tau, impactor, normal)``; ``impactor = -1`` when there is none.
         """
-        best, best_j, best_n = H, -1, None
+        best, best_j = H, -1
+        best_n: FloatArray | None = None
+        tau: float | None
         tol = 4.0 * _EPS * (abs(t) + H)
         for j in range(self._imp_dim.size):
             d = self._imp_dim[j]
@@ -181,7 +216,9 @@ class NewmarkEventsMixin:
                     best, best_j, best_n = tau, j, nrm
         return best, best_j, best_n
 
-    def _release_time(self, cfg, t, tau, H, f_b, q1, v1, a1, j):
+    def _release_time(self, cfg: _Config, t: float, tau: float, H: float,
+                      f_b: FloatArray, q1: FloatArray, v1: FloatArray, a1: FloatArray, j: int
+                      ) -> tuple[float, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
         """Refine a release time on the re-stepped contact force; returns ``(tau, end)``.
 
         The linear interpolation ``tau`` of the release force ``f`` (:meth:`_release_force`)
@@ -218,7 +255,9 @@ class NewmarkEventsMixin:
         return b, end_b
 
     @staticmethod
-    def _gap_event(g, g2, H, tol):
+    def _gap_event(g: FloatArray, g2: float | FloatArray, H: float, tol: float
+                   ) -> float | None:
+
         """Event time of one gap polynomial ``g`` (ascending) in ``[0, H]``, or None.
 
         ``s = 0`` is an event when the gap starts closed and moving in (``g' < 0``, or
@@ -229,17 +268,19 @@ class NewmarkEventsMixin:
         return _first_crossing(g, H, tol)
 
     # -- events ------------------------------------------------------------------------------
-    def _record(self, t, j, kind, nrm, v_n, J, loss, v_after, vh_jump):
+    def _record(self, t: float, j: int, kind: int, nrm: FloatArray,
+                v_n: float, J: float, loss: float, v_after: float, vh_jump: float) -> None:
         self._events.append((t, j, kind, (nrm[0], nrm[1]), v_n, J, loss, v_after, vh_jump))
 
-    def _count_event(self, j, t):
+    def _count_event(self, j: int, t: float) -> None:
         """Count an event of impactor ``j`` in this output step; bounded as in the kernel."""
         self._count[j] += 1
         if self._count[j] > 4 * self.max_events_per_step + 16:
             raise RuntimeError(f'chatter not resolved at t = {t:.6g} s for impactor '
                                f'{self.model.impactors[j].name!r}')
 
-    def _contact(self, j, t, nrm, project):
+    def _contact(self, j: int, t: float, nrm: FloatArray,
+                 project: bool) -> None:
         """Contact of impactor ``j`` with its wall at ``t``: impact, then maybe the lock.
 
         Mirrors :func:`.kernels.contact.impact_py`; ``nrm`` is the outward wall normal (the
@@ -317,15 +358,16 @@ class NewmarkEventsMixin:
             self._imp_z[j, :d] = R @ self._q + n_ * L
         self._a = self._accel(self._config(), self._f)
 
-    def _release_force(self, j, a):
+    def _release_force(self, j: int, a: FloatArray) -> float:
         """Normal contact force per unit mass of stuck impactor ``j`` for accelerations ``a``."""
         return kernels.release_force(self._rows[j], self._imp_dim[j], self._config().rel_T[j],
                                      self._imp_normal[j], a)
 
-    def _release_now(self, j):
+    def _release_now(self, j: int) -> None:
         self._release(j, self.t)
 
-    def _release(self, j, t):
+    def _release(self, j: int, t: float) -> None:
+
         """The stuck impactor ``j`` leaves its wall at ``t`` with the housing velocity."""
         self._count_event(j, t)
         d = self._imp_dim[j]

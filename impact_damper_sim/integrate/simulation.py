@@ -15,11 +15,20 @@ when), and a request whose samples would not fit in memory raises
 """
 from __future__ import annotations
 
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
+import numpy as np
+import numpy.typing as npt
+
+from .base import IntegratorBase
 from .divergence import check_samples, check_state, from_engine_error
 from .events import EVENT_KINDS, Samples
 from .memory import check_allocation
+
+if TYPE_CHECKING:
+    from .events import EnergyLedger
+    from .forcing import Forcing
+    from .model import LinearModel
 
 #: The integration methods of a run (:func:`make_integrator`), defined here only.
 METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
@@ -31,7 +40,9 @@ METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
 CHECK_EVERY = 8192
 
 
-def make_integrator(method, model, forcing, dt, physical_model=None, **options):
+def make_integrator(method: str, model: LinearModel, forcing: Forcing, dt: float,
+                    physical_model: LinearModel | None = None,
+                    **options: Any) -> IntegratorBase:
     """Build the integrator for ``method``.
 
     Parameters
@@ -85,7 +96,9 @@ class Simulation:
         Integrator options (see :func:`make_integrator`).
     """
 
-    def __init__(self, model, forcing, *, method='exact', dt, physical_model=None, **options):
+    def __init__(self, model: LinearModel, forcing: Forcing, *, method: str = 'exact',
+                 dt: float, physical_model: LinearModel | None = None,
+                 **options: Any) -> None:
         self.model = model
         self.forcing = forcing
         self.method = method
@@ -95,25 +108,25 @@ class Simulation:
         self._velocity_before_advance = self._last_velocity
 
     @property
-    def t(self):
+    def t(self) -> float:
         """float: Current simulated time (s)."""
         return self.integrator.t
 
     @property
-    def sensor_names(self):
+    def sensor_names(self) -> tuple[str, ...]:
         """tuple of str: Names of the sensor outputs."""
         return self.model.sensor_names
 
     @property
-    def impactor_names(self):
+    def impactor_names(self) -> tuple[str, ...]:
         """tuple of str: Names of the impactors."""
         return tuple(imp.name for imp in self.integrator.model.impactors)
 
-    def _sensor_velocity_now(self):
+    def _sensor_velocity_now(self) -> npt.NDArray[np.float64]:
         _, qd = self.integrator.state()
         return self.integrator.model.sensors @ qd
 
-    def advance(self, n_steps):
+    def advance(self, n_steps: int) -> Samples:
         """Advance ``n_steps`` sample periods and return their :class:`Samples`.
 
         Raises
@@ -128,7 +141,7 @@ class Simulation:
         n_steps = int(n_steps)
         check_allocation(n_steps, self.integrator.model.sensors.shape[0])
         self._velocity_before_advance = self._last_velocity
-        chunks = []
+        chunks: list[Samples] = []
         done = 0
         t_start, dt = self.integrator.t, getattr(self.integrator, 'dt', self.dt)
         while True:
@@ -149,7 +162,7 @@ class Simulation:
             self._last_velocity = samples.velocity[-1].copy()
         return samples
 
-    def _checked_advance(self, n):
+    def _checked_advance(self, n: int) -> Samples:
         try:
             with np.errstate(over='ignore', invalid='ignore'):
                 samples = self.integrator.advance(n)
@@ -163,7 +176,7 @@ class Simulation:
         check_state(q, qd, self.integrator.t)
         return samples
 
-    def advance_to(self, t_end):
+    def advance_to(self, t_end: float) -> Samples:
         """Advance to ``t_end`` (s), rounded to whole sample periods.
 
         Returns
@@ -177,7 +190,8 @@ class Simulation:
             raise ValueError(f'cannot advance backwards from t = {self.t} s to {t_end} s')
         return self.advance(n)
 
-    def mean_acceleration(self, samples, v_before=None):
+    def mean_acceleration(self, samples: Samples, v_before: npt.ArrayLike | None = None
+                          ) -> npt.NDArray[np.float64]:
         """Mean acceleration over each sample period (m/s^2), impacts included.
 
         An impact is an instantaneous velocity jump; its acceleration is a Dirac impulse that
@@ -191,11 +205,11 @@ class Simulation:
         v = np.vstack([np.asarray(v_before, dtype=float)[None, :], samples.velocity])
         return np.diff(v, axis=0) / self.dt
 
-    def take_events(self):
+    def take_events(self) -> np.ndarray:
         """Events since the last call: structured array of ``EVENT_DTYPE``."""
         return self.integrator.take_events()
 
-    def impactor_states(self):
+    def impactor_states(self) -> list[dict[str, Any]]:
         """List of dicts: name, stuck flag, relative position (m) and velocity (m/s)."""
         rel, vel, stuck = self.integrator.impactor_states()
         return [{'name': imp.name, 'stuck': bool(s), 'position': rel[j, :imp.dim].copy(),
@@ -203,11 +217,11 @@ class Simulation:
                 for j, (imp, s) in enumerate(zip(self.integrator.model.impactors, stuck))]
 
     @property
-    def impacts_enabled(self):
+    def impacts_enabled(self) -> bool:
         """bool: Whether the impact dampers act (see :meth:`set_impacts_enabled`)."""
         return self.integrator.impacts_enabled
 
-    def set_impacts_enabled(self, enabled):
+    def set_impacts_enabled(self, enabled: bool) -> None:
         """Switch the impact dampers on or off from now on (True = on).
 
         Off releases stuck impactors and lets every impactor fly free without walls; on puts
@@ -215,12 +229,13 @@ class Simulation:
         """
         self.integrator.set_impacts_enabled(enabled)
 
-    def energy(self):
+    def energy(self) -> EnergyLedger:
         """The :class:`~.integrate.events.EnergyLedger` now (J)."""
         return self.integrator.energy()
 
 
-def event_kind_name(code):
+def event_kind_name(code: int) -> str:
+
     """Return the name of an event kind code."""
     return EVENT_KINDS[int(code)]
 
