@@ -19,7 +19,7 @@ from impact_damper_sim.live.realtime import CommandError, LiveSimulation
 from impact_damper_sim.live.schedule import Schedule, ScheduleError
 from impact_damper_sim.live.streams import live_scene
 from impact_damper_sim.recording.batches import rows_of, sample_times_ns
-from impact_damper_sim.recording.node_messages import FAULTS_METADATA
+from impact_damper_sim.recording.log_metadata import FAULTS_METADATA
 from impact_damper_sim.scene.units import G0
 from impact_damper_sim.studies.record import record_log
 

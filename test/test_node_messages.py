@@ -16,6 +16,7 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Imu, JointState  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
+from impact_damper_sim.recording import message_cdr as mc  # noqa: E402
 from impact_damper_sim.recording import node_messages as nm  # noqa: E402
 from impact_damper_sim.recording import node_topics as nt  # noqa: E402
 from impact_damper_sim.recording.bag_metadata import qos_dict  # noqa: E402
@@ -34,7 +35,7 @@ def test_imu_chunks_are_rclpys_messages(variance):
     rng = np.random.default_rng(1)
     t_ns = np.array([0, 12_345_678_901, 2**31 * 1_000_000_000 - 1])
     lin, ang = rng.normal(size=(3, 3)) * 1e3, rng.normal(size=(3, 3))
-    packed = nm.ImuEncoder('sensor_é', variance).pack(t_ns, lin, ang)
+    packed = mc.ImuEncoder('sensor_é', variance).pack(t_ns, lin, ang)
     for ns, la, av, data in zip(t_ns.tolist(), lin, ang, packed):
         msg = Imu()
         msg.header.frame_id = 'sensor_é'
@@ -53,19 +54,19 @@ def test_imu_chunks_are_rclpys_messages(variance):
 def test_joint_states_are_rclpys_messages(names, position, velocity, effort):
     msg = JointState(name=names, position=position, velocity=velocity, effort=effort)
     msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 5
-    _same(nm.joint_state_cdr(7_000_000_005, names, position, velocity, effort), msg)
+    _same(mc.joint_state_cdr(7_000_000_005, names, position, velocity, effort), msg)
 
 
 def test_clock_float64_and_vector3_stamped_are_rclpys_messages():
     clock = Clock()
     clock.clock.sec, clock.clock.nanosec = 3, 999_999_999
-    _same(nm.clock_cdr(3_999_999_999), clock)
-    _same(nm.float64_cdr(-math.pi), Float64(data=-math.pi))
+    _same(mc.clock_cdr(3_999_999_999), clock)
+    _same(mc.float64_cdr(-math.pi), Float64(data=-math.pi))
     v = Vector3Stamped()
     v.header.stamp.nanosec = 10_000_000
     v.header.frame_id = 'f'
     v.vector.x, v.vector.y, v.vector.z = 2400.0, -37.5, 2.5
-    _same(nm.vector3_stamped_cdr(10_000_000, 'f', (2400.0, -37.5, 2.5)), v)
+    _same(mc.vector3_stamped_cdr(10_000_000, 'f', (2400.0, -37.5, 2.5)), v)
 
 
 def test_parameter_events_are_rclpys_messages():
@@ -77,9 +78,9 @@ def test_parameter_events_are_rclpys_messages():
     msg = ParameterEvent(node='/rig/vibration_node', changed_parameters=[
         Parameter(name=n, value=v) for (n, _), v in zip(changed, values)])
     msg.stamp.sec = 1
-    _same(nm.parameter_event_cdr(1_000_000_000, '/rig/vibration_node', changed), msg)
+    _same(mc.parameter_event_cdr(1_000_000_000, '/rig/vibration_node', changed), msg)
     with pytest.raises(TypeError, match='only bool, int, float and str'):
-        nm.parameter_event_cdr(0, '/n', [('x', [1.0])])
+        mc.parameter_event_cdr(0, '/n', [('x', [1.0])])
 
 
 def test_the_topic_table_is_the_nodes_interface():

@@ -106,7 +106,7 @@ class CdrWriter:
     """A little-endian CDR (XCDR1) writer; alignment is counted after the 4-byte header.
 
     The one writer of the package's message bytes: batches here, every other message of the
-    node in :mod:`.node_messages`.
+    node in :mod:`.message_cdr`.
     """
 
     def __init__(self):

@@ -1,25 +1,22 @@
-"""The messages of ``vibration_node`` as CDR bytes, without ROS: one packer for node and log.
+"""The streams of ``vibration_node`` and the CDR bytes a stepped simulation puts on them.
 
 :class:`NodeMessages` turns what :class:`~impact_damper_sim.live.realtime.LiveSimulation`
 steps into serialized messages, each with its sim time (ns) and the stream it belongs to:
-per-sample ``sensor_msgs/Imu`` (one NumPy pass per chunk), full-rate, ground-truth, tachometer,
-keyphasor and impact batches (``sensor_msgs/PointCloud2``, :mod:`.batches`), ``/clock``,
-``rotor/speed``, ``rotor/joint_states`` and ``impactor_state``; and the records of commands
+per-sample ``sensor_msgs/Imu``, full-rate, ground-truth, tachometer, keyphasor and impact
+batches (``sensor_msgs/PointCloud2``, :mod:`.batches`), ``/clock``, ``rotor/speed``,
+``rotor/joint_states`` and ``impactor_state``; and the streams of the records of commands
 (``std_msgs/Float64``) and accepted parameter changes (``rcl_interfaces/ParameterEvent``).
 ``vibration_node`` publishes these bytes and records them; ``study record`` writes them to
 a log at the speed of the engine. The packing therefore exists once, and the two logs carry
-equal bytes for equal simulations.
+equal bytes for equal simulations. The single messages' CDR is :mod:`.message_cdr`, the
+log's metadata records :mod:`.log_metadata`.
 
-The CDR written here is canonical little-endian XCDR1 as rosbags writes it (alignment counted
-after the 4-byte encapsulation header, pads zero, nothing after the last field), so equal
-messages are equal bytes; ``test/test_node_messages.py`` checks every encoder against rclpy's
-message classes and :func:`impact_damper_sim.ros.cdr.serialize`. The live simulation and
-scene are read by attribute (duck-typed): nothing here imports rclpy or :mod:`..live`.
+The live simulation and scene are read by attribute (duck-typed): nothing here imports rclpy
+or :mod:`..live`.
 """
 from __future__ import annotations
 
 import math
-import struct
 from typing import NamedTuple
 
 import numpy as np
@@ -36,207 +33,19 @@ from .batches import (
     TACH_FIELDS,
     TACH_POINT_STEP,
     BatchEncoder,
-    CdrWriter,
 )
-
-_HEADER = b'\x00\x01\x00\x00'   # CDR encapsulation: little-endian
-#: rcl_interfaces/ParameterType values
-PARAMETER_BOOL, PARAMETER_INTEGER, PARAMETER_DOUBLE, PARAMETER_STRING = 1, 2, 3, 4
-
-
-def clock_cdr(ns):
-    """``rosgraph_msgs/Clock`` bytes for sim time ``ns`` (ns, >= 0)."""
-    w = CdrWriter()
-    w.stamp(ns)
-    return w.bytes()
-
-
-def float64_cdr(value):
-    """``std_msgs/Float64`` bytes of ``value`` (in the unit of the topic)."""
-    return _HEADER + struct.pack('<d', float(value))
-
-
-def string_cdr(text):
-    """``std_msgs/String`` bytes of ``text`` (UTF-8)."""
-    w = CdrWriter()
-    w.string(str(text))
-    return w.bytes()
-
-
-def fault_command_text(key, value):
-    """The ``accel/fault_command`` text a schedule's fault key stands for (YAML flow, SI).
-
-    Parameters
-    ----------
-    key : str
-        ``'fault'`` or ``'clear_fault'``.
-    value : dict or str
-        A fault's plain SI mapping (``FaultSpec.as_dict``; keys without a value are left
-        out), or the name of the fault to clear (``'all'``: every one).
-
-    Returns
-    -------
-    str
-        ``{kind: gain, accelerometer: hpotp_casing_bottom, duration: 0.5, axes: xyz, gain:
-        20.0}`` or ``{clear: all}``: what a live command would send, read back to the same
-        fault by ``parse_command``.
-    """
-    import yaml
-    data = ({'clear': str(value)} if key == 'clear_fault' else
-            {k: plain(v) for k, v in value.items() if v is not None})
-    return yaml.safe_dump(data, default_flow_style=True, sort_keys=False, width=1 << 16).strip()
-
-
-def vector3_stamped_cdr(ns, frame_id, vector):
-    """``geometry_msgs/Vector3Stamped`` bytes.
-
-    Parameters
-    ----------
-    ns : int
-        ``header.stamp`` (ns, >= 0).
-    frame_id : str
-        ``header.frame_id``.
-    vector : sequence of 3 float
-        x, y, z (in the unit the topic states).
-    """
-    w = CdrWriter()
-    w.stamp(ns)
-    w.string(frame_id)
-    w.put('3d', *(float(v) for v in vector))
-    return w.bytes()
+from .message_cdr import (
+    ImuEncoder,
+    clock_cdr,
+    joint_state_cdr,
+    parameter_event_cdr,
+    vector3_stamped_cdr,
+)
 
 
 def rotor_frame_id(scene_name):
     """The rotor's frame name (``'<scene>_rotor'``): ``rotor/speed`` and ``rotor/joint_states``."""
     return f'{scene_name}_rotor'
-
-
-def joint_state_cdr(ns, names, position=(), velocity=(), effort=(), frame_id=''):
-    """``sensor_msgs/JointState`` bytes.
-
-    Parameters
-    ----------
-    ns : int
-        ``header.stamp`` (ns, >= 0).
-    names : sequence of str
-        Joint names.
-    position, velocity, effort : sequence of float
-        Per joint (m or rad, m/s or rad/s, N or N m); empty when not given.
-    frame_id : str
-        ``header.frame_id``.
-    """
-    w = CdrWriter()
-    w.stamp(ns)
-    w.string(frame_id)
-    w.strings(list(names))
-    w.doubles(position)
-    w.doubles(velocity)
-    w.doubles(effort)
-    return w.bytes()
-
-
-def parameter_value_type(value):
-    """The ``rcl_interfaces/ParameterType`` of a bool, int, float or str value."""
-    if isinstance(value, bool):
-        return PARAMETER_BOOL
-    if isinstance(value, (int, np.integer)):
-        return PARAMETER_INTEGER
-    if isinstance(value, (float, np.floating)):
-        return PARAMETER_DOUBLE
-    if isinstance(value, str):
-        return PARAMETER_STRING
-    raise TypeError(f'parameter value {value!r}: only bool, int, float and str are recorded')
-
-
-def parameter_event_cdr(ns, node, changed):
-    """``rcl_interfaces/ParameterEvent`` bytes: parameters of ``node`` changed at ``ns``.
-
-    Parameters
-    ----------
-    ns : int
-        ``stamp`` (ns, >= 0).
-    node : str
-        Fully qualified node name (``/vibration_node``).
-    changed : sequence of (str, bool or int or float or str)
-        ``changed_parameters``: name and new value, in order.
-    """
-    w = CdrWriter()
-    w.stamp(ns)
-    w.string(node)
-    w.put('I', 0)                       # new_parameters
-    w.put('I', len(changed))            # changed_parameters
-    for name, value in changed:
-        kind = parameter_value_type(value)
-        w.string(name)
-        w.put('B', kind)
-        w.put('?', kind == PARAMETER_BOOL and bool(value))
-        w.put('q', int(value) if kind == PARAMETER_INTEGER else 0)
-        w.put('d', float(value) if kind == PARAMETER_DOUBLE else 0.0)
-        w.string(value if kind == PARAMETER_STRING else '')
-        for _ in range(5):              # the five array values: empty
-            w.put('I', 0)
-    w.put('I', 0)                       # deleted_parameters
-    return w.bytes()
-
-
-class ImuEncoder:
-    """Writes chunks of ``sensor_msgs/Imu`` that differ only in stamp and readings.
-
-    Every other field is fixed: the frame, orientation unknown (``orientation_covariance[0]
-    = -1``, REP-145; the quaternion rclpy's default, w = 1), ``angular_velocity_covariance``
-    zero (unknown) and ``linear_acceleration_covariance`` diagonal with the noise variance.
-
-    Parameters
-    ----------
-    frame_id : str
-        ``header.frame_id``.
-    noise_variance : float
-        Diagonal of ``linear_acceleration_covariance`` ((m/s^2)^2; 0 = unknown).
-    """
-
-    def __init__(self, frame_id, noise_variance=0.0):
-        var = float(noise_variance)
-        w = CdrWriter()
-        w.stamp(0)
-        w.string(frame_id)
-        w.put('4d', 0.0, 0.0, 0.0, 1.0)                 # orientation (not measured)
-        w.put('9d', -1.0, *[0.0] * 8)                   # orientation_covariance
-        angular_at = w.size
-        w.put('3d', 0.0, 0.0, 0.0)                      # angular_velocity
-        w.put('9d', *[0.0] * 9)                         # angular_velocity_covariance
-        linear_at = w.size
-        w.put('3d', 0.0, 0.0, 0.0)                      # linear_acceleration
-        w.put('9d', var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var)
-        raw = w.bytes()
-        head = len(_HEADER)
-        self.size = len(raw)
-        self.dtype = np.dtype({'names': ['sec', 'nsec', 'lin', 'ang'],
-                               'formats': ['<i4', '<u4', ('<f8', 3), ('<f8', 3)],
-                               'offsets': [head, head + 4, head + linear_at, head + angular_at],
-                               'itemsize': self.size})
-        self._template = np.frombuffer(raw, np.uint8).copy()
-
-    def pack(self, t_ns, linear_acceleration, angular_velocity):
-        """Serialized messages (list of bytes), one per row.
-
-        Parameters
-        ----------
-        t_ns : ndarray of int, shape (k,)
-            Stamps (ns, >= 0).
-        linear_acceleration : ndarray, shape (k, 3)
-            Readings (m/s^2).
-        angular_velocity : ndarray, shape (k, 3)
-            Readings (rad/s).
-        """
-        k = len(t_ns)
-        buf = np.empty(k, self.dtype)
-        buf.view(np.uint8).reshape(k, self.size)[:] = self._template
-        buf['sec'], buf['nsec'] = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
-        buf['lin'] = linear_acceleration
-        buf['ang'] = angular_velocity
-        raw = buf.tobytes()
-        n = self.size
-        return [raw[i:i + n] for i in range(0, k * n, n)]
 
 
 class Stream(NamedTuple):
@@ -544,142 +353,4 @@ def published_samples(batch):
     return int(np.count_nonzero(valid.any(axis=1)))
 
 
-def run_labels(live, scene_model):
-    """What a detector is scored against, as plain data: the run's labels at sim time now.
-
-    Parameters
-    ----------
-    live : LiveSimulation
-        The simulation (read: ``t``, ``noise_seed``, ``noise_std``, ``dampers_enabled``,
-        ``unbalance``, ``profile``, ``accelerometers``, ``channels``).
-    scene_model : SceneModel
-        Its scene (``scene['structure']``: the cross-couplings).
-
-    Returns
-    -------
-    dict
-        ``sim_time_s`` (when these values hold: the log's start; a later change is in the
-        log as the command or parameter change it was), ``seed`` (the noise seed, which
-        seeds every random stage of the channels), ``noise_std`` (m/s^2),
-        ``dampers_enabled``, ``unbalance_multiplier`` (X, None without unbalance),
-        ``rotor_speed_rad_s`` (None without a rotor), ``kcc_n_per_m`` (the scene's
-        cross-coupled stiffness, summed over its cross-couplings; 0 without) with
-        ``cross_couplings`` (each: node, kcc N/m, dofs), ``accelerometers``: per
-        accelerometer its node, frame and ``channel`` (the preset and every stage's values,
-        :meth:`~impact_damper_sim.live.channel.SensorChannel.labels`), and ``faults``: the
-        sensor faults added so far (``FaultInjector.labels``: kind, values, seed, window);
-        those added later, and what every fault did, are in :func:`fault_metadata`, written
-        when the log closes. Every value SI.
-    """
-    structure = scene_model.scene.get('structure') or {}
-    couplings = [{'node': c['node'], 'kcc': c['kcc'], 'dofs': list(c['dofs'])}
-                 for c in structure.get('cross_couplings') or ()]
-    return plain({
-        'sim_time_s': float(live.t),
-        'seed': int(live.noise_seed),
-        'noise_std': float(live.noise_std),
-        'dampers_enabled': bool(live.dampers_enabled),
-        'unbalance_multiplier': (None if live.unbalance is None
-                                 else float(live.unbalance.multiplier)),
-        'rotor_speed_rad_s': (None if live.profile is None
-                              else float(live.profile.speed(np.asarray(live.t)))),
-        'kcc_n_per_m': float(sum(c['kcc'] for c in couplings)),
-        'cross_couplings': couplings,
-        'accelerometers': {acc.name: {'node': acc.node, 'frame_id': acc.frame_id,
-                                      'channel': channel.labels()}
-                           for acc, channel in zip(live.accelerometers, live.channels)},
-        'faults': live.faults.labels(),
-    })
-
-
-#: name of the metadata record with the run's sensor faults, written when a log closes
-FAULTS_METADATA = 'impact_damper_sim_faults'
-
-
-def fault_metadata(live):
-    """The :data:`FAULTS_METADATA` record: every sensor fault of the run and what it did.
-
-    Written when the log closes (``study record`` at its end, the node when recording
-    stops): faults come on command after the log opened, so the opening ``labels`` cannot
-    hold them. The node's ``/diagnostics`` never mention faults (a real sensor does not
-    report its own); this record does.
-
-    Parameters
-    ----------
-    live : LiveSimulation
-        The simulation (read: ``t``, ``faults``).
-
-    Returns
-    -------
-    dict of str to str
-        ``sim_time_s`` (how far the run went) and ``faults``: YAML of
-        ``FaultInjector.labels()``, one entry per fault in the order added: ``name``,
-        ``kind``, ``accelerometer``, ``axes``, ``stage``, ``seed``, ``parameters`` (SI),
-        ``requested`` onset and duration, the actual window ``onset_s`` < t <= ``end_s``
-        (None: until the end of the run), ``cleared_at_s``, ``samples`` in the window,
-        and ``events`` (spike times, open periods).
-    """
-    import yaml
-    return {'sim_time_s': repr(float(live.t)),
-            'faults': yaml.safe_dump(plain(live.faults.labels()), sort_keys=False)}
-
-
-def run_metadata(scene_model, overrides, parameters, node_name, live=None):
-    """The ``impact_damper_sim`` metadata record that opens the node's logs (str to str).
-
-    Parameters
-    ----------
-    scene_model : SceneModel
-        The scene run (``name``, ``source``, ``scene``: its resolved SI tree).
-    overrides : sequence of str
-        The ``key=value`` scene overrides.
-    parameters : dict
-        The node's parameters (or ``study record``'s equivalents), as YAML-safe values.
-    node_name : str
-        Fully qualified node name.
-    live : LiveSimulation, optional
-        The simulation about to be logged: its :func:`run_labels` are the ``labels`` entry.
-
-    Returns
-    -------
-    dict of str to str
-        Software version, scene, overrides, the resolved scene in SI, the parameters, the
-        node name, the time base and (with ``live``) ``labels`` (YAML); nothing that changes
-        from run to run.
-    """
-    import yaml
-
-    import impact_damper_sim
-    labels = {} if live is None else {
-        'labels': yaml.safe_dump(run_labels(live, scene_model), sort_keys=False)}
-    return {
-        'software_version': impact_damper_sim.__version__,
-        'scene': scene_model.name, 'scene_source': str(scene_model.source),
-        'overrides': yaml.safe_dump(list(overrides or ()), default_flow_style=True).strip(),
-        'resolved_scene_si': yaml.safe_dump(plain(scene_model.scene), sort_keys=False),
-        'node_parameters': yaml.safe_dump(plain(dict(parameters)), sort_keys=True),
-        'node_name': node_name,
-        'time_base': 'sim time (log_time = publish_time = sim time of the publish call)',
-        **labels,
-    }
-
-
-def plain(value):
-    """A value as plain YAML-safe data (tuples to lists, NumPy to Python)."""
-    if isinstance(value, dict):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-__all__ = ['FAULTS_METADATA', 'ImuEncoder', 'NodeMessages', 'PARAMETER_BOOL',
-           'PARAMETER_DOUBLE', 'PARAMETER_INTEGER', 'PARAMETER_STRING', 'Stream', 'clock_cdr',
-           'fault_command_text', 'fault_metadata', 'float64_cdr', 'joint_state_cdr',
-           'parameter_event_cdr', 'parameter_value_type', 'plain', 'published_samples',
-           'rotor_frame_id', 'run_labels', 'run_metadata', 'string_cdr',
-           'vector3_stamped_cdr']
+__all__ = ['NodeMessages', 'Stream', 'published_samples', 'rotor_frame_id']

@@ -119,7 +119,7 @@ class Recording:
         AsyncRecorder or None
             The recorder that was stopped.
         """
-        from ..recording.node_messages import FAULTS_METADATA, fault_metadata
+        from ..recording.log_metadata import FAULTS_METADATA, fault_metadata
         from ..studies.record import write_failure
         with self._lock:
             rec, self.recorder = self.recorder, None

@@ -32,7 +32,8 @@ from ..live.pacing import Outbox, Pacer
 from ..live.realtime import CommandError, LiveSimulation
 from ..live.schedule import Schedule
 from ..live.streams import live_scene
-from ..recording.node_messages import NodeMessages, fault_command_text, float64_cdr, string_cdr
+from ..recording.message_cdr import fault_command_text, float64_cdr, string_cdr
+from ..recording.node_messages import NodeMessages
 from ..recording.node_topics import STRING
 from ..scene.schema import SceneError
 from . import interface as itf
@@ -205,7 +206,7 @@ class VibrationNode(Node):
                    for sub in self._command_subs])
 
     def _run_metadata(self):
-        from ..recording.node_messages import run_metadata
+        from ..recording.log_metadata import run_metadata
         return run_metadata(self.scene, self._params['overrides'], self._params,
                             self.get_fully_qualified_name(), live=self.live)
 

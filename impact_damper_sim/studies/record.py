@@ -366,15 +366,9 @@ def record_log(scene, out, duration, *, schedule=None, overrides=(), seed=0, noi
     from ..live.schedule import Schedule
     from ..live.streams import live_scene
     from ..recording import Rosbag2McapWriter
-    from ..recording.node_messages import (
-        FAULTS_METADATA,
-        NodeMessages,
-        fault_command_text,
-        fault_metadata,
-        float64_cdr,
-        run_metadata,
-        string_cdr,
-    )
+    from ..recording.log_metadata import FAULTS_METADATA, fault_metadata, run_metadata
+    from ..recording.message_cdr import fault_command_text, float64_cdr, string_cdr
+    from ..recording.node_messages import NodeMessages
     from ..recording.node_topics import FAULT_COMMAND, FLOAT64, RECORD_CHUNK_SIZE
     from ..scene.schema import SceneError
     duration = float(duration)
@@ -531,7 +525,7 @@ def _start_faults(live, faults):
     """
     from ..live.fault_spec import FaultError, FaultSpec, parse_command, parse_fault
     from ..live.realtime import CommandError
-    from ..recording.node_messages import fault_command_text
+    from ..recording.message_cdr import fault_command_text
     names = [acc.name for acc in live.accelerometers]
     texts = []
     for i, raw in enumerate(faults or ()):
