@@ -156,6 +156,7 @@ def test_a_run_a_disk_error_failed_is_recorded_again_without_retry_failed(tmp_pa
     next run of the command records that run again; a run that failed on its own stays
     failed (unless --retry-failed)."""
     import impact_damper_sim.studies.record as record
+    from impact_damper_sim.studies.log_errors import LogWriteError
     spec = _write(tmp_path, SPEC)
     out = tmp_path / 'data'
     real = record.record_log
@@ -166,8 +167,8 @@ def test_a_run_a_disk_error_failed_is_recorded_again_without_retry_failed(tmp_pa
         if len(calls) == 3:
             with open(out_path, 'wb') as f:
                 f.write(b'partial')
-            raise record.LogWriteError(f'{out_path}: write failed: No space left on device',
-                                       out_path, 'write failed: No space left on device')
+            raise LogWriteError(f'{out_path}: write failed: No space left on device',
+                                out_path, 'write failed: No space left on device')
         return real(scene, out_path, *args, **kwargs)
 
     monkeypatch.setattr(record, 'record_log', full_disk)

@@ -14,7 +14,7 @@ JSON); 2 with one message per problem on stderr for a bad scene, override, durat
 schedule or tick period, an existing ``--out`` without ``--overwrite``, or an ``--out`` that
 cannot be created (missing or read-only directory; nothing written); 3 when the simulation
 diverged (the log holds everything up to it, and the summary says so); 4
-(:data:`..studies.record.EXIT_WRITE_FAILED`) when the log was not written to its end (disk
+(:data:`..studies.log_errors.EXIT_WRITE_FAILED`) when the log was not written to its end (disk
 full, I/O error, file or directory removed): one line on stderr naming the file, the error
 and what is on disk, no summary (``--json``: the run so far, ``finished`` false).
 
@@ -112,13 +112,9 @@ def run_record(args):
     """
     from ..scene.schema import SceneError
     from ..scene.units import UnitError, parse_quantity
-    from ..studies.record import (
-        EXIT_WRITE_FAILED,
-        LogOpenError,
-        LogWriteError,
-        parse_tick_period,
-        record_log,
-    )
+    from ..studies.log_errors import EXIT_WRITE_FAILED, LogOpenError, LogWriteError
+    from ..studies.record import record_log
+    from ..studies.tick_period import parse_tick_period
     try:
         duration = parse_quantity(args.duration, 'time', key='--duration')
         noise_std = parse_quantity(args.noise_std, 'acceleration', key='--noise-std')
@@ -223,7 +219,7 @@ def run_dataset(args):
     from ..scene.schema import SceneError
     from ..studies.dataset import run_dataset as run
     from ..studies.dataset_pool import Interrupted
-    from ..studies.record import EXIT_WRITE_FAILED, LogOpenError
+    from ..studies.log_errors import EXIT_WRITE_FAILED, LogOpenError
     if args.gather is not None:
         return run_gather(args)
     if args.spec is None:
@@ -281,7 +277,7 @@ def run_gather(args):
         raise SceneError(f"dataset --gather: {', '.join(given)} cannot be given with --gather "
                          '(it records nothing; run `study dataset SPEC.yaml --out OUT` after '
                          'it to record what is missing)')
-    from ..studies.record import EXIT_WRITE_FAILED, LogWriteError
+    from ..studies.log_errors import EXIT_WRITE_FAILED, LogWriteError
     try:
         result = gather_datasets(args.gather, args.out)
     except LogWriteError as exc:   # a disk error in --out: stopped, what is kept

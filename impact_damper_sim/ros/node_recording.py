@@ -120,7 +120,7 @@ class Recording:
             The recorder that was stopped.
         """
         from ..recording.log_metadata import FAULTS_METADATA, fault_metadata
-        from ..studies.record import write_failure
+        from ..studies.log_errors import write_failure
         with self._lock:
             rec, self.recorder = self.recorder, None
             if rec is not None:   # the sensor faults came after the log opened: at close
@@ -178,7 +178,7 @@ class Recording:
         """The recorder's first disk error (called once per recording, from its writer
         thread, or from the caller's while the file is opened): logged at ERROR now, reported
         in /diagnostics; the simulation goes on."""
-        from ..studies.record import error_reason
+        from ..studies.log_errors import error_reason
         self.record_error = str(exc)
         path = path if path is not None else getattr(rec, 'path', '?')
         if not os.path.exists(path):

@@ -143,9 +143,10 @@ def load_spec(path):
 
     import impact_damper_sim
 
+    from ..recording.node_topics import TICK_PERIOD
     from ..scene.loading import load_yaml
     from ..scene.units import UnitError, parse_quantity
-    from .record import TICK_PERIOD, parse_tick_period
+    from .tick_period import parse_tick_period
     path = os.fspath(path)
     raw = load_yaml(pathlib.Path(path), source=path)
     base = os.path.dirname(os.path.abspath(path))
@@ -322,7 +323,8 @@ def record_run(run, out_dir):
         :func:`run_dataset`, which stops the data set); the unfinished log is removed (the
         run is recorded again by the next ``study dataset``).
     """
-    from .record import LogWriteError, error_reason, record_log
+    from .log_errors import LogWriteError, error_reason
+    from .record import record_log
     row = {'id': run['id'], 'status': 'failed', 'error': None}
     final = os.path.join(out_dir, 'runs', run['id'] + '.mcap')
     part = final + '.part'
@@ -559,7 +561,7 @@ def run_dataset(spec_path, out_dir, *, executor='process', workers=None, dask_ad
         manifest holds.
     """
     from .dataset_pool import catch_signals, run_all
-    from .record import check_definitions, open_error
+    from .log_errors import check_definitions, open_error
     plan = load_spec(spec_path)
     manifest = os.path.join(out_dir, 'manifest.json')
     check_definitions(os.path.join(out_dir, 'runs'))
@@ -616,7 +618,7 @@ class _DatasetState:
             self.stopped = row
 
     def save(self):
-        from .record import error_reason
+        from .log_errors import error_reason
         try:
             write_manifest(self.out_dir, self.plan, self.rows, self.spec_path)
             self.saved = True

@@ -77,9 +77,9 @@ class _TargetError(Exception):
 def _copy_verified(source, target, sha256, block=1 << 20):
     """Copy ``source`` to ``target`` through ``target.part``, hashing what is read; rename
     only when the digest is ``sha256``. Returns None, or the reason nothing was copied (the
-    source's fault); a write error on the target raises :class:`.record.LogWriteError`
+    source's fault); a write error on the target raises :class:`.log_errors.LogWriteError`
     (the ``.part`` removed)."""
-    from .record import LogWriteError, error_reason
+    from .log_errors import LogWriteError, error_reason
     digest = hashlib.sha256()
     part = target + '.part'
 
@@ -185,7 +185,7 @@ def gather_datasets(parts, out_dir):
     try:
         write_manifest(out_dir, plan, rows, spec, gathered_from=gathered_from)
     except OSError as exc:
-        from .record import LogWriteError, error_reason
+        from .log_errors import LogWriteError, error_reason
         path = os.path.join(out_dir, 'manifest.json')
         raise LogWriteError(f'{path}: write failed: {error_reason(exc)}', path,
                             error_reason(exc)) from None
