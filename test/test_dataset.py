@@ -7,7 +7,8 @@ import os
 
 import pytest
 
-from impact_damper_sim.studies.dataset import DatasetError, load_spec, run_dataset
+from impact_damper_sim.studies.dataset import run_dataset
+from impact_damper_sim.studies.dataset_spec import DatasetError, load_spec
 
 SPEC = """\
 scene: sdof

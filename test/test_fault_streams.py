@@ -380,7 +380,8 @@ def test_a_fault_command_on_the_topic_is_applied_recorded_and_not_diagnosed(ros_
 def test_the_dataset_spec_takes_faults_and_the_manifest_lists_them(tmp_path):
     import csv
 
-    from impact_damper_sim.studies.dataset import DatasetError, load_spec, run_dataset
+    from impact_damper_sim.studies.dataset import run_dataset
+    from impact_damper_sim.studies.dataset_spec import DatasetError, load_spec
     text = 'scene: sdof\nduration: 100 ms\ngrid:\n  impactors.0.cor: [0.6]\n'
     faults = ('faults:\n'
               '  - {kind: dropout, accelerometer: sdof_primary, onset: 20 ms, '

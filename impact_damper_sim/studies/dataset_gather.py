@@ -4,8 +4,8 @@ A data set split over machines without a shared file system is recorded part by 
 grid slice or one sample seed per machine, each with ``study dataset SPEC --out PART``). Run
 ids are digests of their inputs, so the parts' logs never collide; :func:`gather_datasets`
 copies every finished log into one directory, checking it against its part's sha256 on the
-way, and writes one manifest with :mod:`.dataset`'s own writer, which a full-spec run into the
-same directory then takes as finished. Separate from :mod:`.dataset` because it records
+way, and writes one manifest with :mod:`.dataset_manifest`'s writer, which a full-spec run
+into the same directory then takes as finished. Separate from :mod:`.dataset` because it records
 nothing: it only reads manifests and copies files.
 """
 from __future__ import annotations
@@ -16,14 +16,14 @@ import json
 import os
 import re
 
-from .dataset import (
+from .dataset_manifest import (
     RESULT_COLUMNS,
     RUN_COLUMNS,
-    DatasetError,
-    _file_sha256,
-    _manifest_rows,
+    file_sha256,
+    manifest_rows,
     write_manifest,
 )
+from .dataset_spec import DatasetError
 
 #: the manifest fields of a run that are not a grid or sample key
 _RUN_FIELDS = frozenset((*(column for column, _ in RUN_COLUMNS), *RESULT_COLUMNS))
@@ -63,7 +63,7 @@ def _read_part(part):
 
 
 def _plan_entry(row):
-    """A plan entry (:func:`.dataset.load_spec`'s form) rebuilt from a manifest row."""
+    """A plan entry (:func:`.dataset_spec.load_spec`'s form) rebuilt from a manifest row."""
     entry = {key: row.get(column) for column, key in RUN_COLUMNS}
     entry['overrides'] = entry['overrides'] or []
     entry['keys'] = {k: v for k, v in row.items() if k not in _RUN_FIELDS}
@@ -157,7 +157,7 @@ def gather_datasets(parts, out_dir):
                     result['conflicts'].append({'id': run_id, 'kept': first, 'other': part})
                 continue
             target = os.path.join(out_dir, 'runs', run_id + '.mcap')
-            if os.path.isfile(target) and _file_sha256(target) == row['sha256']:
+            if os.path.isfile(target) and file_sha256(target) == row['sha256']:
                 result['already_there'] += 1
             else:
                 reason = _copy_verified(os.path.join(part, 'runs', run_id + '.mcap'), target,
@@ -189,7 +189,7 @@ def gather_datasets(parts, out_dir):
         path = os.path.join(out_dir, 'manifest.json')
         raise LogWriteError(f'{path}: write failed: {error_reason(exc)}', path,
                             error_reason(exc)) from None
-    entries = _manifest_rows(plan, rows)
+    entries = manifest_rows(plan, rows)
     result.update(gathered_from=gathered_from, runs=entries,
                   ok=sum(r['status'] == 'ok' for r in entries),
                   failed=sum(r['status'] != 'ok' for r in entries),
