@@ -35,7 +35,7 @@ Conventions (the stage's own docstrings say more):
   zero latency, fitted over the published band ``0 .. min(lowpass, 0.45 fs)``: gain within
   0.5 %, phase within 0.5 deg, the lift within 10 % of itself (where it is at least 1e-4);
   a resonance that no such cascade matches is refused (why and how in
-  :func:`.channel_design.design_resonance`). :attr:`SensorChannel.delay_steps` is 0.
+  :func:`.resonance_design.design_resonance`). :attr:`SensorChannel.delay_steps` is 0.
 * **noise density** (one-sided, ``(m/s^2)/sqrt(Hz)``, as datasheets give it): white noise of
   ``sigma = density sqrt(fs / 2)`` per step, so a Welch (one-sided) PSD of the noise is
   ``density^2``. PX4 and Kalibr write ``sigma = n / sqrt(dt) = n sqrt(fs)`` with ``n`` the
@@ -67,8 +67,9 @@ from typing import Any, cast
 import numpy as np
 import numpy.typing as npt
 
-from .channel_design import design_resonance, highpass_sos, mounting_matrix
+from .channel_design import highpass_sos, mounting_matrix
 from .filters import butter_lowpass_sos
+from .resonance_design import design_resonance
 
 #: The compiled ``sosfilt(sos, x, zi, y)`` kernel: filters ``x`` into ``y``, state ``zi``
 _SosFilt = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], object]
