@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from impact_damper_sim.live.channel import SPEC_KEYS, SensorChannel
+from impact_damper_sim.live.channel import SensorChannel
 from impact_damper_sim.live.channel_design import rotation_matrix, transverse_matrix
+from impact_damper_sim.live.channel_keys import SPEC_KEYS
 from impact_damper_sim.live.filters import StreamingDecimator, StreamingLowpass
 from impact_damper_sim.live.resonance_design import analog_resonance, design_resonance
 from impact_damper_sim.scene.channel_spec import preset_channel

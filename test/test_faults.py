@@ -11,7 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from impact_damper_sim.live.channel import SPEC_KEYS, SensorChannel
+from impact_damper_sim.live.channel import SensorChannel
+from impact_damper_sim.live.channel_keys import SPEC_KEYS
 from impact_damper_sim.live.fault_spec import (
     FAULT,
     KINDS,
