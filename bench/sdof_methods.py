@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from impact_damper_sim.dampers.analytic import orbit_state, symmetric_two_impact_orbit
+from impact_damper_sim.dampers.analytic import symmetric_two_impact_orbit
+from impact_damper_sim.dampers.analytic_flow import orbit_state
 from impact_damper_sim.dampers.impactors import Impactor
 from impact_damper_sim.integrate.exact import ExactPropagator
 from impact_damper_sim.integrate.forcing import Forcing, Harmonic

@@ -9,9 +9,6 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from impact_damper_sim.dampers.analytic import (
-    NoSymmetricOrbit,
-    linear_steady_amplitude,
-    orbit_state,
     phase_equation_roots,
     symmetric_two_impact_orbit,
     symmetric_two_impact_orbits,
@@ -20,6 +17,11 @@ from impact_damper_sim.dampers.analytic_checks import (
     orbit_residuals,
     symmetric_half_map,
     symmetric_half_map_jacobian,
+)
+from impact_damper_sim.dampers.analytic_flow import (
+    NoSymmetricOrbit,
+    linear_steady_amplitude,
+    orbit_state,
 )
 
 # Non-unit SI values so that unit or scaling slips show up.

@@ -4,7 +4,8 @@ import pytest
 import scipy.linalg as sla
 
 from exact_cases import harmonic, planar_model, sdof_model, three_mode_model
-from impact_damper_sim.dampers.analytic import orbit_state, symmetric_two_impact_orbit
+from impact_damper_sim.dampers.analytic import symmetric_two_impact_orbit
+from impact_damper_sim.dampers.analytic_flow import orbit_state
 from impact_damper_sim.dampers.impactors import Impactor
 from impact_damper_sim.integrate.events import EVENT_KINDS
 from impact_damper_sim.integrate.exact import ExactPropagator

@@ -22,7 +22,7 @@ the pieces of that argument down:
 import numpy as np
 import pytest
 
-from impact_damper_sim.dampers.analytic import orbit_state
+from impact_damper_sim.dampers.analytic_flow import orbit_state
 from impact_damper_sim.integrate.exact import ExactPropagator
 from impact_damper_sim.studies.attractor import (
     FORCE,

@@ -6,7 +6,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from impact_damper_sim.dampers.analytic import linear_steady_amplitude, symmetric_two_impact_orbit
+from impact_damper_sim.dampers.analytic import symmetric_two_impact_orbit
+from impact_damper_sim.dampers.analytic_flow import linear_steady_amplitude
 from impact_damper_sim.scene.build import load
 from impact_damper_sim.scene.catalog import available_scenes, resolve_scene, scene_dirs
 from impact_damper_sim.scene.keytable import describe

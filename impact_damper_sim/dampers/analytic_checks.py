@@ -12,15 +12,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .analytic import (
-    _N_GRID,
+from .analytic import _N_GRID, _root
+from .analytic_flow import (
     NoSymmetricOrbit,
     SymmetricTwoImpactOrbit,
     _half_map_jacobian,
     _impact,
     _osc_of,
     _Oscillator,
-    _root,
 )
 
 __all__ = ['orbit_residuals', 'symmetric_half_map', 'symmetric_half_map_jacobian']

@@ -201,7 +201,7 @@ def orbit_deviation(run, orbit):
     float
         The deviation (-).
     """
-    from ..dampers.analytic import orbit_state
+    from ..dampers.analytic_flow import orbit_state
     return float(np.max(np.abs(run.tail_x - orbit_state(orbit, run.tail_t)[0]))
                  / orbit.amplitude)
 
@@ -364,7 +364,7 @@ def min_wall_distance(point, state, t0, duration, wall=-1.0, n=200001):
         The smallest signed distance (m; negative = the impactor is through the wall, i.e.
         a contact the flight must have had) and its time (s).
     """
-    from ..dampers.analytic import _Oscillator
+    from ..dampers.analytic_flow import _Oscillator
     p = _params(point)
     osc = _Oscillator(p['M'], p['K'], p['c'], p['F0'], p['Omega'])
     x0, v0, z0, w0 = (float(s) for s in state)
