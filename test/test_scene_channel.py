@@ -8,16 +8,14 @@ from fractions import Fraction
 import pytest
 import yaml
 
-from impact_damper_sim.scene.build import load
-from impact_damper_sim.scene.catalog import available_scenes, resolve_scene
-from impact_damper_sim.scene.channel_spec import (
-    PRESETS,
-    STAGES,
+from impact_damper_sim.scene.accelerometers import (
     accelerometer_channels,
     channel_of,
-    preset_channel,
     resonance_problem,
 )
+from impact_damper_sim.scene.build import load
+from impact_damper_sim.scene.catalog import available_scenes, resolve_scene
+from impact_damper_sim.scene.channel_spec import PRESETS, STAGES, preset_channel
 from impact_damper_sim.scene.keytable import describe
 from impact_damper_sim.scene.schema import SceneError
 from impact_damper_sim.scene.spec import SCHEMA

@@ -333,7 +333,7 @@ def test_a_recorded_log_holds_the_labels_a_detector_is_scored_with(tmp_path):
     channel of each accelerometer, every stage as applied, read with the mcap reader and
     YAML only; the schedule's changes are in the log as commands."""
     pytest.importorskip('rclpy')
-    from impact_damper_sim.scene.channel_spec import channel_of
+    from impact_damper_sim.scene.accelerometers import channel_of
     from impact_damper_sim.scene.units import parse_quantity
     schedule = tmp_path / 's.yaml'
     schedule.write_text('schedule:\n  - {at: 10 ms, unbalance: 4}\n')

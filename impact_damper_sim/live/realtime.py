@@ -183,7 +183,7 @@ class LiveSimulation:
 
     def _channels(self, seed: int) -> list[SensorChannel]:
         """One measurement chain per accelerometer, from the scene's resolved channels."""
-        from ..scene.channel_spec import channel_of, resonance_problem
+        from ..scene.accelerometers import channel_of, resonance_problem
         from .channel import SensorChannel
         out: list[SensorChannel] = []
         for acc in self.accelerometers:

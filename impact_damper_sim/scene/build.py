@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from .accelerometers import accelerometer_problems
 from .catalog import validated
-from .channel_spec import accelerometer_problems
 from .modes import MIN_SAMPLES_PER_REVOLUTION, _build_basis, excitation_frequencies
 from .schema import SceneError, _Errors
 from .spec import STUCK_MODELS
