@@ -235,7 +235,7 @@ def test_complete_basis_equals_mass_update_on_cantilever_scene():
     every half cycle)."""
     scene = load('cantilever', overrides=HEAVY_BEAM + NO_TARE + ['modal.n_modes=15'])
     assert scene.basis.n_modes == scene.basis.condensation.master.size == 15
-    pair = run_pair(scene.model, Forcing(1), 1e-4, 5000, BasisSwitch.from_scene(scene),
+    pair = run_pair(scene.model, Forcing(1), 1e-4, 5000, scene.basis_switch(),
                     q0=static_tip_state(scene, 2e-3))
     assert_same_runs(pair, min_sticks=15)
 
@@ -272,7 +272,7 @@ def test_round_trip_loss_measured(n_modes, capsys):
     plus the same shape as velocity. Truncated: a loss in (1e-12, 1e-3); complete: below
     1e-13 in magnitude. Equals StuckTransforms.switch_loss to 1e-12 (relative)."""
     scene = load('cantilever', overrides=HEAVY_BEAM + [f'modal.n_modes={n_modes}'])
-    switch = BasisSwitch.from_scene(scene)
+    switch = scene.basis_switch()
     q = static_tip_state(scene, 1e-3)
     qd = q * scene.basis.omega[0]
     loss = switch.round_trip_loss(q, qd, (1,))
@@ -294,7 +294,7 @@ def test_round_trip_is_lossless_on_the_shipped_cantilever():
     static tip-load shape whatever the tip mass, so the switch changes only the modal mass.
     Round-trip loss below 1e-9 with one mode."""
     scene = load('cantilever')
-    switch = BasisSwitch.from_scene(scene)
+    switch = scene.basis_switch()
     q = static_tip_state(scene, 1e-3)
     assert abs(switch.round_trip_loss(q, q * scene.basis.omega[0], (1,))) < 1e-9
 
@@ -310,7 +310,7 @@ def test_ledger_residual_is_the_accumulated_switching_loss(case, capsys):
     rounding level (1e-12 of the initial energy)."""
     if case == 'cantilever_1_mode':
         scene = load('cantilever', overrides=HEAVY_BEAM + NO_TARE + ['modal.n_modes=1'])
-        model, switch = scene.model, BasisSwitch.from_scene(scene)
+        model, switch = scene.model, scene.basis_switch()
         q0 = static_tip_state(scene, 2e-3)
     else:
         system = chain(dashpot=0.0)

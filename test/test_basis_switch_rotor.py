@@ -75,7 +75,7 @@ def whirl_rad_s(model):
 def test_stuck_basis_keeps_the_gyroscopic_coupling_and_the_unbalance_inputs(disk):
     # Stuck: translations sqrt(K_T/(MASS + RING)) twice; tilts Id w^2 -+ Ip W w - k = 0,
     # w = (-+ Ip W + sqrt(Ip^2 W^2 + 4 Id k))/(2 Id), as free. 1e-9 relative.
-    stuck, masses, carried = BasisSwitch.from_scene(disk).model((1,))
+    stuck, masses, carried = disk.basis_switch().model((1,))
     assert masses == (0.0,) and carried == (RING,)
     root = np.sqrt(IP ** 2 * SPEED ** 2 + 4 * ID * K_R)
     expected = np.sort([(root - IP * SPEED) / (2 * ID), (root + IP * SPEED) / (2 * ID),

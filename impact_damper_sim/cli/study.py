@@ -507,7 +507,9 @@ def run(scene):
     except TooLarge as exc:
         raise TooLarge(exc.n_steps, exc.n_bytes, exc.limit,
                        context=f"simulation.dt = {dt:g} s over simulation.duration = "
-                               f"{cfg['duration']:g} s", model_bytes=exc.model_bytes) from None
+                               f"{cfg['duration']:g} s", model_bytes=exc.model_bytes,
+                       advice='raise simulation.dt (--dt) or shorten simulation.duration '
+                              '(--duration)') from None
     try:
         # JIT compilation or cache loading is not simulation time: warm up on one step first
         try:

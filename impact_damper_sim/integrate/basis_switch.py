@@ -48,7 +48,6 @@ from .model import LinearModel
 
 if TYPE_CHECKING:
     from ..fem import AssembledSystem
-    from ..scene.build import SceneModel
 
 FloatArray = npt.NDArray[np.float64]
 #: stuck flags as a hashable tuple of 0/1
@@ -162,27 +161,6 @@ class BasisSwitch:
         self._models: dict[Key, LinearModel] = {free: model}
         self._K_sym: dict[Key, FloatArray] = {}
         self._transforms: dict[tuple[Key, Key], FloatArray] = {}
-
-    @classmethod
-    def from_scene(cls, scene_model: SceneModel) -> BasisSwitch:
-        """Build the provider of a :class:`~impact_damper_sim.scene.build.SceneModel`.
-
-        Parameters
-        ----------
-        scene_model : SceneModel
-            A built scene (its system, basis, modal model and DOF indices; the stuck bases
-            use its ``modal.solver``).
-
-        Returns
-        -------
-        BasisSwitch
-            The provider, with no stuck basis built yet.
-        """
-        return cls(scene_model.system, scene_model.basis, scene_model.model,
-                   scene_model.impactor_dofs, sensor_indices=scene_model.sensor_dofs,
-                   force_indices=scene_model.input_dofs,
-                   method=scene_model.scene['modal']['solver'],
-                   gyroscopic=scene_model.gyroscopic_terms())
 
     def _gyroscopic_coupling(self, basis: ModalBasis) -> FloatArray:
         """``Phi^T G Phi`` of :attr:`gyroscopic` on ``basis`` (1/s), skew-symmetric."""

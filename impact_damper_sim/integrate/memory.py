@@ -53,21 +53,23 @@ class TooLarge(ValueError):
     limit : int
         The limit (bytes).
     context : str, optional
-        What asked for them, e.g. ``'simulation.dt = 1e-09 s over ...'``.
+        What asked for them, e.g. ``'dt = 1e-09 s over 1 s'``.
     model_bytes : int, optional
         The model's estimate that shares the limit (bytes).
+    advice : str, optional
+        What to change, in the caller's words (e.g. its scene keys and options).
     """
 
     def __init__(self, n_steps: int, n_bytes: int, limit: int, context: str | None = None,
-                 model_bytes: int = 0) -> None:
+                 model_bytes: int = 0,
+                 advice: str = 'use a longer time step or a shorter run') -> None:
         self.n_steps, self.n_bytes, self.limit = int(n_steps), int(n_bytes), int(limit)
         self.model_bytes = int(model_bytes)
         lead = f'{context}: ' if context else ''
         model = (f", with the model's {gib(self.model_bytes)}" if self.model_bytes else '')
         super().__init__(
             f'{lead}{self.n_steps:.4g} samples would need about {gib(self.n_bytes)} of memory '
-            f'(limit {gib(self.limit)}{model}): raise simulation.dt (--dt) or shorten '
-            'simulation.duration (--duration)')
+            f'(limit {gib(self.limit)}{model}): {advice}')
 
 
 def gib(n_bytes: float) -> str:

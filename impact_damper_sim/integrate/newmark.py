@@ -61,6 +61,35 @@ _SPARSE_MIN_N = 400
 MIN_STEPS_PER_PERIOD = 10
 
 
+class StepTooLarge(ValueError):
+    """A Newmark step too long to track impacts (at most 1/``MIN_STEPS_PER_PERIOD`` of the
+    period of the highest retained mode).
+
+    Parameters
+    ----------
+    dt : float
+        The requested time step (s).
+    h : float
+        The Newmark step it gives (s).
+    h_max : float
+        The longest step that tracks impacts (s).
+    f_max : float
+        The highest retained mode (Hz).
+    """
+
+    def __init__(self, dt: float, h: float, h_max: float, f_max: float) -> None:
+        self.dt, self.h, self.h_max, self.f_max = dt, h, h_max, f_max
+        super().__init__(self.text('dt'))
+
+    def text(self, step_name: str) -> str:
+        """The message, naming the time step as the caller's user sets it (``step_name``,
+        e.g. a scene key)."""
+        return (f'{step_name} = {self.dt:.4g} s (Newmark step {self.h:.4g} s) is too large '
+                f'to track impacts: it must be at most 1/{MIN_STEPS_PER_PERIOD} of the period '
+                f'of the highest retained mode ({self.f_max:.5g} Hz), {self.h_max:.4g} s; '
+                f'lower {step_name}, retain fewer modes, or use method exact')
+
+
 def _omega_max(M: FloatArray, C: FloatArray, K: FloatArray, sparse: bool) -> float:
     """Largest ``|lambda|`` of the first-order system (1/s): sets the paper's stick time.
 
@@ -237,12 +266,7 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         # modes' of a direct model given their stick_time
         period = self.stick_time / stick_fraction
         if ni and self.h > period / MIN_STEPS_PER_PERIOD:
-            h_max = period / MIN_STEPS_PER_PERIOD
-            raise ValueError(
-                f'simulation.dt = {self.dt:.4g} s (Newmark step {self.h:.4g} s) is too large to '
-                f'track impacts: it must be at most 1/{MIN_STEPS_PER_PERIOD} of the period of '
-                f'the highest retained mode ({1.0 / period:.5g} Hz), {h_max:.4g} s; lower '
-                'simulation.dt, retain fewer modes, or use method exact')
+            raise StepTooLarge(self.dt, self.h, period / MIN_STEPS_PER_PERIOD, 1.0 / period)
         self._q = np.zeros(n) if q0 is None else np.array(q0, dtype=float).reshape(n)
         self._v = np.zeros(n) if qd0 is None else np.array(qd0, dtype=float).reshape(n)
         self._f = self._force_at(self.t)

@@ -35,6 +35,7 @@ from .structure import _build_fe, _has_node
 if TYPE_CHECKING:
     from ..dampers.impactors import Impactor
     from ..fem import AssembledSystem, FEModel
+    from ..integrate.basis_switch import BasisSwitch
     from ..integrate.forcing import Forcing
     from ..integrate.model import LinearModel
     from ..integrate.simulation import Simulation
@@ -370,6 +371,21 @@ class SceneModel:
             tare_zeta=zeta if np.any(zeta) else None, sensor_names=self.model.sensor_names,
             input_names=self.model.input_names)
 
+    def basis_switch(self) -> BasisSwitch:
+        """The stuck-state configurations of the ``basis_switch`` model for this scene.
+
+        Returns
+        -------
+        BasisSwitch
+            Built from the scene's system, basis, modal model and DOF indices (its stuck
+            bases use ``modal.solver``); no stuck basis built yet.
+        """
+        from ..integrate.basis_switch import BasisSwitch
+        return BasisSwitch(self.system, self.basis, self.model, self.impactor_dofs,
+                           sensor_indices=self.sensor_dofs, force_indices=self.input_dofs,
+                           method=self.scene['modal']['solver'],
+                           gyroscopic=self.gyroscopic_terms())
+
     def make_simulation(self, method: str | None = None, dt: float | None = None,
                         **options: Any) -> Simulation:
         """Return a :class:`~impact_damper_sim.integrate.simulation.Simulation` of this scene.
@@ -429,16 +445,19 @@ class SceneModel:
                 raise SceneError(f"scene key 'simulation.stuck_model': basis_switch is "
                                  f"available with method exact only, not {method!r}; use "
                                  f"mass_update", self.source)
-            from ..integrate.basis_switch import BasisSwitch
-            opts['configurations'] = BasisSwitch.from_scene(self)
+            opts['configurations'] = self.basis_switch()
         physical = self.physical_model if method == 'direct' else None
         if method == 'direct' and 'stick_time' not in opts:
             # the paper's rule uses the highest *retained* mode; the physical model's highest
             # mode (massless-ish DOFs) would make it never fire
             opts['stick_time'] = (opts['stick_fraction'] * 2 * np.pi
                                   / float(np.max(self.basis.omega)))
-        return Simulation(model, self.forcing, method=method, dt=dt,
-                          physical_model=physical, **opts)
+        from ..integrate.newmark import StepTooLarge
+        try:
+            return Simulation(model, self.forcing, method=method, dt=dt,
+                              physical_model=physical, **opts)
+        except StepTooLarge as exc:   # said with the scene key that sets the step
+            raise ValueError(exc.text('simulation.dt')) from None
 
     def _check_rotor_sampling(self, dt: float) -> None:
         """Refuse a sample period ``dt`` (s) too long for a sampled unbalance force.

@@ -127,4 +127,6 @@ def check_memory(scene, duration=None, dt=None):
         check_allocation(round(duration / dt), len(scene.model.sensor_names))
     except TooLarge as exc:
         raise TooLarge(exc.n_steps, exc.n_bytes, exc.limit,
-                       context=f'each run: dt = {dt:g} s over {duration:g} s') from None
+                       context=f'each run: dt = {dt:g} s over {duration:g} s',
+                       advice='raise simulation.dt (--dt) or shorten simulation.duration '
+                              '(--duration)') from None
