@@ -25,8 +25,7 @@ round-off, not O(dt^2).
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -34,11 +33,12 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..dampers.law import IMPACT_LAWS, law_mobility
+from ..dampers.law import IMPACT_LAWS
 from ..modal.basis import lanczos_start
 from .base import IntegratorBase
 from .events import EVENT_DTYPE, Samples
 from .kernels import newmark_step as kernels
+from .newmark_config import StuckConfiguration
 from .newmark_events import NewmarkEventsMixin
 
 if TYPE_CHECKING:
@@ -110,69 +110,6 @@ def _omega_max(M: FloatArray, C: FloatArray, K: FloatArray, sparse: bool) -> flo
     else:
         w2 = sla.eigh(K_sym, M, eigvals_only=True, subset_by_index=[n - 1, n - 1])[0]
     return float(np.sqrt(max(w2, 0.0)))
-
-
-class _Config:
-    """Matrices of one stuck configuration: ``M + sum m R^T R`` and its solves."""
-
-    def __init__(self, model: LinearModel, rows: FloatArray, stuck_masses: Sequence[float],
-                 law: str, sparse: bool, C: FloatArray | sp.spmatrix,
-                 K: FloatArray | sp.spmatrix) -> None:
-        self.sparse = sparse
-        self.C = C
-        self.K = K
-        Md = model.stuck_mass_matrix(stuck_masses)
-        self.M = sp.csc_matrix(Md) if sparse else Md
-        if sparse:
-            self._lu_M = spla.splu(self.M)
-        else:
-            self.Minv = np.linalg.inv(Md)
-        ni = len(model.impactors)
-        n = model.n
-        self.kick = np.zeros((ni, n, 2))          # M^{-1} R^T per impactor (1/kg)
-        self.mobility = np.zeros((ni, 2, 2))      # law mobility (1/kg)
-        self.house_mobility = np.zeros((ni, 2, 2))   # the model's R M^{-1} R^T (1/kg)
-        self.rel_T = np.zeros((ni, 2, 2))         # release transforms (I - m G_s)^{-1}
-        for j, imp in enumerate(model.impactors):
-            d = imp.dim
-            MinvRt = self.solve_M(rows[j, :d].T)
-            self.kick[j, :, :d] = MinvRt
-            G = rows[j, :d] @ MinvRt
-            self.house_mobility[j, :d, :d] = G
-            self.mobility[j, :d, :d] = law_mobility(G, imp.housing_mass, law)
-            self.rel_T[j, :d, :d] = np.linalg.inv(np.eye(d) - stuck_masses[j] * G)
-        # inverse (dense) or LU (sparse) of S(h) by step size h
-        self._S: dict[float, Any] = {}
-
-    def solve_M(self, r: FloatArray) -> FloatArray:
-        """``M^{-1} r`` for this configuration."""
-        if self.sparse:
-            return self._lu_M.solve(np.asarray(r, dtype=float))
-        return self.Minv @ r
-
-    def S(self, h: float) -> Any:
-        """``M + h/2 C + h^2/4 K`` (the effective stiffness times ``h^2/4``)."""
-        return self.M + (0.5 * h) * self.C + (0.25 * h * h) * self.K
-
-    def Sinv(self, h: float) -> Any:
-        """Cached inverse (dense) or LU (sparse) of ``S(h)`` for the main step size."""
-        fac = self._S.get(h)
-        if fac is None:
-            fac = spla.splu(sp.csc_matrix(self.S(h))) if self.sparse \
-                else np.linalg.inv(self.S(h))
-            if len(self._S) > 4:      # only a few step sizes recur
-                self._S.clear()
-            self._S[h] = fac
-        return fac
-
-    def solve_S(self, h: float, r: FloatArray, cached: bool) -> FloatArray:
-        """``S(h)^{-1} r``; ``cached`` for the recurring step size, else a fresh solve."""
-        if cached:
-            fac = self.Sinv(h)
-            return fac.solve(r) if self.sparse else fac @ r
-        if self.sparse:
-            return spla.splu(sp.csc_matrix(self.S(h))).solve(r)
-        return np.linalg.solve(self.S(h), r)
 
 
 class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
@@ -255,7 +192,7 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         self._rows = np.zeros((ni, 2, n))
         for j, imp in enumerate(model.impactors):
             self._rows[j, :imp.dim] = imp.rows
-        self._configs: dict[tuple[int, ...], _Config] = {}
+        self._configs: dict[tuple[int, ...], StuckConfiguration] = {}
         if stick_time is None:
             stick_time = stick_fraction * 2 * np.pi / _omega_max(model.M, model.C, model.K,
                                                                 self._sparse)
@@ -283,23 +220,23 @@ class NewmarkIntegrator(NewmarkEventsMixin, IntegratorBase):
         self._start_ledger()
 
     # -- configuration and dynamics ----------------------------------------------------------
-    def _config(self) -> _Config:
+    def _config(self) -> StuckConfiguration:
         key = tuple(int(s) for s in self._stuck)
         cfg = self._configs.get(key)
         if cfg is None:
             masses = [float(m) if s else 0.0 for m, s in zip(self._imp_mass, self._stuck)]
-            cfg = _Config(self.model, self._rows, masses, self.law, self._sparse, self._C,
-                          self._K)
+            cfg = StuckConfiguration(self.model, self._rows, masses, self.law, self._sparse,
+                                     self._C, self._K)
             self._configs[key] = cfg
         return cfg
 
     def _force_at(self, t: float) -> FloatArray:
         return self._B @ self.forcing.evaluate(t)[0]
 
-    def _accel(self, cfg: _Config, f: FloatArray) -> FloatArray:
+    def _accel(self, cfg: StuckConfiguration, f: FloatArray) -> FloatArray:
         return cfg.solve_M(f - self._C @ self._v - self._K @ self._q)
 
-    def _trial(self, cfg: _Config, h: float, f1: FloatArray, cached: bool
+    def _trial(self, cfg: StuckConfiguration, h: float, f1: FloatArray, cached: bool
                ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """One Newmark step of ``h`` (s) from the current state; returns ``(q1, v1, a1)``."""
         q0, v0, a0 = self._q, self._v, self._a

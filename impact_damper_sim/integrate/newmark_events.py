@@ -46,7 +46,7 @@ from .kernels import newmark_step as kernels
 
 if TYPE_CHECKING:
     from .base import IntegratorBase as _Integrator
-    from .newmark import _Config
+    from .newmark_config import StuckConfiguration
 else:
     _Integrator = object
 
@@ -147,13 +147,13 @@ class NewmarkEventsMixin(_Integrator):
         _grace: npt.NDArray[np.bool_]
         _count: npt.NDArray[np.int64]
 
-        def _config(self) -> _Config: ...
+        def _config(self) -> StuckConfiguration: ...
 
         def _force_at(self, t: float) -> FloatArray: ...
 
-        def _accel(self, cfg: _Config, f: FloatArray) -> FloatArray: ...
+        def _accel(self, cfg: StuckConfiguration, f: FloatArray) -> FloatArray: ...
 
-        def _trial(self, cfg: _Config, h: float, f1: FloatArray, cached: bool
+        def _trial(self, cfg: StuckConfiguration, h: float, f1: FloatArray, cached: bool
                    ) -> tuple[FloatArray, FloatArray, FloatArray]: ...
 
     # -- event location ----------------------------------------------------------------------
@@ -216,7 +216,7 @@ class NewmarkEventsMixin(_Integrator):
                     best, best_j, best_n = tau, j, nrm
         return best, best_j, best_n
 
-    def _release_time(self, cfg: _Config, t: float, tau: float, H: float,
+    def _release_time(self, cfg: StuckConfiguration, t: float, tau: float, H: float,
                       f_b: FloatArray, q1: FloatArray, v1: FloatArray, a1: FloatArray, j: int
                       ) -> tuple[float, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]:
         """Refine a release time on the re-stepped contact force; returns ``(tau, end)``.

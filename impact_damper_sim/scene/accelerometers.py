@@ -10,21 +10,27 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping
+from typing import Any, Protocol
 
 from .channel_spec import _STAGE_FIELDS
 from .schema import Quantity
 from .units import SI_UNIT
 
-if TYPE_CHECKING:
-    from .build import SceneModel
+
+class BuiltScene(Protocol):
+    """What these functions read of a built scene (a :class:`~.build.SceneModel`): its
+    validated scene (SI)."""
+
+    scene: dict[str, Any]
+
 
 __all__ = ['accelerometer_channels', 'accelerometer_problems', 'channel_of',
            'resonance_problem']
 
 
-def _scene(scene_model: SceneModel | dict[str, Any]) -> dict[str, Any]:
-    return scene_model.scene if hasattr(scene_model, 'scene') else scene_model
+def _scene(scene_model: BuiltScene | dict[str, Any]) -> dict[str, Any]:
+    return dict(scene_model) if isinstance(scene_model, Mapping) else scene_model.scene
 
 
 def _by_node(scene: dict[str, Any]) -> dict[int, list[tuple[int, dict]]]:
@@ -94,7 +100,7 @@ def resonance_problem(channel: dict[str, Any], band_edge: float, source: str = '
             'band: raise it, or lower the lowpass')
 
 
-def accelerometer_problems(scene: SceneModel | dict[str, Any]) -> list[tuple[str, str]]:
+def accelerometer_problems(scene: BuiltScene | dict[str, Any]) -> list[tuple[str, str]]:
     """Check every accelerometer's channel against its sensors (run at load).
 
     Parameters
@@ -138,7 +144,7 @@ def accelerometer_problems(scene: SceneModel | dict[str, Any]) -> list[tuple[str
     return problems
 
 
-def channel_of(scene_model: SceneModel | dict[str, Any], node: int) -> dict[str, Any]:
+def channel_of(scene_model: BuiltScene | dict[str, Any], node: int) -> dict[str, Any]:
     """The resolved channel of the accelerometer at a node.
 
     Parameters
@@ -172,7 +178,7 @@ def channel_of(scene_model: SceneModel | dict[str, Any], node: int) -> dict[str,
     return copy.deepcopy(stated[0] if stated else scene['channel'])
 
 
-def accelerometer_channels(scene_model: SceneModel | dict[str, Any]) -> dict[int, dict[str, Any]]:
+def accelerometer_channels(scene_model: BuiltScene | dict[str, Any]) -> dict[int, dict[str, Any]]:
     """The resolved channel of every accelerometer, by node in sensor order.
 
     Parameters
