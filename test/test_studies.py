@@ -180,6 +180,39 @@ def test_wildcard_that_matches_nothing_or_misses_an_impactor_is_refused(capsys, 
     assert err.startswith(f'study: error: {message}') and err.count('\n') == 1, err
 
 
+def test_stability_wildcard_sets_every_impactor_in_the_built_scene(monkeypatch):
+    """``--weight-key impactors.*.mass`` and ``--clearance-key impactors.*.clearance`` set
+    each of rbs_kcc's six impactors in every point with impactors, as a sweep's grid does."""
+    from impact_damper_sim.scene.build import load
+    from impact_damper_sim.studies import stability as stability_module
+    made = []
+    monkeypatch.setattr(stability_module, 'run_points',
+                        lambda points, *a, **k: made.extend(points) or [])
+    stability('rbs_kcc', KCC_KEY, ['11250 lb/in'], weight_keys=['impactors.*.mass'],
+              weights=['0.25 lb'], clearance_keys=['impactors.*.clearance'],
+              clearances=['2 mil'], executor='serial')
+    (point,) = [p for p in made if p.labels['impactors']]
+    scene = load('rbs_kcc', list(point.overrides))
+    imps = scene.scene['impactors']
+    assert len(imps) == 6
+    assert [imp['mass'] for imp in imps] == pytest.approx([0.25 * 0.45359237] * 6, rel=1e-12)
+    assert [imp['clearance'] for imp in imps] == pytest.approx([2 * 25.4e-6] * 6, rel=1e-12)
+
+
+@pytest.mark.parametrize('option, key', [('--weight-key', 'forcing.*.mass'),
+                                         ('--clearance-key', 'impactors.*.clearance')])
+def test_stability_wildcard_that_matches_nothing_is_refused(capsys, option, key):
+    values = '--weights' if option == '--weight-key' else '--clearances'
+    argv = ['stability', 'rbs_kcc', '--kcc-key', KCC_KEY, '--kcc', '11250 lb/in', option, key,
+            values, '1', '--executor', 'serial']
+    if key.startswith('impactors'):   # no impactors: nothing for the wildcard to match
+        argv += ['--set', 'impactors=[]']
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"study: error: {option} {key}: '*' matches nothing") \
+        and err.count('\n') == 1, err
+
+
 def test_sweep_table_says_reduction_in_words(capsys):
     status = main(['sweep', 'sdof', '--grid', 'impactors.*.cor=0.5,0.6', '--duration', '1 s',
                    '--executor', 'serial'])

@@ -202,10 +202,12 @@ def _study_parsers(sub, scene_args):
     stab.add_argument('--kcc', default='', metavar='V1,V2,...',
                       help="values, e.g. '8500 lb/in,11250 lb/in' (plain numbers: N/m)")
     stab.add_argument('--weight-key', action='append', default=[], metavar='KEY',
-                      help='key(s) set to each weight, e.g. impactors.0.mass (repeatable)')
+                      help='key(s) set to each weight, e.g. impactors.0.mass (repeatable; '
+                           'impactors.*.mass: every impactor)')
     stab.add_argument('--weights', default='', metavar='V1,V2,...', help="e.g. '1.5 lb,3 lb'")
     stab.add_argument('--clearance-key', action='append', default=[], metavar='KEY',
-                      help='key(s) set to each clearance, e.g. impactors.0.clearance')
+                      help='key(s) set to each clearance, e.g. impactors.0.clearance '
+                           '(repeatable; impactors.*.clearance: every impactor)')
     stab.add_argument('--clearances', default='', metavar='V1,V2,...',
                       help="e.g. '6.9 mil,1 mil'")
     stab.add_argument('--sensors', default='', metavar='S1,S2',

@@ -114,8 +114,9 @@ def make_points(scene, kcc_key, kccs, overrides=(), *, weight_keys=(), weights=(
     overrides : sequence of str
         Base overrides.
     weight_keys, clearance_keys : sequence of str
-        Keys set to each weight (e.g. ``impactors.0.mass`` and a housing mass) and each
-        clearance; every key of a group gets the same value.
+        Concrete keys set to each weight (e.g. ``impactors.0.mass`` and a housing mass) and
+        each clearance; every key of a group gets the same value (:func:`stability` expands
+        a ``*`` list index into these).
     weights, clearances : sequence of str
         Values (units allowed: ``'3 lb'``, ``'6.9 mil'``); empty = the scene's.
     baseline : bool
@@ -218,7 +219,8 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
     Parameters
     ----------
     scene, kcc_key, kccs, overrides, weight_keys, weights, clearance_keys, clearances, baseline
-        See :func:`make_points`.
+        See :func:`make_points`; a key may have a ``*`` list index, as in a sweep's grid
+        (``impactors.*.mass``: every impactor's, see :func:`.sweep.expand_key`).
     sensors : sequence of str, optional
         Sensors of the radial amplitude; default all.
     perturbation : float
@@ -262,6 +264,10 @@ def stability(scene, kcc_key, kccs=(), overrides=(), *, weight_keys=(), weights=
     base = load(scene, list(overrides))
     from .measure import check_memory
     check_memory(base)
+    from .sweep import expand_key
+    weight_keys = [k for key in weight_keys for k in expand_key(key, base.scene, '--weight-key')]
+    clearance_keys = [k for key in clearance_keys
+                      for k in expand_key(key, base.scene, '--clearance-key')]
     from .measure import lookup
     if kccs and lookup(base.scene, kcc_key) is None:
         couplings = base.scene['structure'].get('cross_couplings') or []

@@ -62,7 +62,7 @@ def has_wildcard(key):
     return WILDCARD in _KEY_TOKEN_RE.findall(key)
 
 
-def expand_key(key, scene_dict):
+def expand_key(key, scene_dict, option='--grid'):
     """The concrete keys a wildcard key stands for in one scene.
 
     Parameters
@@ -71,6 +71,8 @@ def expand_key(key, scene_dict):
         Dotted scene key; a ``*`` token stands for every index of the list at that place.
     scene_dict : dict
         A validated scene (its lists say how many elements each wildcard covers).
+    option : str
+        The command-line option that gave ``key``, named in the error.
 
     Returns
     -------
@@ -95,7 +97,7 @@ def expand_key(key, scene_dict):
                 if not isinstance(node, list) or not node:
                     where = '.'.join(tokens[:i]) or 'the scene'
                     what = 'an empty list' if isinstance(node, list) else 'not a list'
-                    raise ValueError(f"--grid {key}: '*' matches nothing ({where} is {what} "
+                    raise ValueError(f"{option} {key}: '*' matches nothing ({where} is {what} "
                                      'in this scene)')
                 nxt += [(prefix + [str(k)], item) for k, item in enumerate(node)]
             elif isinstance(node, dict):
