@@ -305,6 +305,50 @@ def test_stuck_fraction_last_state_holds_to_end():
     assert out['a']['stuck_fraction'] == pytest.approx(0.25)
 
 
+def test_dampers_off_is_its_own_lane_state(tmp_path, monkeypatch):
+    """Efforts of -1 (the node's dampers off) are neither free nor stuck: their own state in
+    the lanes' data, their own time, and a grey bar in the plot where the trace breaks."""
+    from matplotlib.figure import Figure
+    s = 1_000_000_000
+    names = ['imp_a/y', 'imp_a/z', 'imp_b/x']
+    # imp_a: free, stuck at 0.5 s, dampers off 1 to 2 s, free to the end (3 s); imp_b free
+    states = [(0, [0, 0, 0]), (s // 2, [1, 1, 0]), (s, [-1, -1, -1]), (2 * s, [0, 0, 0])]
+    out, steps = stuck_fractions([t for t, _ in states], [names] * 4,
+                                 [[float(e) for e in eff] for _, eff in states], 3 * s)
+    assert steps['imp_a'][1].tolist() == [0, 1, -1, 0, 0]
+    assert steps['imp_b'][1].tolist() == [0, 0, -1, 0, 0]
+    a = out['imp_a']
+    assert (a['stuck_s'], a['dampers_off_s'], a['observed_s']) == pytest.approx((0.5, 1.0, 3.0),
+                                                                               rel=1e-12)
+    assert a['stuck_fraction'] == pytest.approx(0.5 / 3, rel=1e-12) and a['stick_events'] == 1
+    path = tmp_path / 'off.mcap'
+    log = Log(path)
+    for t_ns, eff in states + [(3 * s, [0, 0, 0])]:
+        log.write('/impactor_state', 'sensor_msgs/msg/JointState',
+                  {'header': {'stamp': stamp(t_ns)}, 'name': names, 'position': [0.0] * 3,
+                   'velocity': [0.0] * 3, 'effort': [float(e) for e in eff]}, t_ns)
+    log.close()
+    figs = []
+    original = Figure.savefig
+    monkeypatch.setattr(Figure, 'savefig',
+                        lambda self, *a, **k: (figs.append(self), original(self, *a, **k)))
+    assert study(['report', str(path), '--plot', str(tmp_path / 'off.png')]) == 0
+    (ax,) = [ax for ax in figs[0].axes if ax.get_title().startswith('stuck state')]
+    assert 'grey = dampers off' in ax.get_title()
+    bars = {c.get_gid(): c for c in ax.collections if (c.get_gid() or '').startswith('dampers')}
+    assert set(bars) == {'dampers-off:imp_a', 'dampers-off:imp_b'}
+    for lane, gid in enumerate(('dampers-off:imp_a', 'dampers-off:imp_b')):
+        (bar,) = bars[gid].get_paths()
+        xs, ys = bar.vertices[:, 0], bar.vertices[:, 1]
+        assert (xs.min(), xs.max()) == pytest.approx((1.0, 2.0), abs=1e-9)
+        assert ys.min() < lane < lane + 0.6 < ys.max() < lane + 0.85   # inside its own lane
+    (trace,) = [line for line in ax.get_lines()
+                if line.get_gid() == 'lane:imp_a' and line.get_linestyle() == '-']
+    x, y = trace.get_xdata(), trace.get_ydata()
+    assert np.isnan(y[(x >= 1.0) & (x < 2.0)]).all() and np.isfinite(y[x < 1.0]).all()
+    assert ax.get_legend() is None   # the title says it; a legend would cover the top lane
+
+
 def test_waterfall_follows_rotor_speed(tmp_path):
     """A tone at the rotor frequency, speed ramped 60 -> 600 rad/s: the slices track it."""
     path = tmp_path / 'ramp.mcap'
@@ -518,8 +562,8 @@ def test_json_schema(synthetic, capsys):
                         'per_impactor'}
     assert set(imp['bins'][0]) == {'start_s', 'width_s', 'count', 'rate_hz'}
     st = r['impactor_state'][0]
-    assert set(st['impactors']['imp_a']) == {'stuck_fraction', 'stuck_s', 'observed_s',
-                                             'stick_events'}
+    assert set(st['impactors']['imp_a']) == {'stuck_fraction', 'stuck_s', 'dampers_off_s',
+                                             'observed_s', 'stick_events'}
 
 
 def test_text_plot_and_csv(synthetic, tmp_path, capsys):

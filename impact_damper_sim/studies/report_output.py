@@ -12,7 +12,10 @@ import math
 import numpy as np
 
 from ..scene.units import G0  # standard gravity (m/s^2), exact
-from .report_signals import BIN_S, nonfinite_text
+from .report_signals import BIN_S, LANE_DAMPERS_OFF, LANE_STUCK, nonfinite_text
+
+#: The stuck-state lanes' fill while the dampers are off (a grey, apart from every lane colour).
+DAMPERS_OFF_COLOR = '0.75'
 
 
 def csv_rows(report):
@@ -160,11 +163,21 @@ def plot(report, series, path):
         lanes = [(st, name, ts) for st in report['impactor_state']
                  for name, ts in series['states'][st['topic']].items()]
         colors = plt.get_cmap('tab20' if len(lanes) > 10 else 'tab10')
-        for k, (st, name, (t, stuck)) in enumerate(lanes):
+        any_dampers_off = False
+        for k, (st, name, (t, state)) in enumerate(lanes):
             frac = st['impactors'][name]['stuck_fraction']
             color = colors(k % colors.N)
-            ax.step((t - origin) * 1e-9, stuck * 0.6 + level, where='post', color=color,
-                    gid=f'lane:{name}')
+            x = (t - origin) * 1e-9
+            off = state == LANE_DAMPERS_OFF
+            # the trace breaks where the dampers are off (NaN), a grey bar fills the gap
+            y = np.where(off, np.nan, (state == LANE_STUCK) * 0.6 + level)
+            ax.step(x, y, where='post', color=color, gid=f'lane:{name}')
+            spans = [(x[i], x[i + 1] - x[i]) for i in np.flatnonzero(off[:-1])]
+            if spans:
+                # said in the title: a legend would cover the top lane's stuck level
+                ax.broken_barh(spans, (level - 0.15, 0.9), color=DAMPERS_OFF_COLOR,
+                               gid=f'dampers-off:{name}')
+                any_dampers_off = True
             # each lane labelled on the axis itself, in its colour, at its free (low) level,
             # drawn as a dotted baseline: no label floating away from a flat trace
             ax.axhline(level, color=color, lw=0.6, ls=':', gid=f'lane:{name}')
@@ -178,7 +191,8 @@ def plot(report, series, path):
         ax.set_ylim(-0.3, max(level - 0.2, 0.9))
         # lines only: the labels are on the panels above, here they would cover the lanes
         mark_commands(ax, report.get('commands', ()), labelled=False)
-        ax.set_title('stuck state (a lane per impactor: low = free, high = stuck)')
+        ax.set_title('stuck state (a lane per impactor: low = free, high = stuck'
+                     + (', grey = dampers off)' if any_dampers_off else ')'))
     for ax in axes:   # a log with nothing to plot
         ax.text(0.5, 0.5, 'no sensor, impact or impactor-state topics', ha='center',
                 transform=ax.transAxes)

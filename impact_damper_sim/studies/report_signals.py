@@ -11,6 +11,11 @@ import math
 
 import numpy as np
 
+from ..live.monitor_text import STUCK_EFFORT, dampers_off
+
+#: An impactor's state in the report's stuck-state lanes (``impactor_state`` efforts 0, 1, -1).
+LANE_FREE, LANE_STUCK, LANE_DAMPERS_OFF = 0, 1, -1
+
 #: a rotor speed range wider than this fraction of the top speed is plotted against speed,
 #: if the speed also sweeps through most of the log (see :func:`waterfall_axis`)
 WATERFALL_MIN_SPAN = 0.1
@@ -272,7 +277,8 @@ def stuck_fractions(t_ns, names, efforts, end_ns):
     names : list of list of str
         Joint names per message, ``<impactor>/<dof>``.
     efforts : list of list of float
-        Effort per joint: 1.0 while stuck, 0.0 while free.
+        Effort per joint (dimensionless): 1.0 while stuck, 0.0 while free, -1.0 while the
+        dampers are off.
     end_ns : int
         End of the log's stamped time (ns); the last state holds until then.
 
@@ -280,35 +286,41 @@ def stuck_fractions(t_ns, names, efforts, end_ns):
     -------
     impactors : dict
         Per impactor: ``stuck_fraction`` (stuck time over observed time), ``stuck_s``,
-        ``observed_s`` (from its first state to the end) and ``stick_events`` (free to stuck
-        transitions, a first state that is stuck included).
+        ``dampers_off_s``, ``observed_s`` (from its first state to the end) and
+        ``stick_events`` (transitions into stuck, a first state that is stuck included).
     steps : dict
-        Per impactor ``(t_ns, stuck)`` arrays for the plot.
+        Per impactor ``(t_ns, state)`` arrays for the plot, ``state`` one of
+        :data:`LANE_FREE`, :data:`LANE_STUCK` and :data:`LANE_DAMPERS_OFF`.
     """
     order = sorted(range(len(t_ns)), key=lambda i: t_ns[i])
     states = {}
     for i in order:
-        flags = {}
+        joints = {}
         for name, effort in zip(names[i], efforts[i]):
-            imp = name.rsplit('/', 1)[0]
-            flags[imp] = flags.get(imp, False) or effort >= 0.5
-        for imp, stuck in flags.items():
+            joints.setdefault(name.rsplit('/', 1)[0], []).append(effort)
+        for imp, values in joints.items():
+            state = (LANE_DAMPERS_OFF if dampers_off(values)
+                     else LANE_STUCK if max(values) >= STUCK_EFFORT else LANE_FREE)
             states.setdefault(imp, ([], []))
             states[imp][0].append(int(t_ns[i]))
-            states[imp][1].append(stuck)
+            states[imp][1].append(state)
     out, steps = {}, {}
-    for imp, (t, stuck) in sorted(states.items()):
+    for imp, (t, state) in sorted(states.items()):
         t = np.asarray(t, dtype=np.int64)
-        stuck = np.asarray(stuck, dtype=bool)
+        state = np.asarray(state, dtype=np.int8)
+        stuck = state == LANE_STUCK
         stop = max(int(end_ns), int(t[-1]))
         held = np.diff(np.append(t, stop)) * 1e-9
         observed = (stop - int(t[0])) * 1e-9
         stuck_s = float(held[stuck].sum())
         entries = int(stuck[0]) + int(np.sum(stuck[1:] & ~stuck[:-1]))
         out[imp] = {'stuck_fraction': stuck_s / observed if observed > 0 else None,
-                    'stuck_s': stuck_s, 'observed_s': observed, 'stick_events': entries}
-        steps[imp] = (np.append(t, stop), np.append(stuck, stuck[-1]))
+                    'stuck_s': stuck_s,
+                    'dampers_off_s': float(held[state == LANE_DAMPERS_OFF].sum()),
+                    'observed_s': observed, 'stick_events': entries}
+        steps[imp] = (np.append(t, stop), np.append(state, state[-1]))
     return out, steps
 
 
-__all__ = ['impact_rate', 'sensor_report', 'stuck_fractions']
+__all__ = ['LANE_DAMPERS_OFF', 'LANE_FREE', 'LANE_STUCK', 'impact_rate', 'sensor_report',
+           'stuck_fractions']
