@@ -40,7 +40,7 @@ one line on stderr) is reported as ``refused: <reason>``. Each scene is bounded:
 
 What is measured, per scene:
 
-* **RTF and CPU** from the node's own ``/diagnostics`` (status ``vibration_node:
+* **RTF and CPU** from the node's own ``/diagnostics`` (status ``<namespace>/vibration_node:
   simulation``), every 1 s window received from the start: ``real_time_factor_achieved``
   (worst, median) and ``cpu_percent`` (median, peak), ``samples_per_s``, ``impacts_per_s``
   (sum over the windows / sim time), the worst status. Cross-check: the node process's CPU

@@ -57,7 +57,8 @@ def node_windows(diags, t_lo, t_hi):
     """The node's diagnostics windows received in [t_lo, t_hi], as dicts, in order."""
     out = []
     for t, name, level, message, values in diags:
-        if name == f'{NODE_NAME}: simulation' and t_lo <= t <= t_hi:
+        # '<fully qualified node name>: simulation', e.g. '/vibration_node: simulation'
+        if name.endswith(f'/{NODE_NAME}: simulation') and t_lo <= t <= t_hi:
             w = {k: _float(v) for k, v in values.items()}
             w.update(arrival=t, level=level, message=message)
             out.append(w)

@@ -80,7 +80,7 @@ def handle(rec, data):
         for s in m.status:
             level = s.level if isinstance(s.level, int) else int.from_bytes(s.level, 'little')
             diags.append((t, s.name, level, s.message, {kv.key: kv.value for kv in s.values}))
-            if s.name == node_name + ': simulation' and 'diag' not in firsts:
+            if s.name.endswith('/' + node_name + ': simulation') and 'diag' not in firsts:
                 firsts['diag'] = t
                 say(event='first_diag', t=t)
     elif rec.type in ('sensor_msgs/msg/Imu', 'sensor_msgs/msg/PointCloud2') \

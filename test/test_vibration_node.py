@@ -1306,3 +1306,28 @@ def test_rclpy_refuses_a_read_only_parameter_before_the_node_sees_it(ros_context
         assert seen == [['noise_std']] and node.live.noise_std == 0.5
     finally:
         node.destroy_node()
+
+
+@pytest.mark.parametrize('namespace, hardware_id, want_name, want_id', [
+    ('/', '', '/vibration_node: simulation', 'sdof'),
+    ('/pump3', '', '/pump3/vibration_node: simulation', 'pump3/sdof'),
+    ('/plant/pump3', 'SN-1042', '/plant/pump3/vibration_node: simulation', 'SN-1042')])
+def test_diagnostics_tell_machines_apart(ros_context, namespace, hardware_id, want_name,
+                                         want_id):
+    """Issue 39: ten nodes on one /diagnostics must not merge: the status names the node's
+    fully qualified name, its hardware_id is the parameter, else namespace/scene."""
+    from rclpy.parameter import Parameter
+
+    from impact_damper_sim.ros.vibration_node import VibrationNode
+    node = VibrationNode(context=ros_context, namespace=namespace, start_stepping=False,
+                         clock=FakeClock(), parameter_overrides=[
+                             Parameter('scene', value='sdof'),
+                             Parameter('hardware_id', value=hardware_id)])
+    sent = []
+    try:
+        node.diagnostics.outlet.publish = lambda msg, *a, **k: sent.append(msg)
+        node.publish_diagnostics()
+        (status,) = sent[-1].status
+        assert (status.name, status.hardware_id) == (want_name, want_id)
+    finally:
+        node.destroy_node()

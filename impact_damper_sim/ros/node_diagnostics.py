@@ -19,6 +19,12 @@ from .outlets import stamp
 _stamp = stamp
 
 
+def default_hardware_id(namespace, scene):
+    """The ``hardware_id`` of a node whose ``hardware_id`` parameter is empty: its namespace
+    and scene, ``'pump3/hpotp'`` (``'hpotp'`` at the root namespace)."""
+    return '/'.join([*namespace.strip('/').split('/'), scene]).lstrip('/')
+
+
 class Diagnostics:
     """The node's health on ``/diagnostics``, and the counters behind it.
 
@@ -47,6 +53,13 @@ class Diagnostics:
     name_clash : NameClash, optional
         Another node with this node's name is reported while it is there (the node's timer
         looks before each report).
+    hardware_id : str, optional
+        The status's ``hardware_id`` (a plant's name for the machine); empty: the node's
+        namespace and the scene (:func:`default_hardware_id`).
+
+    The status is named ``<fully qualified node name>: simulation`` (e.g.
+    ``/pump3/vibration_node: simulation``), so that nodes in several namespaces stay apart in
+    an aggregator (``diagnostic_aggregator`` groups by name).
     """
 
     #: the stepping thread is reported stalled (ERROR) after this long without a cycle (s)
@@ -56,12 +69,15 @@ class Diagnostics:
     RTF_TOLERANCE = 0.02
 
     def __init__(self, node, live, outbox, lock, outlet, recording, stepping, log, clock,
-                 counters, name_clash=None):
+                 counters, name_clash=None, hardware_id=''):
         self.node, self.live, self.outbox, self._lock = node, live, outbox, lock
         self.outlet, self.recording, self.stepping = outlet, recording, stepping
         self._log, self.clock, self.name_clash = log, clock, name_clash
         self.counters = counters
         self.scene = live.scene
+        self.status_name = f'{node.get_fully_qualified_name()}: simulation'
+        self.hardware_id = hardware_id or default_hardware_id(node.get_namespace(),
+                                                              self.scene.name)
         self.growth_rate = live.linear_growth_rate()
         self.last_diagnostics = None
         self._failure_logged = False
@@ -95,7 +111,7 @@ class Diagnostics:
         """Publish ``/diagnostics``: pacing, CPU, impacts, stuck fraction, peak, health."""
         if not self._lock.acquire(self.STALL):   # the stepping thread is stuck in a chunk
             status = DiagnosticStatus(
-                name=f'{self.node.get_name()}: simulation', hardware_id=self.scene.name,
+                name=self.status_name, hardware_id=self.hardware_id,
                 level=DiagnosticStatus.ERROR,
                 message=f'stepping thread stalled: it has held the simulation for over '
                         f'{self.STALL:g} s')
@@ -121,8 +137,7 @@ class Diagnostics:
         achieved = (delivered - st.delivered) / d_wall
         n_imp = len(self.scene.impactors)
         stuck_fraction = (st.stuck_time / (d_sim * n_imp)) if d_sim > 0 and n_imp else 0.0
-        status = DiagnosticStatus(name=f'{self.node.get_name()}: simulation',
-                                  hardware_id=self.scene.name)
+        status = DiagnosticStatus(name=self.status_name, hardware_id=self.hardware_id)
         level, messages = DiagnosticStatus.OK, []
         rtf = self.outbox.pacer.real_time_factor
         stalled = self.stepping(wall)

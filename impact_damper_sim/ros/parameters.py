@@ -72,6 +72,10 @@ PARAMETERS = {
                               '(ramp slope or max_rate; at run time: the rate at start); a '
                               'change also applies to a ramp under way (no effect without a '
                               'commanded rotor)', (0.0, 1.0e6), False),
+    'hardware_id': Spec('', "hardware_id of the node's /diagnostics status, which a plant sets "
+                        'to tell its machines apart (e.g. a pump serial); empty = the '
+                        "namespace and the scene, e.g. 'pump3/hpotp' ('hpotp' at the root)",
+                        None, True),
     'publish_clock': Spec(True, 'publish /clock (turn off on all but one node of a system)',
                       None, True),
     'publish_truth': Spec(False, "publish each accelerometer's ground truth accel/<name>/truth: "

@@ -185,7 +185,7 @@ class VibrationNode(Node):
         self.diagnostics = Diagnostics(self, self.live, self.outbox, self._lock,
                                        self.publishing.diagnostics, self.recording,
                                        self._stepping, log, self._wall, self.counters,
-                                       name_clash=clash)
+                                       name_clash=clash, hardware_id=p['hardware_id'])
         self._command_subs = [
             self.create_subscription(Float64, itf.SPEED_COMMAND, self.on_speed_command,
                                      itf.COMMAND_QOS),
