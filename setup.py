@@ -9,11 +9,11 @@ here = Path(__file__).resolve().parent
 
 # Console scripts. pip puts them on the PATH (<prefix>/bin), where generic names such as
 # `monitor` or `replay` would clash with other tools, so there they carry the package's prefix
-# (impact_damper_monitor, impact_damper_replay, impact_damper_study; vibration_node is already
-# specific). `ros2 run impact_damper_sim NAME` runs <prefix>/lib/impact_damper_sim/NAME, off
-# the PATH: there they are installed under their short names (monitor, replay, study,
-# vibration_node), by colcon through the commands below and, for the editable install of
-# `make`, by tools/ament_develop.py.
+# (impact_damper_monitor, impact_damper_replay, impact_damper_study, impact_damper_plant_host,
+# impact_damper_recorder; vibration_node is already specific). `ros2 run impact_damper_sim NAME`
+# runs <prefix>/lib/impact_damper_sim/NAME, off the PATH: there they are installed under their
+# short names (monitor, replay, study, plant_host, recorder, vibration_node), by colcon through
+# the commands below and, for the editable install of `make`, by tools/ament_develop.py.
 SCRIPT_PREFIX = 'impact_damper_'
 
 
@@ -98,6 +98,10 @@ setup(
             'vibration_node = impact_damper_sim.ros.vibration_node:main',
             'impact_damper_monitor = impact_damper_sim.ros.monitor:main',
             'impact_damper_replay = impact_damper_sim.ros.replay:main',
+            # several machines (VibrationNode instances) in one process, one executor
+            'impact_damper_plant_host = impact_damper_sim.ros.plant_host:main',
+            # records the batch topics of a plant's machines into one log or one each
+            'impact_damper_recorder = impact_damper_sim.ros.recorder:main',
         ],
     },
 )
