@@ -147,8 +147,9 @@ def reading(monitor, sim, *sensors):
     """Condition: the monitor reads the sensors' published topics and the impacts, matched
     at both ends (a reliable message sent before the reader matched the writer is lost)."""
     def condition():
+        machine = monitor.machines[sim.node.get_namespace()]
         publishers = [sim.batches.get(s) or sim.imus[s] for s in sensors] + [sim.impacts]
-        streams = [monitor._accel_streams[s] for s in sensors] + [monitor._impact_stream]
+        streams = [machine.accel_streams[s] for s in sensors] + [machine.impact_stream]
         return (all(p.get_subscription_count() == 1 for p in publishers)
                 and all(s.subscription.get_publisher_count() == 1 for s in streams))
     return condition
@@ -244,14 +245,15 @@ def test_diagnostics_match_the_synthetic_input(setup, fmt):
         # best-effort samples: let the monitor take each chunk before its queue would overflow
         spin_until(executor, received(monitor, 'accel', sent['accel']))
     spin_until(executor, received(monitor, 'impacts', sent['impacts']))
-    spin_until(executor, lambda: latest_status(sim, 'monitor: /hpotp/impacts')[1].get(
+    spin_until(executor, lambda: latest_status(sim, '/hpotp/monitor: /hpotp/impacts')[1].get(
         'window_end_s') == f'{T0 + 1.4995:.6g}')
 
     array = sim.arrays[-1]
     assert array.header.stamp.sec > 0 or array.header.stamp.nanosec > 0
-    tip, values = status(array, 'monitor: /hpotp/tip')
+    tip, values = status(array, '/hpotp/monitor: /hpotp/tip')
     assert tip.level == DiagnosticStatus.OK, tip.message
-    assert tip.hardware_id == 'tip_frame'
+    assert tip.hardware_id == 'hpotp/tip_frame'   # no vibration_node status seen
+    assert values.pop('frame_id') == 'tip_frame'
     value = {key: float(text) for key, text in values.items()}
     assert value['samples_in_window'] == 1000
     assert value['samples_per_s'] == pytest.approx(FS, rel=TEXT_REL)
@@ -270,9 +272,10 @@ def test_diagnostics_match_the_synthetic_input(setup, fmt):
     assert math.isnan(value['dominant_hz_z'])
     assert value['rejected_samples'] == 0
 
-    imp, values = status(array, 'monitor: /hpotp/impacts')
+    imp, values = status(array, '/hpotp/monitor: /hpotp/impacts')
     assert imp.level == DiagnosticStatus.OK, imp.message
-    assert imp.hardware_id == 'housing'
+    assert imp.hardware_id == 'hpotp/housing'
+    assert values.pop('frame_id') == 'housing'
     value = {key: float(text) for key, text in values.items()}
     assert value['impacts_in_window'] == 25
     assert value['span_s'] == pytest.approx(window, rel=TEXT_REL)
@@ -374,7 +377,7 @@ def test_empty_impact_batches_count_in_the_impact_rate(setup):
         lo, hi = ns_of(T0 + np.array([k, k + 1]) * CHUNK / FS)
         sim.impact_batch(lo, impact_ns[(impact_ns >= lo) & (impact_ns < hi)])
         spin_until(executor, received(monitor, 'impacts', k + 1))    # keep last 100
-    _, values = status(monitor.report(), 'monitor: /impacts')
+    _, values = status(monitor.report(), '/monitor: /impacts')
     assert values['impacts_in_window'] == '10'
     assert float(values['span_s']) == pytest.approx(1.0, rel=TEXT_REL)
     assert float(values['impacts_per_s']) == pytest.approx(10.0, rel=TEXT_REL)
@@ -393,17 +396,17 @@ def test_discovers_sensors_and_flags_stale_ones(setup):
     spin_until(executor, lambda: late.get_subscription_count() == 1
                and reading(monitor, sim, 'a')())
     sim.batch('a', ns_of(1.0 + np.arange(20) / FS), np.tile([G0, 0.0, 0.0], (20, 1)))
-    spin_until(executor, lambda: latest_status(sim, 'monitor: /a')[1].get(
+    spin_until(executor, lambda: latest_status(sim, '/monitor: /a')[1].get(
         'samples_in_window') == '20')
-    a, _ = latest_status(sim, 'monitor: /a')
+    a, _ = latest_status(sim, '/monitor: /a')
     assert a.level == DiagnosticStatus.OK, a.message
     # b is silent: within the start-up grace period an OK 'waiting', not a WARN
-    b, _ = latest_status(sim, 'monitor: /b')
+    b, _ = latest_status(sim, '/monitor: /b')
     assert b.level == DiagnosticStatus.OK and b.message == 'waiting for the first sample on accel/b'
     # no sample for more than two windows (0.2 s on the node clock): stale
-    spin_until(executor, lambda: latest_status(sim, 'monitor: /a')[0].message.startswith(
+    spin_until(executor, lambda: latest_status(sim, '/monitor: /a')[0].message.startswith(
         'stale'))
-    assert latest_status(sim, 'monitor: /a')[0].level == DiagnosticStatus.WARN
+    assert latest_status(sim, '/monitor: /a')[0].level == DiagnosticStatus.WARN
 
 
 def test_bad_messages_are_counted_not_fatal(setup):
@@ -431,20 +434,20 @@ def test_bad_messages_are_counted_not_fatal(setup):
     spin_until(executor, received(monitor, 'impactor_state', 2))
     spin_until(executor, received(monitor, 'accel', 5))
     spin_until(executor, received(monitor, 'impacts', 1))
-    spin_until(executor, lambda: latest_status(sim, 'monitor: /tip')[1].get(
+    spin_until(executor, lambda: latest_status(sim, '/monitor: /tip')[1].get(
         'rejected_samples') == '7')
-    tip, values = latest_status(sim, 'monitor: /tip')
+    tip, values = latest_status(sim, '/monitor: /tip')
     assert tip.level == DiagnosticStatus.WARN and 'rejected' in tip.message
     assert int(values['samples_in_window']) == good
     assert float(values['peak_g']) == pytest.approx(0.5, rel=TEXT_REL)
-    imp, values = latest_status(sim, 'monitor: /impacts')
+    imp, values = latest_status(sim, '/monitor: /impacts')
     assert values['rejected_states'] == '2'
     assert values['rejected_impacts'] == '2'
     assert values['stuck_fraction'] == 'nan'
     # still alive and reporting: a later report has no new rejections, so tip is OK
     count = len(sim.arrays)
     spin_until(executor, lambda: len(sim.arrays) > count)
-    assert latest_status(sim, 'monitor: /tip')[0].level == DiagnosticStatus.OK
+    assert latest_status(sim, '/monitor: /tip')[0].level == DiagnosticStatus.OK
 
 
 def test_parameters_are_ranged_and_window_is_live(setup):
@@ -455,7 +458,7 @@ def test_parameters_are_ranged_and_window_is_live(setup):
     assert monitor.set_parameters([Parameter('window', value=0.5)])[0].successful
     array = monitor.report()
     assert monitor.last_report.window == 0.5
-    assert status(array, 'monitor: /tip')[1]['window_s'] == '0.5'
+    assert status(array, '/monitor: /tip')[1]['window_s'] == '0.5'
     assert not monitor.set_parameters([Parameter('sensors', value=['x'])])[0].successful
     assert not monitor.set_parameters([Parameter('report_period', value=2.0)])[0].successful
     descriptor = monitor.describe_parameter('window')
