@@ -598,3 +598,179 @@ def test_truth_and_tachometer_topics_are_not_accelerometers(setup):
     assert 'a' in monitor.sensors
     assert not [s for s in monitor.sensors if 'truth' in s or 'tach' in s], monitor.sensors
     assert all(p.get_subscription_count() == 0 for p in extra)
+
+
+# --- several machines (issue 39): namespaces, one line per machine, told apart ---------------
+
+def capture_lines(monitor):
+    """Collect the monitor's INFO and WARN log lines as ``(level, text)``."""
+    lines = []
+    logger = monitor.get_logger()
+    logger.info = lambda text, **_: lines.append(('info', text))
+    logger.warning = lambda text, **_: lines.append(('warn', text))
+    return lines
+
+
+@pytest.fixture
+def plant(ros_context):
+    """Build ``(monitor, {namespace: simulator}, executor)``; destroy them afterwards."""
+    made = []
+
+    def make(monitor_parameters, namespaces, **sim_kwargs):
+        sims = {ns: Simulator(ros_context, namespace=ns, **sim_kwargs) for ns in namespaces}
+        monitor = VibrationMonitor(context=ros_context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in monitor_parameters.items()])
+        executor = SingleThreadedExecutor(context=ros_context)
+        for node in [monitor, *(sim.node for sim in sims.values())]:
+            executor.add_node(node)
+        made.append((monitor, sims, executor))
+        return monitor, sims, executor
+
+    yield make
+    for monitor, sims, executor in made:
+        executor.shutdown()
+        monitor.destroy_node()
+        for sim in sims.values():
+            sim.node.destroy_node()
+
+
+def send_tone(sim, start_ms, count, amplitude_g, hz=40.0):
+    """``count`` ms of a ``amplitude_g`` g sine at ``hz`` on ``tip`` (x), from T0 +
+    ``start_ms``, in CHUNK batches, with the empty impact batch of each chunk."""
+    for k in range(start_ms, start_ms + count, CHUNK):
+        ns = ns_of(T0 + (np.arange(k, k + CHUNK) + 0.5) / FS)
+        t = ns * 1e-9
+        acc = np.zeros((CHUNK, 3))
+        acc[:, 0] = amplitude_g * G0 * np.sin(2 * np.pi * hz * t)
+        sim.batch('tip', ns, acc)
+        lo, hi = ns_of(T0 + np.array([k, k + CHUNK]) / FS)
+        sim.impact_batch(lo, [])
+    return count // CHUNK
+
+
+def test_two_machines_one_line_each_and_distinct_statuses(plant):
+    """``namespaces: [pump1, /plant/pump2]``: a 1 g and a 3 g tone. One line per machine per
+    report, its namespace first and padded so the figures line up, with that machine's RMS;
+    statuses and hardware_ids name the machine; each machine has its own core."""
+    monitor, sims, executor = plant(
+        dict(namespaces=['pump1', '/plant/pump2'], sensors=['tip'], window=0.5,
+             report_period=3600.0), ['/pump1', '/plant/pump2'])
+    assert list(monitor.machines) == ['/pump1', '/plant/pump2']
+    for sim in sims.values():
+        spin_until(executor, reading(monitor, sim, 'tip'))
+    sent = send_tone(sims['/pump1'], 0, 500, 1.0) + send_tone(sims['/plant/pump2'], 0, 500, 3.0)
+    spin_until(executor, received(monitor, 'accel', sent))
+    lines = capture_lines(monitor)
+    array = monitor.report()
+
+    assert [level for level, _ in lines] == ['warn', 'warn']   # no impactor_state: WARN
+    (one, two) = [text for _, text in lines]
+    assert one.startswith('/pump1        accel/tip: rms 0.7071 g')   # padded to 12 + 2
+    assert two.startswith('/plant/pump2  accel/tip: rms 2.121 g')
+    assert 'impacts: 0 /s' in one and 'impacts: 0 /s' in two
+    names = [s.name for s in array.status]
+    assert names == ['/monitor: /pump1/tip', '/monitor: /pump1/impacts',
+                     '/monitor: /plant/pump2/tip', '/monitor: /plant/pump2/impacts']
+    assert [s.hardware_id for s in array.status] == [
+        'pump1/tip_frame', 'pump1/housing', 'plant/pump2/tip_frame', 'plant/pump2/housing']
+    rms = {s.name: float(status(array, s.name)[1]['rms_g']) for s in array.status[::2]}
+    assert rms['/monitor: /pump1/tip'] == pytest.approx(1 / np.sqrt(2), rel=TEXT_REL)
+    assert rms['/monitor: /plant/pump2/tip'] == pytest.approx(3 / np.sqrt(2), rel=TEXT_REL)
+    # a second report: again exactly one line per machine
+    monitor.report()
+    assert len(lines) == 4 and lines[2][1].startswith('/pump1 ')
+
+
+def test_hardware_id_is_the_machines_own(plant):
+    """A ``vibration_node`` status ``/pump1/vibration_node: simulation`` with hardware_id
+    SN-1042 (the plant's name for the pump): pump1's monitor statuses carry it; pump2, with
+    no such status, keeps ``pump2/<frame>``; other statuses on /diagnostics change nothing."""
+    from diagnostic_msgs.msg import DiagnosticStatus as Status
+    monitor, sims, executor = plant(
+        dict(namespaces=['/pump1', '/pump2'], sensors=['tip'], report_period=3600.0),
+        ['/pump1', '/pump2'])
+    sim = sims['/pump1']
+    diagnostics = sim.node.create_publisher(DiagnosticArray, interface.DIAGNOSTICS,
+                                            interface.DIAGNOSTICS_QOS)
+    spin_until(executor, lambda: diagnostics.get_subscription_count() >= 2)
+    diagnostics.publish(DiagnosticArray(status=[
+        Status(name='/pump2/other_node: simulation_x', hardware_id='not-a-machine'),
+        Status(name='/pump1/vibration_node: simulation', hardware_id='SN-1042')]))
+    spin_until(executor, lambda: monitor.machines['/pump1'].node_hardware_id == 'SN-1042')
+    array = monitor.report()
+    assert {s.name: s.hardware_id for s in array.status} == {
+        '/monitor: /pump1/tip': 'SN-1042', '/monitor: /pump1/impacts': 'SN-1042',
+        '/monitor: /pump2/tip': 'pump2', '/monitor: /pump2/impacts': 'pump2'}
+
+
+def test_a_machine_that_stops_publishing_is_reported_stale(plant):
+    """Both machines publish, then pump1 stops: after two windows of node clock pump1's
+    status turns WARN 'stale' and its line is a WARN naming it; pump2 stays OK."""
+    monitor, sims, executor = plant(
+        dict(namespaces=['pump1', 'pump2'], sensors=['tip'], window=0.1,
+             report_period=0.05), ['/pump1', '/pump2'])
+    for sim in sims.values():
+        spin_until(executor, reading(monitor, sim, 'tip'))
+        sim.stuck(T0, ['i0/x'], [0.0])
+    spin_until(executor, received(monitor, 'impactor_state', 2))
+    sent = send_tone(sims['/pump1'], 0, 100, 1.0) + send_tone(sims['/pump2'], 0, 100, 1.0)
+    spin_until(executor, received(monitor, 'accel', sent))
+    lines = capture_lines(monitor)
+    start = time.monotonic()
+    ms = 100
+    pump2 = sims['/pump2']
+    while time.monotonic() - start < 0.6 or not latest_status(
+            pump2, '/monitor: /pump1/tip')[0].message.startswith('stale'):
+        assert time.monotonic() - start < 10.0, 'pump1 never reported stale'
+        sent += send_tone(pump2, ms, CHUNK, 1.0)   # pump2 goes on, in real time or so
+        ms += CHUNK
+        spin_until(executor, received(monitor, 'accel', sent))
+        time.sleep(0.01)
+    pump1, _ = latest_status(pump2, '/monitor: /pump1/tip')
+    assert pump1.level == DiagnosticStatus.WARN and 'no sample for' in pump1.message
+    other, _ = latest_status(pump2, '/monitor: /pump2/tip')
+    assert other.level == DiagnosticStatus.OK, other.message
+    last = [(level, text) for level, text in lines if text.startswith('/pump1 ')][-1]
+    assert last[0] == 'warn' and 'stale: no sample for' in last[1]
+    assert [level for level, text in lines if text.startswith('/pump2 ')][-1] == 'info'
+
+
+def test_star_follows_the_machines_in_the_graph(plant):
+    """``namespaces: ['*']``: the machines with accelerometer topics are followed, a later one
+    too; a namespace with only another topic (a String ``accel/x``) is not a machine."""
+    from std_msgs.msg import String
+    monitor, sims, executor = plant(dict(namespaces=['*'], report_period=0.05),
+                                    ['/pump1', '/pump2'])
+    spin_until(executor, lambda: {'/pump1', '/pump2'} <= set(monitor.machines))
+    stranger = sims['/pump1'].node.create_publisher(String, '/stranger/accel/x', 10)
+    late = sims['/pump1'].node.create_publisher(
+        PointCloud2, '/pump3/accel/tip' + BATCH_SUFFIX, interface.BATCH_QOS)
+    spin_until(executor, lambda: '/pump3' in monitor.machines)
+    spin_until(executor, lambda: monitor.machines['/pump3'].accel_streams.keys() == {'tip'})
+    assert '/stranger' not in monitor.machines
+    assert stranger.get_subscription_count() == 0
+    assert late.get_subscription_count() == 1
+
+
+@pytest.mark.parametrize('entry', ['pump 1', '/1pump', 'plant//pump1', 'pump1/', '', '~/x'])
+def test_an_invalid_namespace_is_refused_naming_the_parameter(ros_context, entry):
+    from impact_damper_sim.ros.monitor_machine import MonitorParameterError
+    with pytest.raises(MonitorParameterError) as refused:
+        VibrationMonitor(context=ros_context, parameter_overrides=[
+            Parameter('namespaces', value=['pump0', entry])])
+    text = str(refused.value)
+    assert text.startswith(f'namespaces: {entry!r} is not ') and "'*'" in text, text
+    assert '\n' not in text
+
+
+def test_main_refuses_an_invalid_namespace_in_one_line():
+    env = dict(os.environ, ROS_DOMAIN_ID=str(next_domain_id()),
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    done = subprocess.run(
+        [sys.executable, '-c',
+         'import sys; from impact_damper_sim.ros.monitor import main; sys.exit(main())',
+         '--ros-args', '-p', "namespaces:=['pump1', 'pump 2']"],
+        env=env, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert done.stderr.startswith("monitor: namespaces: 'pump 2' is not an absolute '/pump1'")
+    assert done.stderr.count('\n') == 1 and 'Traceback' not in done.stderr
