@@ -1,0 +1,295 @@
+"""``plant_host``: several machines in one process, one executor.
+
+Each machine is a :class:`~impact_damper_sim.ros.vibration_node.VibrationNode` in its own
+namespace (``/pump1/vibration_node``), with its own stepping thread, topics, services,
+parameters and ``/diagnostics`` status, exactly as when it runs as a process of its own; only
+the process is shared. What the process costs once (Python, NumPy, SciPy, Numba and the
+compiled kernels, rclpy and the DDS participant: about 220 MB resident) is then paid once for
+the plant, and each further machine adds its model and its DDS endpoints (a few MB:
+docs/bench/node-memory.md). The ROS-native form (one process per machine,
+``plant.launch.py``) stays; both give the same graph.
+
+Usage::
+
+    ros2 run impact_damper_sim plant_host --machines pump1:hpotp pump2:rbs
+    ros2 run impact_damper_sim plant_host --plant ten_hpotp
+    ros2 run impact_damper_sim plant_host --plant my_plant.yaml --machines spare:sdof \\
+        --ros-args -p real_time_factor:=0.5
+
+``--machines`` takes ``namespace:scene`` pairs; ``--plant`` a plant file or the name of a
+ready-made one (:mod:`impact_damper_sim.scene.plant`: per machine its seed, unbalance,
+channel preset, noise, faults, hardware_id and per-machine log). Machines of both come in the
+order given (the plant's first). Each machine is seeded apart: machine ``i`` (from 0) gets
+``noise_seed`` = base + ``i`` (``--seed``, default the plant file's ``seed``, else 0) unless the
+plant file gives it its own. Parameters after ``--ros-args -p`` apply to every machine where
+the plant does not set them. Only the first machine publishes ``/clock`` (``--clock``): one
+topic cannot carry several machines' sim times.
+
+Exit status as ``vibration_node``: 0 on Ctrl-C, SIGTERM or SIGHUP (every machine stopped and
+its recording finished), 2 (one line on stderr naming the machine) when a plant file, a scene
+or a start-up parameter is invalid.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+#: the executors plant_host can spin its machines with
+EXECUTORS = ('single', 'multi')
+#: which machines publish /clock
+CLOCK_CHOICES = ('first', 'all', 'none')
+
+
+class MachineSpec:
+    """One machine to host: its namespace, scene and node parameter values.
+
+    Parameters
+    ----------
+    namespace : str
+        ROS namespace, without a leading slash (``pump1``).
+    parameters : dict
+        ``vibration_node`` parameter values (name -> value); ``scene`` among them.
+    """
+
+    def __init__(self, namespace, parameters):
+        self.namespace = namespace.strip('/')
+        self.parameters = dict(parameters)
+
+    @property
+    def scene(self):
+        """str: The machine's scene (name or file)."""
+        return self.parameters.get('scene', '')
+
+    def __repr__(self):
+        return f'MachineSpec({self.namespace!r}, {self.parameters!r})'
+
+
+def parse_machine(text):
+    """``'namespace:scene'`` -> ``(namespace, scene)``.
+
+    Raises
+    ------
+    ValueError
+        Not of that form (the message says what is expected).
+    """
+    namespace, sep, scene = text.partition(':')
+    namespace = namespace.strip().strip('/')
+    if not (sep and namespace and scene.strip()):
+        raise ValueError(f'--machines: {text!r} is not namespace:scene (e.g. pump1:hpotp)')
+    return namespace, scene.strip()
+
+
+def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='first'):
+    """The machines to host, in order: the plant file's, then ``machines``.
+
+    Parameters
+    ----------
+    machines : sequence of str
+        ``namespace:scene`` pairs (``--machines``).
+    plant : str, optional
+        Plant file or ready-made plant name (``--plant``).
+    seed : int, optional
+        Base seed: machine ``i`` gets ``seed + i`` unless its plant entry gives a seed.
+        Default the plant file's ``seed``, else 0.
+    record_dir : str, optional
+        Directory of a ``per_machine`` plant's logs (default the plant file's rule).
+    clock : {'first', 'all', 'none'}
+        Which machines publish ``/clock``.
+
+    Returns
+    -------
+    specs : list of MachineSpec
+    notes : list of str
+        What the caller should tell the user (e.g. a ``one_log`` plant needs ``recorder``).
+
+    Raises
+    ------
+    impact_damper_sim.scene.schema.SceneError
+        An invalid plant file, a malformed ``--machines`` entry, two machines in one
+        namespace or none at all.
+    """
+    from ..scene.schema import SceneError
+    specs, notes = [], []
+    base = 0 if seed is None else int(seed)
+    if plant is not None:
+        from ..scene.plant import load_plant
+        loaded = load_plant(plant)
+        base = loaded.seed if seed is None else base
+        params = loaded.node_parameters(record_dir=loaded.record_directory(record_dir)
+                                        if loaded.record == 'per_machine' else None)
+        for m in loaded.machines:
+            p = params[m.namespace]
+            if seed is not None and m.seed == loaded.seed + m.index:   # not its own seed
+                p['noise_seed'] = base + m.index
+            specs.append(MachineSpec(m.namespace, p))
+        if loaded.record == 'per_machine':
+            logs = loaded.record_directory(record_dir)
+            logs.mkdir(parents=True, exist_ok=True)
+            notes.append(f'plant {loaded.name!r}: one log per machine in {logs}/')
+        elif loaded.record == 'one_log':
+            notes.append(f'plant {loaded.name!r} records one log for all machines: run the '
+                         f'recorder beside plant_host (ros2 run impact_damper_sim recorder '
+                         f'--ros-args -p plant:={loaded.source})')
+    for text in machines:
+        try:
+            namespace, scene = parse_machine(text)
+        except ValueError as exc:
+            raise SceneError(str(exc)) from None
+        specs.append(MachineSpec(namespace, {'scene': scene,
+                                             'noise_seed': base + len(specs)}))
+    if not specs:
+        raise SceneError('no machines: give --machines namespace:scene ... and/or --plant FILE')
+    seen: dict[str, int] = {}
+    for k, spec in enumerate(specs):
+        if spec.namespace in seen:
+            raise SceneError(f'machine {k} ({spec.namespace}:{spec.scene}): namespace '
+                             f'{spec.namespace!r} is also machine {seen[spec.namespace]}\'s; '
+                             'each machine needs its own')
+        seen[spec.namespace] = k
+        if clock != 'all':
+            spec.parameters.setdefault('publish_clock', clock == 'first' and k == 0)
+    return specs, notes
+
+
+def _parser():
+    parser = argparse.ArgumentParser(
+        prog='plant_host', description='Several vibration_node machines in one process, '
+        'one executor (each in its own namespace). ROS arguments follow --ros-args.')
+    parser.add_argument('--machines', nargs='+', default=[], metavar='NS:SCENE',
+                        help='machines as namespace:scene, e.g. pump1:hpotp pump2:rbs')
+    parser.add_argument('--plant', default=None, metavar='FILE',
+                        help='plant file (YAML) or the name of a ready-made plant '
+                             '(config/plants)')
+    parser.add_argument('--seed', type=int, default=None,
+                        help="base seed: machine i gets noise_seed = seed + i (default the "
+                             "plant file's seed, else 0)")
+    parser.add_argument('--record-dir', default=None,
+                        help="directory of a per_machine plant's logs (default the plant "
+                             "file's record_dir)")
+    parser.add_argument('--clock', choices=CLOCK_CHOICES, default='first',
+                        help='which machines publish /clock (default: the first)')
+    parser.add_argument('--executor', choices=EXECUTORS, default='single',
+                        help='rclpy executor of all machines (default single: each machine '
+                             'steps in its own thread; the executor only serves commands, '
+                             'parameters and the 1 s timers)')
+    return parser
+
+
+def make_executor(kind):
+    """An rclpy executor: ``'single'`` (SingleThreadedExecutor) or ``'multi'``
+    (MultiThreadedExecutor, two threads: the machines step in threads of their own)."""
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+    return SingleThreadedExecutor() if kind == 'single' else MultiThreadedExecutor(2)
+
+
+def build_machines(specs, node_class=None, **kwargs):
+    """Build one node per machine (not stepping yet), in order.
+
+    Parameters
+    ----------
+    specs : sequence of MachineSpec
+    node_class : type, optional
+        Default :class:`~impact_damper_sim.ros.vibration_node.VibrationNode`.
+    **kwargs
+        Passed to each node (e.g. ``context``).
+
+    Returns
+    -------
+    list of VibrationNode
+
+    Raises
+    ------
+    MachineError
+        A machine's scene or parameters are invalid; the nodes built before it are
+        destroyed.
+    """
+    from rclpy.exceptions import NameValidationException, ParameterException
+    from rclpy.parameter import Parameter
+
+    from ..scene.schema import SceneError
+    if node_class is None:
+        from .vibration_node import VibrationNode as node_class
+    nodes = []
+    for k, spec in enumerate(specs):
+        overrides = [Parameter(name, value=value) for name, value in spec.parameters.items()]
+        try:
+            nodes.append(node_class(start_stepping=False, namespace=spec.namespace,
+                                    parameter_overrides=overrides, **kwargs))
+        except (SceneError, ParameterException, NameValidationException, ValueError,
+                TypeError) as exc:
+            for node in nodes:
+                node.destroy_node()
+            raise MachineError(f'machine {k} ({spec.namespace}:{spec.scene}): {exc}') from None
+    return nodes
+
+
+class MachineError(Exception):
+    """A machine of the plant could not be built (the message names it)."""
+
+
+def main(args=None):
+    """Entry point: ``ros2 run impact_damper_sim plant_host --machines NS:SCENE ...``.
+
+    Exit status 0 on Ctrl-C or shutdown, 2 (one line on stderr) when the plant file, a
+    machine's scene or a start-up parameter is invalid.
+    """
+    import signal
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.utilities import remove_ros_args
+
+    from ..scene.schema import SceneError
+    from .process import (
+        freeze_start_up_heap,
+        ignore_further_interrupts,
+        settle_interrupt,
+        shutdown_quietly,
+        spin_guarded,
+    )
+    argv = list(sys.argv if args is None else args)
+    options = _parser().parse_args(remove_ros_args(argv)[1:])
+    try:
+        specs, notes = machine_specs(options.machines, options.plant, options.seed,
+                                     options.record_dir, options.clock)
+    except SceneError as exc:
+        print(f'plant_host: {exc}', file=sys.stderr)
+        return 2
+    rclpy.init(args=argv)
+    # a closed terminal ends the plant as SIGTERM does, finishing every recording
+    signal.signal(signal.SIGHUP, lambda *_: signal.raise_signal(signal.SIGTERM))
+    log = rclpy.logging.get_logger('plant_host')
+    for note in notes:
+        log.info(note)
+    nodes = []
+    try:
+        nodes = build_machines(specs)
+        freeze_start_up_heap()   # once, after every machine: no full collections while paced
+        for node in nodes:
+            node.start()
+        executor = make_executor(options.executor)
+        for node in nodes:
+            executor.add_node(node)
+        log.info(f'{len(nodes)} machines in one process ({options.executor}-threaded '
+                 f"executor): {', '.join(n.get_fully_qualified_name() for n in nodes)}")
+        spin_guarded(executor, lambda exc: log.error(
+            f'callback failed: {type(exc).__name__}: {exc}', throttle_duration_sec=1.0))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        ignore_further_interrupts()
+        settle_interrupt()
+    except MachineError as exc:
+        print(f'plant_host: {exc}', file=sys.stderr)
+        return 2
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        shutdown_quietly()
+    return 0
+
+
+__all__ = ['CLOCK_CHOICES', 'EXECUTORS', 'MachineError', 'MachineSpec', 'build_machines',
+           'machine_specs', 'main', 'make_executor', 'parse_machine']
+
+
+if __name__ == '__main__':
+    sys.exit(main())
