@@ -1,0 +1,133 @@
+"""A plant: one ``vibration_node`` per machine of a plant file, each in its own namespace.
+
+Usage (after ``make``'s set-up, with ``AMENT_PREFIX_PATH=.venv``; or on a ROS 2 Jazzy machine
+after ``colcon build``)::
+
+    ros2 launch impact_damper_sim plant.launch.py plant:=mixed
+    ros2 launch impact_damper_sim plant.launch.py plant:=ten_hpotp record:=logs/today
+    ros2 launch impact_damper_sim plant.launch.py plant:=/path/to/my_plant.yaml \
+        record_mode:=one_log monitor:=false
+
+Arguments: ``plant`` (required: a name under ``config/plants`` or a plant file),
+``record`` (directory of the logs; overrides the file's ``record_dir``; given while the file
+says ``record: none``, each machine records its own log), ``record_mode`` (``none``,
+``per_machine``, ``one_log``; empty = the file's), ``monitor`` (true/false).
+
+What starts (docs/guides/plant.md): ``/<namespace>/vibration_node`` per machine with the
+parameters :meth:`Machine.node_parameters` gives (seed, unbalance, preset, faults as a
+schedule, hardware_id; ``publish_clock`` on the first machine only, so ``/clock`` has one
+publisher); with ``one_log``, ``/recorder`` writing ``<dir>/<plant>.mcap``; with ``monitor``,
+one ``/monitor`` following every machine's namespace (parameter ``namespaces``), or one
+``/<namespace>/monitor`` per machine with a monitor that follows only its own.
+
+The plant file is checked before anything starts (every problem in one message, each line
+naming its key, ``machines[2].scene: ...``), and so is each machine's list of faults against
+its scene's accelerometers (``machines[0].faults[1].accelerometer: ...``).
+"""
+import dataclasses
+import os
+import re
+import tempfile
+from types import SimpleNamespace
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+PACKAGE = 'impact_damper_sim'
+
+
+def fault_problems(plant):
+    """Each machine's faults checked against its scene's accelerometers (list of str, each
+    naming ``machines[i].faults[k].key``); the node would refuse them at start."""
+    from impact_damper_sim.live.fault_spec import FaultError, parse_faults
+    from impact_damper_sim.live.streams import accelerometers
+    from impact_damper_sim.scene.catalog import validated
+    problems = []
+    for m in plant.machines:
+        if not m.faults:
+            continue
+        spec, path = validated(m.scene, m.scene_overrides())
+        scene = SimpleNamespace(scene=spec, name=spec['name'], source=str(path))
+        names = [a.name for a in accelerometers(scene, 1000.0)]   # names: any rate
+        try:
+            parse_faults([dict(f) for f in m.faults], names, key=f'machines[{m.index}].faults')
+        except FaultError as exc:
+            problems += [re.sub(r"^(?:scene )?key '([^']*)': ", r'\1: ', e)
+                         for e in exc.errors]
+    return problems
+
+
+def monitor_follows_namespaces():
+    """Whether this package's monitor takes a ``namespaces`` parameter (one monitor for a
+    whole plant); an older one follows its own namespace only."""
+    import inspect
+
+    from impact_damper_sim.ros import monitor
+    return "'namespaces'" in inspect.getsource(monitor)
+
+
+def _plant_actions(context):
+    from impact_damper_sim.scene.plant import RECORD_MODES, PlantError, load_plant
+    get = lambda name: LaunchConfiguration(name).perform(context).strip()   # noqa: E731
+    try:
+        plant = load_plant(get('plant'))
+    except PlantError as exc:
+        raise RuntimeError(str(exc)) from None
+    problems = fault_problems(plant)
+    if problems:
+        raise RuntimeError('\n'.join([f'invalid plant {plant.source} (faults):', *problems]))
+    record_dir, mode = get('record'), get('record_mode') or plant.record
+    if mode not in RECORD_MODES:
+        raise RuntimeError(f"record_mode:={mode!r}: use one of {' | '.join(RECORD_MODES)}")
+    if record_dir and mode == 'none':
+        mode = 'per_machine'   # asked to record: each machine its own (complete) log
+    plant = dataclasses.replace(plant, record=mode)
+    directory = plant.record_directory(record_dir or None) if mode != 'none' else None
+    if directory is not None:
+        os.makedirs(directory, exist_ok=True)
+    schedule_dir = directory if directory is not None else tempfile.mkdtemp(
+        prefix=f'plant_{plant.name}_')
+    params = plant.node_parameters(record_dir=directory, schedule_dir=schedule_dir)
+    actions = []
+    if mode == 'one_log':
+        log = plant.record_paths(directory)['']
+        actions.append(Node(
+            package=PACKAGE, executable='recorder', name='recorder', output='screen',
+            emulate_tty=True,
+            parameters=[{'output': str(log), 'plant': plant.source,
+                         'namespaces': plant.namespaces,
+                         'overwrite': plant.record_overwrite}]))
+    for i, m in enumerate(plant.machines):
+        actions.append(Node(
+            package=PACKAGE, executable='vibration_node', name='vibration_node',
+            namespace=m.namespace, output='screen', emulate_tty=True,
+            parameters=[{**params[m.namespace], 'publish_clock': i == 0}]))
+    if get('monitor').lower() in ('true', '1', 'yes'):
+        if monitor_follows_namespaces():
+            actions.append(Node(
+                package=PACKAGE, executable='monitor', name='monitor', output='screen',
+                emulate_tty=True,
+                parameters=[{'namespaces': ['/' + ns for ns in plant.namespaces]}]))
+        else:
+            actions += [Node(package=PACKAGE, executable='monitor', name='monitor',
+                             namespace=ns, output='screen', emulate_tty=True)
+                        for ns in plant.namespaces]
+    return actions
+
+
+def generate_launch_description():
+    """The launch description: the arguments, then the plant's nodes (read at launch)."""
+    return LaunchDescription([
+        DeclareLaunchArgument('plant', description='plant name (config/plants/<name>.yaml) '
+                                                   'or plant file'),
+        DeclareLaunchArgument('record', default_value='',
+                              description="directory of the logs; empty = the file's "
+                                          'record_dir'),
+        DeclareLaunchArgument('record_mode', default_value='',
+                              description="none, per_machine or one_log; empty = the file's"),
+        DeclareLaunchArgument('monitor', default_value='true',
+                              description='also run the monitor'),
+        OpaqueFunction(function=_plant_actions),
+    ])
