@@ -730,6 +730,12 @@ def test_a_machine_that_stops_publishing_is_reported_stale(plant):
     assert pump1.level == DiagnosticStatus.WARN and 'no sample for' in pump1.message
     other, _ = latest_status(pump2, '/monitor: /pump2/tip')
     assert other.level == DiagnosticStatus.OK, other.message
+    # its impacts batches stopped too: the impacts status says so, pump2's does not
+    impacts, _ = latest_status(pump2, '/monitor: /pump1/impacts')
+    assert impacts.level == DiagnosticStatus.WARN
+    assert impacts.message.startswith('stale: no impacts batch for'), impacts.message
+    other, _ = latest_status(pump2, '/monitor: /pump2/impacts')
+    assert other.level == DiagnosticStatus.OK, other.message
     last = [(level, text) for level, text in lines if text.startswith('/pump1 ')][-1]
     assert last[0] == 'warn' and 'stale: no sample for' in last[1]
     assert [level for level, text in lines if text.startswith('/pump2 ')][-1] == 'info'

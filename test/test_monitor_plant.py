@@ -147,6 +147,9 @@ def test_two_real_nodes_one_line_each_then_one_stops(plant):
     gone = by_name[f'/monitor: /pump2/{sensor}']
     assert gone.level == DiagnosticStatus.WARN and gone.message.startswith('stale: no sample')
     assert by_name[f'/monitor: /pump1/{sensor}'].level == DiagnosticStatus.OK
+    gone = by_name['/monitor: /pump2/impacts']
+    assert gone.level == DiagnosticStatus.WARN and gone.message.startswith('stale: no impacts')
+    assert by_name['/monitor: /pump1/impacts'].level == DiagnosticStatus.OK
     new = lines[count:]
     assert [level for level, _ in machine_lines(new, '/pump2')] == ['warn']
     assert 'stale: no sample for' in machine_lines(new, '/pump2')[0][1]

@@ -272,6 +272,7 @@ class Machine:
         self._last_arrival = {}     # sensor -> node-clock time of its latest valid sample (s)
         self._watched_since = {}    # sensor -> node-clock time it was first reported (s)
         self._dampers_off = False
+        self._last_impact_batch = None   # node-clock time an impacts batch last arrived (s)
         self._rejected_reported = {}
         self._rejected_states_reported = 0
         self.discover_sensors = not sensors
@@ -437,6 +438,8 @@ class Machine:
                 self._last_arrival[sensor] = clock_s
         if batch.impacts:
             stats.add_impacts(np.frombuffer(batch.impacts, dtype=float))
+        if batch.impact_clouds:
+            self._last_impact_batch = clock_s
         for msg in batch.impact_clouds:
             try:
                 times = _stamps_s(sample_times_ns(msg))
@@ -491,7 +494,7 @@ class Machine:
         self.last_report = report
         found = [self._sensor_status(report, sensor, clock_s, node_name)
                  for sensor in report.sensors]
-        found.append(self._impacts_status(report, node_name))
+        found.append(self._impacts_status(report, clock_s, node_name))
         return found
 
     def hardware_id(self, frame):
@@ -536,10 +539,15 @@ class Machine:
                             self.frames.get(sensor, ''),
                             sensor_values(stats, lag, age, window, report.t))
 
-    def _impacts_status(self, report, node_name):
+    def _impacts_status(self, report, clock_s, node_name):
         new_rejects = report.rejected_states - self._rejected_states_reported
         self._rejected_states_reported = report.rejected_states
         problems = []
+        # impacts batches come every chunk, empty or not: their silence is a stopped machine
+        # (one WrenchStamped per impact may be silent for long: no such rule)
+        silent = clock_s - (self._last_impact_batch or clock_s)
+        if self.impact_stream.index == 0 and silent > STALE_WINDOWS * report.window:
+            problems.append(f'stale: no impacts batch for {silent:.3g} s')
         if math.isnan(report.stuck_fraction) and not self._dampers_off:
             problems.append(f'no {IMPACTOR_STATE} received')
         if new_rejects:
