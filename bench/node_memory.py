@@ -16,9 +16,11 @@ another's imports:
   (default 20; ``--seconds 900`` for a soak), ``VmRSS``, ``Pss`` and ``USS`` (its private
   pages: what it costs beside others that map the same libraries) every ``--every`` s.
 * **Plant** (``--plant 1,3,5``): N machines of ``--scene`` in namespaces ``m0 .. m{N-1}``,
-  as N ``vibration_node`` processes and as one ``plant_host`` process (``--executor single``
-  and/or ``multi``), each with a raw reader subscribed to every batch topic (PointCloud2)
-  of every machine and to ``/diagnostics``, from a wait set of its own (as
+  as N ``vibration_node`` processes, as one ``plant_host`` process (``--executor single``
+  and/or ``multi``) and, with ``--hosts K``, as K ``plant_host`` processes sharing them
+  (``hostK-single``: machine i in process i mod K), each with a raw reader subscribed to
+  every batch topic (PointCloud2) of every machine and to ``/diagnostics``, from a wait set
+  of its own (as
   bench/node_scenes.py's raw reader). After every machine's first status and ``--warmup``
   s, ``--plant-seconds`` s are measured: the worst and the median 1 s window of the
   machines' ``real_time_factor_achieved`` (their ``/diagnostics``), the node processes' CPU
@@ -29,6 +31,7 @@ Usage::
     python bench/node_memory.py [--scene hpotp] [--seconds 20] [--json F] [--page [PATH]]
     python bench/node_memory.py --seconds 900 --no-breakdown          # a soak
     python bench/node_memory.py --plant 1,3,5 --executor single,multi --json F --page
+    python bench/node_memory.py --plant 6 --hosts 2 --no-processes --json F
 
 ``--json F`` merges this run's sections into F (so that short runs, each under its own
 ``flock -x /tmp/bench.lock``, make one page); ``--page`` writes docs/bench/node-memory.md
@@ -457,17 +460,22 @@ def plant_run(n, scene, form, seconds, warmup, domain):
                     env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
                     stderr=open(os.path.join(tmp, f'{ns}.log'), 'w'),
                     start_new_session=True))
-        else:
-            procs.append(subprocess.Popen(
-                [script('impact_damper_plant_host'), '--executor', form.split('-')[1],
-                 '--machines', *(f'{ns}:{scene}' for ns in namespaces)],
-                env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
-                stderr=open(os.path.join(tmp, 'plant_host.log'), 'w'),
-                start_new_session=True))
+        else:   # 'host-E' one plant_host, 'hostK-E' K of them sharing the machines
+            hosts = int(form.split('-')[0][4:] or 1)
+            for h in range(hosts):
+                share = namespaces[h::hosts]
+                procs.append(subprocess.Popen(
+                    [script('impact_damper_plant_host'), '--executor', form.split('-')[1],
+                     '--seed', str(100 * h), '--clock', 'first' if h == 0 else 'none',
+                     '--machines', *(f'{ns}:{scene}' for ns in share)],
+                    env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
+                    stderr=open(os.path.join(tmp, f'plant_host{h}.log'), 'w'),
+                    start_new_session=True))
         # every machine's first status: read the processes' logs for the ready line
         end = time.monotonic() + 300
         logs = [os.path.join(tmp, f'{ns}.log') for ns in namespaces] \
-            if form == 'processes' else [os.path.join(tmp, 'plant_host.log')]
+            if form == 'processes' else [os.path.join(tmp, f'plant_host{h}.log')
+                                         for h in range(len(procs))]
         marker = 'integrator dt' if form == 'processes' else 'machines in one process'
         while time.monotonic() < end:
             if all(p.poll() is None for p in procs) and all(
@@ -627,6 +635,9 @@ def main(argv=None):
                         help="plant_host executors to run: single, multi or 'single,multi'")
     parser.add_argument('--no-processes', action='store_true',
                         help='plant: only plant_host, not N processes')
+    parser.add_argument('--hosts', type=int, default=1,
+                        help='plant: also split the machines over this many plant_host '
+                             'processes (e.g. 2: one per core)')
     parser.add_argument('--plant-seconds', type=float, default=30.0)
     parser.add_argument('--warmup', type=float, default=3.0)
     parser.add_argument('--domain', type=int, default=68)
@@ -654,7 +665,8 @@ def main(argv=None):
             print_running(data['running'])
     else:
         forms = ([] if args.no_processes else ['processes']) + \
-            [f'host-{e}' for e in args.executor.split(',')]
+            [f'host-{e}' for e in args.executor.split(',')] + \
+            ([f'host{args.hosts}-single'] if args.hosts > 1 else [])
         data.setdefault('plant', {})
         for n in (int(x) for x in args.plant.split(',')):
             for form in forms:
