@@ -632,7 +632,7 @@ def main(argv=None):
     parser.add_argument('--no-breakdown', action='store_true')
     parser.add_argument('--plant', default='', help='machine counts, e.g. 1,3,5')
     parser.add_argument('--executor', default='single',
-                        help="plant_host executors to run: single, multi or 'single,multi'")
+                        help="plant_host executors to run: single, multi, 'single,multi' or none")
     parser.add_argument('--no-processes', action='store_true',
                         help='plant: only plant_host, not N processes')
     parser.add_argument('--hosts', type=int, default=1,
@@ -665,7 +665,7 @@ def main(argv=None):
             print_running(data['running'])
     else:
         forms = ([] if args.no_processes else ['processes']) + \
-            [f'host-{e}' for e in args.executor.split(',')] + \
+            [f'host-{e}' for e in args.executor.split(',') if e in ('single', 'multi')] + \
             ([f'host{args.hosts}-single'] if args.hosts > 1 else [])
         data.setdefault('plant', {})
         for n in (int(x) for x in args.plant.split(',')):
