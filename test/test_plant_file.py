@@ -211,3 +211,15 @@ def test_setup_installs_the_plants_with_the_config():
     pairs = dict(namespace['_config_files']())
     plants = pairs['share/impact_damper_sim/config/plants']
     assert {'config/plants/ten_hpotp.yaml', 'config/plants/mixed.yaml'} <= set(plants)
+
+
+def test_the_guide_lists_every_plant_key():
+    """docs/guides/plant.md's two key tables name every key of the schema, and no other."""
+    import re
+
+    from impact_damper_sim.scene.plant import MACHINE_KEYS, PLANT_KEYS
+    text = (ROOT / 'docs' / 'guides' / 'plant.md').read_text()
+    plant_table, machine_table = (re.findall(r'^\| `(\w+)` \|', part, re.M) for part in
+                                  text.split("A machine's keys", 1))
+    assert plant_table[-len(PLANT_KEYS):] == list(PLANT_KEYS)
+    assert machine_table[:len(MACHINE_KEYS)] == list(MACHINE_KEYS)
