@@ -16,12 +16,12 @@ The scene ``hpotp_x10`` (the paper's X = 10 unbalance defect) is refused by the 
   lifted with the scene override ``offline_only=''``, no subscriber, DDS domain
   ``--domain``): for each real-time factor given (``--node 1,0.6``), the ramp and 2 s at full
   speed; per 1 s diagnostics window: sim time, rotor speed, achieved factor, CPU (% of a core,
-  the process: stepping, executor, DDS), impacts per sim second. The node's growth law over
-  the windows at factor 1 (a lower factor spreads the per-wall-second costs over fewer sim s),
-  CPU per sim s = ``a + b x impacts/s``, gives the **live ceiling**
-  ``(1 - a) / b``: the impacts per sim second one core steps at real time with everything the
-  node does around the engine. A factor holds when every window after the first reaches 0.98
-  of it (the goal of docs/node.md).
+  the process: stepping, executor, DDS), impacts per sim second. The node's growth law, fitted
+  over the windows of every factor run, CPU per wall s = ``o + achieved x (a + b x
+  impacts/s)`` (``o`` what the node costs per wall second whatever the factor), gives the
+  **live ceiling** ``(1 - o - a) / b``: the impacts per sim second one core steps at real time
+  with everything the node does around the engine. A factor holds when every window after the
+  first reaches 0.98 of it (the goal of docs/node.md).
 
 The ceiling holds for a rate sustained over the node's slack (one ``tick_period`` of
 lookahead, a deficit of up to ``max_lag``); the ramp's windows above it are printed with their
@@ -78,6 +78,34 @@ def growth_law(rates, costs):
     A = np.column_stack([np.ones(len(rates)), np.asarray(rates, float)])
     (a, b), *_ = np.linalg.lstsq(A, np.asarray(costs, float), rcond=None)
     return float(a), float(b)
+
+
+def node_law(achieved, rates, cpu):
+    """Least squares ``cpu = o + achieved (a + b rate)`` over the node's windows.
+
+    Parameters
+    ----------
+    achieved : array_like
+        Achieved real-time factor of each window (sim s per wall s).
+    rates : array_like
+        Impacts per sim second of each window.
+    cpu : array_like
+        CPU of the process per wall second of each window (cores).
+
+    Returns
+    -------
+    o : float
+        CPU per wall second whatever the factor (cores): waking, diagnostics, the executor.
+    a : float
+        CPU per sim second without impacts (s).
+    b : float
+        Marginal CPU of one impact (s).
+    """
+    achieved = np.asarray(achieved, float)
+    A = np.column_stack([np.ones(achieved.size), achieved,
+                         achieved * np.asarray(rates, float)])
+    (o, a, b), *_ = np.linalg.lstsq(A, np.asarray(cpu, float), rcond=None)
+    return float(o), float(a), float(b)
 
 
 def ceiling(a, b):
@@ -217,17 +245,18 @@ def main(argv=None):
     for rtf in (float(x) for x in args.node.split(',') if x):
         rows = node_windows(rtf, args.node_seconds, args.domain)
         node.append((rtf, report_node(rtf, rows, say)))
-        if rtf == 1.0:   # at a lower factor the per-wall-second costs weigh on each sim s
-            fits += [(r['impacts'], r['cpu'] / 100 / r['rtf']) for r in rows if r['rtf'] > 0]
+        fits += [(rtf, r['rtf'], r['impacts'], r['cpu'] / 100) for r in rows]
         say()
     if fits:
-        a, b = growth_law([f[0] for f in fits], [f[1] for f in fits])
-        say(f'node growth law over the windows at real_time_factor 1: CPU s per sim s = {a:.3f} + '
-            f'{1e6 * b:.2f} us x impacts/s -> LIVE CEILING {ceiling(a, b):,.0f} impacts per '
-            'sim second per core')
+        f = np.array(fits)
+        o, a, b = node_law(f[:, 1], f[:, 2], f[:, 3])
+        say(f'node growth law over all {len(f)} windows: CPU s per wall s = {o:.3f} + '
+            f'achieved x ({a:.3f} + {1e6 * b:.2f} us x impacts/s); at real time '
+            f'{o + a:.3f} s per sim s without impacts -> LIVE CEILING '
+            f'{ceiling(o + a, b):,.0f} impacts per sim second per core')
         full = engine.get(10)
         if full:
-            live = ceiling(a, b)
+            live = ceiling(o + a, b)
             say(f'the ramp peaks at {full["peak"]:,.0f} impacts/s '
                 f'({full["peak"] / live:.2f} x the live ceiling) in a {args.window:g} s window')
             over = [r for r, q in zip(full['rows'], full['rate']) if q > live]
