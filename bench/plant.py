@@ -552,6 +552,24 @@ def page(data):
     return '\n'.join(lines) + '\n'
 
 
+def merge_ceiling(old, new):
+    """A ceiling search split over runs (``--start-n``): the tries of both, the newer run's
+    for an N tried twice; the ceiling is the largest N below the first that did not hold."""
+    if not old:
+        return new
+    tried = {t['n']: t for t in old['tried']}
+    tried.update({t['n']: t for t in new['tried']})
+    ordered = [tried[n] for n in sorted(tried)]
+    ceiling = None
+    for t in ordered:
+        if not t['holds']:
+            break
+        ceiling = t['n']
+    commands = list(dict.fromkeys(old['command'].split('; ') + [new['command']]))
+    return {'ceiling': ceiling, 'tried': ordered, 'command': '; '.join(commands),
+            'date': new['date']}
+
+
 # ---------------------------------------------------------------------------------------
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -624,8 +642,6 @@ def main(argv=None):
             if not res.get('holds'):
                 break
             ceiling = n
-        if ceiling is None and args.start_n > 1 and tried and not tried[0]['holds']:
-            ceiling = None
         ceilings[args.ceiling] = {'ceiling': ceiling, 'tried': tried, 'command': command,
                                   'date': date}
         print(f'ceiling of {args.ceiling}: {ceiling if ceiling else "none"} (tried '
@@ -634,7 +650,8 @@ def main(argv=None):
         data = _load_page_data(args.page)
         data['machine'] = machine()
         data['runs'].update(_jsonable(runs))
-        data['ceilings'].update(_jsonable(ceilings))
+        for scene, c in _jsonable(ceilings).items():
+            data['ceilings'][scene] = merge_ceiling(data['ceilings'].get(scene), c)
         os.makedirs(os.path.dirname(os.path.abspath(args.page)), exist_ok=True)
         with open(args.page, 'w') as f:
             f.write(page(data))
