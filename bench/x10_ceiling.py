@@ -267,6 +267,57 @@ def main(argv=None):
             + ', '.join(f'{rtf:g}: {worst:.3f}' for rtf, worst in node)
             + f' (holds: >= {RTF_GOAL})')
     say(f'load average {load_before:.2f} before, {os.getloadavg()[0]:.2f} after')
+    summary = []
+    full = engine.get(10)
+    if fits and full:
+        live = ceiling(o + a, b)
+        peak_row = full['rows'][int(np.argmax(full['rate']))]
+        held = sorted(rtf for rtf, worst in node if worst >= RTF_GOAL)
+        failed = sorted({rtf for rtf, worst in node if worst < RTF_GOAL})
+        # the backlog at real time, window by window, by the node's law: the lead (s of sim
+        # time stepped ahead) the node would need to deliver every sample on time
+        backlog = worst_backlog = 0.0
+        for r, q in zip(full['rows'], full['rate']):
+            backlog = max(0.0, backlog + (o + a + b * q - 1.0) * r['span'])
+            worst_backlog = max(worst_backlog, backlog)
+        summary = [
+            '## What it means', '',
+            f'- **Live ceiling**: about {round(live, -3):,.0f} impacts per sim second on one '
+            f'core at real time (the node: {1e6 * b:.2f} us per impact on {o + a:.3f} s per '
+            f'sim s without impacts); the engine alone: {round(full["ceiling"], -3):,.0f} '
+            f'({1e6 * full["b"]:.2f} us per impact).',
+            f'- **The ramp** peaks at {full["peak"]:,.0f} impacts per sim second from sim '
+            f'{peak_row["t"] - peak_row["span"]:.2f} to {peak_row["t"]:.2f} s (about '
+            f'{peak_row["speed"]:.0f} rad/s), {full["peak"] / live:.2f} x the ceiling; at full '
+            f'speed {full["rate"][-1]:,.0f}.',
+            f'- **At real time** the node would fall up to {worst_backlog:.2f} s behind over '
+            'the peak (by its law, window by window) and catch up after it: a 1 s window that '
+            'ends in the backlog reads below 0.98. It steps one `tick_period` ahead (0.01 s, '
+            'at most 0.1 s).',
+            '- **real_time_factor** that held every 1 s window at 0.98 of itself: '
+            + (', '.join(f'{x:g}' for x in held) or 'none') + '; that did not: '
+            + (', '.join(f'{x:g}' for x in failed) or 'none') + '.',
+        ]
+        # the largest factor at which the peak window still fits one core by the node's law
+        r_max = (1.0 - o) / (a + b * full['peak'])
+        safe = [x for x in held if x <= r_max]
+        summary.append(f'- By the node\'s law the peak window fits one core up to '
+                       f'real_time_factor {r_max:.3f}; the largest factor run that held and '
+                       'is below it: ' + (f'{max(safe):g}.' if safe else 'none.'))
+        for modes, m in engine.items():
+            if modes != 10:
+                summary.append(f'- **{modes} modes** instead of 10: peak {m["peak"]:,.0f} '
+                               f'impacts per sim second, {1e6 * m["b"]:.2f} us per impact: '
+                               + ('still over the ceiling.' if m['peak'] > live
+                                  else 'under the ceiling.'))
+        if safe:
+            summary += ['', 'The scene live at that factor (the scene override lifts the '
+                        'refusal):', '', '```bash',
+                        'ros2 run impact_damper_sim vibration_node --ros-args -p '
+                        'scene:=hpotp_x10 \\',
+                        '  -p "overrides:=[\\"offline_only=\'\'\\"]" -p '
+                        f'real_time_factor:={max(safe):g}', '```']
+        summary.append('')
     if args.page:
         command = 'bench/x10_ceiling.py ' + ' '.join(shlex.quote(a) for a in (
             argv if argv is not None else sys.argv[1:]))
@@ -278,7 +329,7 @@ def main(argv=None):
                 'What each column means and how it is measured: `bench/x10_ceiling.py`\'s '
                 'docstring. Why the node refuses the scene, and what to run instead: '
                 '[the scene list](../scenes.md) and `config/scenes/hpotp_x10.yaml`.', '',
-                '```text']
+                *summary, '## The run', '', '```text']
         with open(args.page, 'w') as fh:
             fh.write('\n'.join(head + lines + ['```']) + '\n')
         print(f'page written: {args.page}')
