@@ -150,6 +150,7 @@ class _Table:
         self.v_cols = np.zeros((n_slots, n_q, n2), dtype=np.int64)
         self.v_counts = np.zeros((n_slots, n_q), dtype=np.int64)
         self.v_modal = np.zeros(n_slots, dtype=np.bool_)   # one coordinate per velocity row
+        self._args: dict[int, tuple[np.ndarray, ...]] = {}
 
     def fill(self, slot: int, flow: FlowConfig) -> None:
         """Store configuration ``flow`` (a :class:`~.flow.FlowConfig`) in ``slot``."""
@@ -172,7 +173,14 @@ class _Table:
         self.built[slot] = 1
 
     def kernel_args(self, ni: int) -> tuple[np.ndarray, ...]:
-        """The ``tb_*`` arguments of :func:`.kernels.event_loop.advance` (impactors ``[:ni]``)."""
+        """The ``tb_*`` arguments of :func:`.kernels.event_loop.advance` (impactors ``[:ni]``):
+        views of arrays that :meth:`fill` writes in place, so made once per ``ni``."""
+        args = self._args.get(ni)
+        if args is None:
+            args = self._args[ni] = self._kernel_args(ni)
+        return args
+
+    def _kernel_args(self, ni: int) -> tuple[np.ndarray, ...]:
         a = self.arrays
         return (self.built, a['lam'], self.lam_max, a['V'], a['Vinv'], a['W'], a['part_plus'],
                 a['part_minus'], a['sensor_q'], a['sensor_v'], a['house_q'][:, :ni],
@@ -275,6 +283,8 @@ class ExactPropagator(IntegratorBase):
         # the kernel's work arrays, (sizes, tuple); see _work_arrays
         self._work: tuple[tuple[int, ...], tuple[np.ndarray, ...]] | None = None
         self._cap = int(event_capacity)
+        self._ev_buffers: tuple[np.ndarray, ...] | None = None
+        self._imp_args: dict[int, tuple[np.ndarray, ...]] = {}
         self._python_switches = 0
         self._start_ledger()
         if self._table_mode and self._n_slots <= PREBUILD_SLOTS:
@@ -421,20 +431,15 @@ class ExactPropagator(IntegratorBase):
         acc = np.empty((n_steps, ns))
         t_state = np.array([self.t])
         k = 0
-        ev_t = np.empty(self._cap)
-        ev_imp = np.empty(self._cap, dtype=np.int64)
-        ev_kind = np.empty(self._cap, dtype=np.int64)
-        ev_n = np.empty((self._cap, 2))
-        ev_vn = np.empty(self._cap)
-        ev_J = np.empty(self._cap)
-        ev_loss = np.empty(self._cap)
-        ev_after = np.empty((self._cap, 2))
-        ev_count = np.zeros(1, dtype=np.int64)
+        # the event buffers are read into a new array after each kernel call: made once
+        (ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after,
+         ev_count) = self._event_buffers()
         rule = _RULE_CODES[self.stick_rule]
         while True:
             key = self._key()
-            self._config()   # built (or marked most recently used) before the kernel runs
-            model = self._config_model()
+            # built (or marked most recently used) before the kernel runs
+            self._config(key)
+            model = self._flows[key][1]
             table = self._table(key)
             self._slot_state[0] = self._slot(key)
             ev_count[0] = 0
@@ -444,11 +449,7 @@ class ExactPropagator(IntegratorBase):
             status = kernels.advance(
                 t_state, t_base, self.dt, k, n_steps, u_grid, self._omegas, self._amps,
                 self._yh, self._slot_state, self._table_mode, *table.kernel_args(ni),
-                self._imp_rep[:ni], self._imp_group[:ni], self._radix, self._imp_dim[:ni],
-                self._imp_mass[:ni], self._imp_cor[:ni], self._imp_limit[:ni],
-                self._imp_z[:ni], self._imp_v[:ni], self._stuck[:ni], self._imp_normal[:ni],
-                self._imp_last_t[:ni], self._imp_rel[:ni], self._imp_grace[:ni],
-                self._count_step[:ni], rule, self.stick_time, self.max_events_per_step,
+                *self._impactor_args(ni), rule, self.stick_time, self.max_events_per_step,
                 self.taylor_order, *self._ledger_model(model), self._ledger, disp, vel, acc,
                 ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, self._info,
                 self.counters,
@@ -516,6 +517,32 @@ class ExactPropagator(IntegratorBase):
         if self._work is None or self._work[0] != sizes:
             self._work = (sizes, kernels.advance_work(*sizes))
         return self._work[1]
+
+    def _event_buffers(self) -> tuple[np.ndarray, ...]:
+        """The kernel's event buffers (``event_capacity`` events), made on first use."""
+        buffers = self._ev_buffers
+        if buffers is None:
+            cap = self._cap
+            buffers = self._ev_buffers = (
+                np.empty(cap), np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
+                np.empty((cap, 2)), np.empty(cap), np.empty(cap), np.empty(cap),
+                np.empty((cap, 2)), np.zeros(1, dtype=np.int64))
+        return buffers
+
+    def _impactor_args(self, ni: int) -> tuple[np.ndarray, ...]:
+        """The impactor arguments of :func:`.kernels.event_loop.advance` (``[:ni]`` views of
+        the state arrays, which are updated in place and never replaced), made once per
+        ``ni``."""
+        cache = self._imp_args
+        args = cache.get(ni)
+        if args is None:
+            args = cache[ni] = (
+                self._imp_rep[:ni], self._imp_group[:ni], self._radix, self._imp_dim[:ni],
+                self._imp_mass[:ni], self._imp_cor[:ni], self._imp_limit[:ni],
+                self._imp_z[:ni], self._imp_v[:ni], self._stuck[:ni], self._imp_normal[:ni],
+                self._imp_last_t[:ni], self._imp_rel[:ni], self._imp_grace[:ni],
+                self._count_step[:ni])
+        return args
 
     def _key_of_slot(self, key: Key | None, slot: int) -> Key:
         """The key of ``slot`` (table mode); the given key otherwise."""

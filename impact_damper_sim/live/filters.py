@@ -216,6 +216,8 @@ class StreamingDecimator:
                                            self.sample_rate_hz, DECIMATION_STOPBAND_DB + 2.0)
         self.delay = (len(self.taps) - 1) // 2
         self._kernel = self.taps[::-1].copy()
+        self._offsets = np.arange(len(self.taps))
+        self._channels = np.arange(self.n_channels)[None, :, None]
         #: fraction of a white input's variance an output keeps: sum(taps^2) (0.44 at
         #: 2 -> 1 kHz, 0.044 at 20 -> 1 kHz; 1 without decimation)
         self.white_noise_gain = float(np.sum(self.taps ** 2))
@@ -261,9 +263,12 @@ class StreamingDecimator:
         if index.size == 0:
             return index, np.empty((0, self.n_channels))
         n = len(self.taps)
-        # window of output c: inputs c + delay - n + 1 .. c + delay (before t = 0: zeros)
+        # window of output c: inputs c + delay - n + 1 .. c + delay (before t = 0: zeros),
+        # gathered in one indexing into the layout a sliding_window_view indexed by lo has
+        # (outputs, channels, taps): the product then rounds alike, bit for bit
         lo = index + self.delay - (n - 1) - start
-        windows = np.lib.stride_tricks.sliding_window_view(buf, n, axis=1)[:, lo]
+        windows = buf[self._channels, (lo[:, None] + self._offsets)[:, None, :]].transpose(
+            1, 0, 2)
         return index, (windows @ self._kernel).T
 
 

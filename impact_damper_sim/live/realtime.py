@@ -424,9 +424,9 @@ class LiveSimulation:
         """Applied speed (rad/s), speed rate (rad/s^2) and multiplier X now (NaN/0 if none)."""
         if self.profile is None:
             return 0.0, 0.0, 0.0
-        t = np.asarray(self.sim.t)
         x = self.unbalance.multiplier if self.unbalance is not None else 0.0
-        return (float(self.profile.speed(t)), float(self.profile.acceleration(t)), float(x))
+        _, speed, rate = self.profile.state(np.asarray(self.sim.t))   # one search of the knots
+        return (float(speed), float(rate), float(x))
 
     def stuck_count(self) -> int:
         """int: Impactors stuck to their housing at the end of the last chunk."""
@@ -491,12 +491,13 @@ class LiveSimulation:
         clipped = np.zeros(n_acc, dtype=np.int64)
         valid = np.ones((t.size, n_acc), bool)
         faults = self.faults
+        any_fault = len(faults) > 0   # without one, no accelerometer has a first-stage hook
         for a, channel in enumerate(self.channels):
             # mean acceleration over each step, translations only (rotations give rates);
             # the faults that change values act before the range and ADC (a gain clips, and
             # the clip count counts it), the rest after them (stuck, missing samples)
             out = channel.process(np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt,
-                                  before_limit=faults.hook(t, a))
+                                  before_limit=faults.hook(t, a) if any_fault else None)
             lin[:, a, :], valid[:, a] = faults.after_limit(t, out.samples, a)
             truth[:, a, :], clipped[a] = out.truth, out.clipped
             ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
