@@ -97,6 +97,17 @@ def cpu_seconds(pid):
         return math.nan
 
 
+def machine_busy_seconds():
+    """CPU seconds the whole machine has been busy (``/proc/stat``: all but idle and
+    iowait), nan when unreadable."""
+    try:
+        with open('/proc/stat') as f:
+            ticks = [int(x) for x in f.readline().split()[1:9]]
+    except (OSError, ValueError):
+        return math.nan
+    return (sum(ticks) - ticks[3] - ticks[4]) / os.sysconf('SC_CLK_TCK')
+
+
 def machine():
     """This machine in words: CPU model and core count."""
     model = ''
@@ -487,9 +498,11 @@ def plant_run(n, scene, form, seconds, warmup, domain):
         time.sleep(warmup + 1.0)
         t0 = time.monotonic()
         cpu0 = sum(cpu_seconds(p.pid) for p in procs)
+        reader0, busy0 = cpu_seconds(reader.pid), machine_busy_seconds()
         time.sleep(seconds)
         t1 = time.monotonic()
         cpu1 = sum(cpu_seconds(p.pid) for p in procs)
+        reader1, busy1 = cpu_seconds(reader.pid), machine_busy_seconds()
         mem = [dict(**status_kb(p.pid), **rollup_kb(p.pid)) for p in procs]
     finally:
         for p in procs:
@@ -523,6 +536,10 @@ def plant_run(n, scene, form, seconds, warmup, domain):
         'rtf_median': rtf[len(rtf) // 2] if rtf else math.nan,
         'per_machine_worst': per_machine,
         'cpu_percent': 100.0 * (cpu1 - cpu0) / (t1 - t0),
+        'reader_cpu_percent': 100.0 * (reader1 - reader0) / (t1 - t0),
+        # everything else on the machine (other processes, the bench, the kernel)
+        'others_cpu_percent': 100.0 * ((busy1 - busy0) - (cpu1 - cpu0)
+                                       - (reader1 - reader0)) / (t1 - t0),
         'rss_mb': sum(m.get('VmRSS', 0) for m in mem) / MB,
         'pss_mb': sum(m.get('Pss', 0) for m in mem) / MB,
         'uss_mb': sum(m.get('USS', 0) for m in mem) / MB,
@@ -533,7 +550,8 @@ def plant_run(n, scene, form, seconds, warmup, domain):
 def print_plant(r):
     print(f"{r['form']:12s} N={r['n']} {r['scene']}: RTF worst {r['rtf_worst']:.3f} median "
           f"{r['rtf_median']:.3f} ({r['windows']} windows of {r['statuses']} machines); CPU "
-          f"{r['cpu_percent']:.0f} % of a core; RSS {r['rss_mb']:.0f} MB, PSS "
+          f"{r['cpu_percent']:.0f} % of a core (reader {r['reader_cpu_percent']:.0f}, others "
+          f"{r['others_cpu_percent']:.0f}); RSS {r['rss_mb']:.0f} MB, PSS "
           f"{r['pss_mb']:.0f}, USS {r['uss_mb']:.0f}; exits {r['exits']}")
 
 
@@ -595,11 +613,14 @@ def page(data):
                   "of all machines' `real_time_factor_achieved`; CPU of the node processes "
                   'together (% of one core); memory at the end, summed over the node '
                   'processes.', '',
-                  '| N | scene | form | RTF worst | median | CPU % | RSS MB | PSS MB | USS MB |',
-                  '|---|---|---|---|---|---|---|---|---|']
+                  '| N | scene | form | RTF worst | median | CPU % | reader % | others % | '
+                  'RSS MB | PSS MB | USS MB |',
+                  '|---|---|---|---|---|---|---|---|---|---|---|']
         for x in rows:
             lines.append(f"| {x['n']} | {x['scene']} | {x['form']} | {x['rtf_worst']:.3f} | "
                          f"{x['rtf_median']:.3f} | {x['cpu_percent']:.0f} | "
+                         f"{x.get('reader_cpu_percent', math.nan):.0f} | "
+                         f"{x.get('others_cpu_percent', math.nan):.0f} | "
                          f"{x['rss_mb']:.0f} | {x['pss_mb']:.0f} | {x['uss_mb']:.0f} |")
         host = {x['n']: x for x in rows if x['form'].startswith('host')}
         ns = sorted(host)
