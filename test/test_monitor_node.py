@@ -780,3 +780,35 @@ def test_main_refuses_an_invalid_namespace_in_one_line():
     assert done.returncode == 2, done.stdout + done.stderr
     assert done.stderr.startswith("monitor: namespaces: 'pump 2' is not an absolute '/pump1'")
     assert done.stderr.count('\n') == 1 and 'Traceback' not in done.stderr
+
+
+def test_batches_read_from_their_bytes_as_rclpy_reads_them():
+    """The monitor reads its batch subscriptions' raw bytes itself (monitor_cdr): for both
+    layouts and frame names of every length mod 4 (alignment), the same header, layout and
+    rows as rclpy's deserialization; cut bytes are a ValueError, not a crash."""
+    from rclpy.serialization import deserialize_message
+
+    from impact_damper_sim.recording.batches import rows_of
+    from impact_damper_sim.ros.monitor_cdr import read_cloud, rows_in
+    rng = np.random.default_rng(7)
+    for frame in ('a', 'ab', 'abc', 'abcd', 'pump3/casing'):
+        for fields, step, dtype, n in ((ACCEL_FIELDS, ACCEL_POINT_STEP, ACCEL_DTYPE, 20),
+                                       (IMPACT_FIELDS, IMPACT_POINT_STEP, IMPACT_DTYPE, 0),
+                                       (IMPACT_FIELDS, IMPACT_POINT_STEP, IMPACT_DTYPE, 35)):
+            rows = np.zeros(n, dtype)
+            for name in dtype.names:
+                rows[name] = rng.integers(0, 1000, n)
+            data = BatchEncoder(frame, fields, step).encode(1_234_567_890_123, rows)
+            want = deserialize_message(data, PointCloud2)
+            got = read_cloud(data)
+            assert (got.header.stamp.sec, got.header.stamp.nanosec, got.header.frame_id) == (
+                want.header.stamp.sec, want.header.stamp.nanosec, want.header.frame_id)
+            assert (got.height, got.width, got.point_step, got.row_step) == (
+                want.height, want.width, want.point_step, want.row_step)
+            assert [(f.name, f.offset, f.datatype, f.count) for f in got.fields] == [
+                (f.name, f.offset, f.datatype, f.count) for f in want.fields]
+            assert rows_in(data) == n
+            np.testing.assert_array_equal(rows_of(got), rows_of(want))
+            for cut in (3, 20, len(data) - 2):
+                with pytest.raises(ValueError):
+                    rows_of(read_cloud(data[:cut]))

@@ -39,6 +39,7 @@ from array import array
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidNamespaceException
 from rclpy.validate_namespace import validate_namespace
 from sensor_msgs.msg import Imu, JointState, PointCloud2
@@ -66,6 +67,7 @@ from .interface import (
     SENSOR_QOS,
     accel_topic,
 )
+from .monitor_cdr import read_cloud, rows_in
 from .outlets import type_name
 
 #: Samples (or impacts) queued on one per-sample stream, or in all batch messages of a
@@ -81,6 +83,13 @@ SIMULATION_STATUS = ': simulation'
 _NAMESPACE_FORM = ("an absolute '/pump1' or a relative 'pump1' ROS namespace (letters, digits "
                    "and '_', tokens separated by single '/', none starting with a digit, no "
                    "trailing '/'), or '*' for every machine in the graph")
+
+
+#: Event handlers of the stream subscriptions: rclpy's incompatible-QoS warning, not its
+#: incompatible-type one (the monitor subscribes to a type only when a publisher offers it,
+#: and another type on an accel/* topic is not a sensor). Every handler is one more entity in
+#: each wait of the executor: with ten machines the two defaults were 62 of its 97.
+_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)
 
 
 class MonitorParameterError(ValueError):
@@ -195,12 +204,12 @@ class _Batch:
 
     def __init__(self, sensors=()):
         self.samples = {}      # sensor -> Imu rows (t, ax, ay, az) (s, m/s^2)
-        self.clouds = {}       # sensor -> accel/<sensor>/batch messages, not decoded yet
+        self.clouds = {}       # sensor -> accel/<sensor>/batch CDR bytes, not read yet
         for name in sensors:
             self.add_sensor(name)
         self.cleared = set()   # sensors whose history goes before this batch is fed
         self.impacts = array('d')      # WrenchStamped stamps (s)
-        self.impact_clouds = []        # impacts batch messages, not decoded yet
+        self.impact_clouds = []        # impacts batch CDR bytes, not read yet
         self.queued = 0        # rows in the batch messages (at least 1 a message)
         self.states = []       # (stamp s, stuck flags, dampers off), None: rejected
 
@@ -334,7 +343,10 @@ class Machine:
         topic, msg_type, callback, qos = stream.options[index]
         if stream.subscription is not None:
             node.destroy_subscription(stream.subscription)
-        stream.subscription = node.create_subscription(msg_type, topic, callback, qos)
+        # batches come as bytes, read later as arrays (monitor_cdr): no message objects
+        stream.subscription = node.create_subscription(msg_type, topic, callback, qos,
+                                                       raw=msg_type is PointCloud2,
+                                                       event_callbacks=_EVENTS)
         if stream.index is not None and sensor is not None:
             with node._queue:
                 self.batch.samples[sensor] = array('d')
@@ -378,12 +390,11 @@ class Machine:
         self.frames[sensor] = msg.header.frame_id
         self.message_counts['accel'] += 1
 
-    def _on_accel_batch(self, sensor, msg):
-        # queue the message as it is: the report thread decodes it
+    def _on_accel_batch(self, sensor, data):
+        # queue the bytes as they are: the report thread reads them
         with self.monitor._queue:
-            self.batch.clouds[sensor].append(msg)
-            self._queue_rows(msg)
-        self.frames[sensor] = msg.header.frame_id
+            self.batch.clouds[sensor].append(data)
+            self._queue_rows(data)
         self.message_counts['accel'] += 1
 
     def _on_impact(self, msg):
@@ -394,16 +405,15 @@ class Machine:
         self.impact_frame = msg.header.frame_id.rpartition('/')[0]
         self.message_counts['impacts'] += 1
 
-    def _on_impact_batch(self, msg):
+    def _on_impact_batch(self, data):
         with self.monitor._queue:
-            self.batch.impact_clouds.append(msg)
-            self._queue_rows(msg)
-        self.impact_frame = msg.header.frame_id
+            self.batch.impact_clouds.append(data)
+            self._queue_rows(data)
         self.message_counts['impacts'] += 1
 
-    def _queue_rows(self, msg):
+    def _queue_rows(self, data):
         """Count a queued batch message; hand over when enough are (call with ``_queue``)."""
-        self.batch.queued += max(1, msg.height * msg.width)
+        self.batch.queued += max(1, rows_in(data))
         if self.batch.queued >= FLUSH_AT:
             self.monitor._hand_over(report=False, machine=self)
 
@@ -440,11 +450,13 @@ class Machine:
             stats.add_impacts(np.frombuffer(batch.impacts, dtype=float))
         if batch.impact_clouds:
             self._last_impact_batch = clock_s
-        for msg in batch.impact_clouds:
+        for data in batch.impact_clouds:
             try:
+                msg = read_cloud(data)
+                self.impact_frame = msg.header.frame_id
                 times = _stamps_s(sample_times_ns(msg))
             except ValueError as error:
-                stats.reject_impacts(msg.height * msg.width)
+                stats.reject_impacts(rows_in(data))
                 self._warn(f'{self.topic(IMPACTS)}: batch rejected: {error}')
                 continue
             # the batch covers its interval from its stamp on, empty or not
@@ -469,13 +481,15 @@ class Machine:
         parts = []
         if batch.samples[sensor]:
             parts.append(np.frombuffer(batch.samples[sensor], dtype=float).reshape(-1, 4))
-        for msg in batch.clouds[sensor]:
+        for data in batch.clouds[sensor]:
             try:
+                msg = read_cloud(data)
+                self.frames[sensor] = msg.header.frame_id
                 cloud = rows_of(msg)
                 parts.append(np.column_stack((_stamps_s(sample_times_ns(msg, cloud)),
                                               cloud['ax'], cloud['ay'], cloud['az'])))
             except ValueError as error:
-                self.stats.reject_samples(sensor, msg.height * msg.width)
+                self.stats.reject_samples(sensor, rows_in(data))
                 self._warn(f'{self.topic(accel_topic(sensor))}{BATCH_SUFFIX}: batch '
                            f'rejected: {error}')
         return np.concatenate(parts) if parts else None
