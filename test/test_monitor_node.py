@@ -812,3 +812,17 @@ def test_batches_read_from_their_bytes_as_rclpy_reads_them():
             for cut in (3, 20, len(data) - 2):
                 with pytest.raises(ValueError):
                     rows_of(read_cloud(data[:cut]))
+
+
+def test_a_publisher_with_incompatible_qos_is_named(setup):
+    """A best-effort publisher on ``impacts`` (the monitor reads it reliable): one WARN names
+    the topic and the policy, as rclpy's default handler would."""
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    monitor, sim, executor = setup(dict(parameter_overrides=[
+        Parameter('sensors', value=['tip']), Parameter('report_period', value=3600.0)]))
+    lines = capture_lines(monitor)
+    sim.node.create_publisher(PointCloud2, interface.IMPACTS, QoSProfile(
+        depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+    spin_until(executor, lambda: any('incompatible QoS' in text for _, text in lines))
+    (line,) = [(level, text) for level, text in lines if 'incompatible QoS' in text]
+    assert line[0] == 'warn' and '/impacts' in line[1] and 'RELIABILITY' in line[1], line

@@ -41,6 +41,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidNamespaceException
+from rclpy.qos import qos_policy_name_from_kind
 from rclpy.validate_namespace import validate_namespace
 from sensor_msgs.msg import Imu, JointState, PointCloud2
 
@@ -83,13 +84,6 @@ SIMULATION_STATUS = ': simulation'
 _NAMESPACE_FORM = ("an absolute '/pump1' or a relative 'pump1' ROS namespace (letters, digits "
                    "and '_', tokens separated by single '/', none starting with a digit, no "
                    "trailing '/'), or '*' for every machine in the graph")
-
-
-#: Event handlers of the stream subscriptions: rclpy's incompatible-QoS warning, not its
-#: incompatible-type one (the monitor subscribes to a type only when a publisher offers it,
-#: and another type on an accel/* topic is not a sensor). Every handler is one more entity in
-#: each wait of the executor: with ten machines the two defaults were 62 of its 97.
-_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)
 
 
 class MonitorParameterError(ValueError):
@@ -346,7 +340,7 @@ class Machine:
         # batches come as bytes, read later as arrays (monitor_cdr): no message objects
         stream.subscription = node.create_subscription(msg_type, topic, callback, qos,
                                                        raw=msg_type is PointCloud2,
-                                                       event_callbacks=_EVENTS)
+                                                       event_callbacks=self._events(topic))
         if stream.index is not None and sensor is not None:
             with node._queue:
                 self.batch.samples[sensor] = array('d')
@@ -355,6 +349,22 @@ class Machine:
         stream.index = index
         node.get_logger().info(f'watching {node.resolve_topic_name(topic)} '
                                f'({type_name(msg_type)})')
+
+    def _events(self, topic):
+        """Event handlers of a stream subscription: an incompatible-QoS warning, as rclpy's
+        default, but not rclpy's incompatible-type one (a type is subscribed only when a
+        publisher offers it, and another type on an accel/* topic is not a sensor). Each
+        handler is one more entity in every wait of the executor: with ten machines the two
+        defaults were 62 of its 97."""
+        logger = self.monitor.get_logger()
+        name = self.monitor.resolve_topic_name(topic)
+
+        def incompatible(event):
+            logger.warning(f'a publisher on {name} offers incompatible QoS (policy '
+                           f'{qos_policy_name_from_kind(event.last_policy_kind)}): nothing '
+                           'is received from it', throttle_duration_sec=10.0)
+        return SubscriptionEventCallbacks(incompatible_qos=incompatible,
+                                          use_default_callbacks=False)
 
     def settle_all(self):
         """Re-check which topic each stream reads (at every report)."""
