@@ -390,7 +390,7 @@ def run_plant(label, machines, args, domain, log_dir):
                                       t_first, t_stop + 1.0)
             ratios = window_ratios(windows, topics.get(ns, []))
             values = [r for r, _, _ in ratios]
-            cpu_windows, _ = cpu.windows(c.pid, t_first, t_stop)
+            cpu_windows, cpu_mean = cpu.windows(c.pid, t_first, t_stop)
             per.append({
                 'namespace': ns, 'scene': scene, 'windows': len(values),
                 'worst': min(values) if values else math.nan,
@@ -398,9 +398,11 @@ def run_plant(label, machines, args, domain, log_dir):
                 'worst_rtf': min((r for _, r, _ in ratios), default=math.nan),
                 'worst_delivery': min((d for _, _, d in ratios), default=math.nan),
                 'cpu_percent': float(np.median(cpu_windows)) if cpu_windows else math.nan,
+                'cpu_mean': cpu_mean,
                 'rss_mb': rss[ns][0], 'hwm_mb': rss[ns][1],
                 'exited': exited.get(ns)})
         res['machines'] = per
+        res['plant_cpu_percent'] = plant_cpu(res)
         worst = [m['worst'] for m in per]
         res['worst'] = min(worst) if worst else math.nan
         res['median'] = float(np.median([m['median'] for m in per]))
@@ -418,6 +420,15 @@ def run_plant(label, machines, args, domain, log_dir):
 
 
 # ---------------------------------------------------------------------------------------
+def plant_cpu(res):
+    """CPU of the plant's processes, % of one core: the nodes' means over the measured span
+    (their medians for a result without them) plus the subscriber's."""
+    parts = [m.get('cpu_mean', m['cpu_percent']) for m in res['machines']]
+    parts.append(res.get('reader_cpu_percent'))
+    parts = [x for x in parts if x is not None and x == x]
+    return float(sum(parts)) if parts else math.nan
+
+
 def _f(x, fmt):
     return '-' if x is None or x != x else f'{x:{fmt}}'
 
@@ -429,8 +440,9 @@ def print_run(res):
         return
     print(f'{head}: {"HOLDS" if res["holds"] else "does NOT hold"} (>= {HOLD} in every 1 s '
           f'window); worst window {_f(res["worst"], ".3f")}, start {res["start_s"]:.1f} s, '
-          f'{res["seconds"]:.0f} s measured; machine CPU {_f(res["machine_cpu_percent"], ".0f")} '
-          f'% of one core, reader {_f(res["reader_cpu_percent"], ".0f")} %', flush=True)
+          f'{res["seconds"]:.0f} s measured; plant CPU {_f(res["plant_cpu_percent"], ".0f")} '
+          f'% of one core (subscriber {_f(res["reader_cpu_percent"], ".0f")} %), machine '
+          f'{_f(res["machine_cpu_percent"], ".0f")} %', flush=True)
     print(f'  {"machine":10s} {"scene":10s} {"windows":>7s} {"worst":>6s} {"median":>6s} '
           f'{"rtf":>6s} {"deliv":>6s} {"CPU %":>6s} {"RSS MB":>7s} {"peak MB":>7s}')
     for m in res['machines']:
@@ -495,7 +507,7 @@ def page(data):
         '## Plants',
         '',
         '| plant | N | scenes | holds | worst window | median window | node CPU, median '
-        '% of a core | node RSS, MB | machine CPU % | load before | start s | command |',
+        '% of a core | node RSS, MB | plant CPU % | load before | start s | command |',
         '|---|---|---|---|---|---|---|---|---|---|---|---|',
     ]
     for label, r in data['runs'].items():
@@ -509,7 +521,7 @@ def page(data):
             f'{"yes" if r["holds"] else "**no**"} | {g(r["worst"], ".3f")} | '
             f'{g(r["median"], ".3f")} | {g(_median(m["cpu_percent"] for m in ms), ".0f")} | '
             f'{g(_median(m["rss_mb"] for m in ms), ".0f")} | '
-            f'{g(r["machine_cpu_percent"], ".0f")} | {g(r.get("load_before"), ".2f")} | '
+            f'{g(plant_cpu(r), ".0f")} | {g(r.get("load_before"), ".2f")} | '
             f'{g(r["start_s"], ".0f")} | '
             f'`{r["command"]}` |')
     lines += ['', '## Ceilings: the largest N copies of one scene that hold', '',
@@ -540,7 +552,8 @@ def page(data):
         '**worst delivery**: the worst window\'s share of the samples it published that '
         'reached the subscriber. The window figure is about their product.',
         '- **node CPU**: utime + stime of the node\'s process, median of its 1 s windows, % '
-        'of one core; **machine CPU**: every process, % of one core (200 = both cores).',
+        'of one core; **plant CPU**: the nodes\' and the subscriber\'s processes over the '
+        'measured span, % of one core (200 = both cores of this machine).',
         '- **node RSS**: resident memory at the end of the run; **peak**: `VmHWM`.',
         '- **load before**: the 1-minute load average when the run began (a quiet 2-core '
         'machine reads well under 1).',
