@@ -35,9 +35,10 @@ reader and the nodes get SIGINT. What is measured, per machine:
 
 A plant **holds** when every machine's worst window is >= 0.98. ``--ceiling SCENE`` runs N = 1,
 2, 3, 5, 8, 10, 13, 16, ... copies of the scene until one does not hold (or ``--max-n``); the
-ceiling is the largest N that held. ``--page`` adds the run to docs/bench/plant.md (the page
-keeps every result it was given, newest per label, as JSON in a comment at its end, and is
-rewritten whole: date and machine once in the header).
+ceiling is the largest N that held; ``--start-n``/``--max-n`` or ``--ns 6,7`` split a search
+over several short runs (the page merges them). ``--page`` adds the run to
+docs/bench/plant.md (the page keeps every result it was given, newest per label, as JSON in
+a comment at its end, and is rewritten whole: date and machine once in the header).
 
 Usage (quote figures only from a quiet machine: ``flock -x /tmp/bench.lock``)::
 
@@ -600,6 +601,8 @@ def main(argv=None):
     parser.add_argument('--max-n', type=int, default=16, help='largest N of --ceiling')
     parser.add_argument('--start-n', type=int, default=1,
                         help='first N of --ceiling (smaller ones taken as holding)')
+    parser.add_argument('--ns', help='the N of --ceiling to try, comma-separated (e.g. 6,7 '
+                                     'between a 5 that held and an 8 that did not)')
     parser.add_argument('--domain', type=int, help='DDS domain (default: a free one of '
                                                    '101..230)')
     parser.add_argument('--page', nargs='?', const=PAGE, metavar='FILE',
@@ -649,6 +652,8 @@ def main(argv=None):
         while ns[-1] < args.max_n:
             ns.append(ns[-1] + 3)
         tried, ceiling = [], None
+        if args.ns:
+            ns = sorted(int(n) for n in args.ns.split(','))
         for n in [n for n in ns if args.start_n <= n <= args.max_n]:
             res = run(f'{n} x {args.ceiling}', scene_machines(args.ceiling, n))
             tried.append({'n': n, 'worst': res.get('worst'), 'holds': res.get('holds', False)})
