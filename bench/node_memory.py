@@ -612,7 +612,11 @@ def page(data):
                   'every batch topic and /diagnostics; the worst and the median 1 s window '
                   "of all machines' `real_time_factor_achieved`; CPU of the node processes "
                   'together (% of one core); memory at the end, summed over the node '
-                  'processes.', '',
+                  'processes (the reader\'s own CPU and everyone else\'s, from `/proc/stat`, '
+                  'beside it: about +-10 points). Forms: `processes` N `vibration_node` '
+                  'processes; `host-single` / `host-multi` one `plant_host` with a single- or '
+                  'multi-threaded executor; `host2-single` two `plant_host` processes, machine '
+                  'i in process i mod 2.', '',
                   '| N | scene | form | RTF worst | median | CPU % | reader % | others % | '
                   'RSS MB | PSS MB | USS MB |',
                   '|---|---|---|---|---|---|---|---|---|---|---|']
@@ -622,13 +626,21 @@ def page(data):
                          f"{x.get('reader_cpu_percent', math.nan):.0f} | "
                          f"{x.get('others_cpu_percent', math.nan):.0f} | "
                          f"{x['rss_mb']:.0f} | {x['pss_mb']:.0f} | {x['uss_mb']:.0f} |")
-        host = {x['n']: x for x in rows if x['form'].startswith('host')}
+        host = {x['n']: x for x in rows if x['form'] == 'host-single'}
         ns = sorted(host)
         if len(ns) >= 2:
             a, z = host[ns[0]], host[ns[-1]]
             lines += ['', f"In one process each machine past the first adds "
                       f"{(z['rss_mb'] - a['rss_mb']) / (z['n'] - a['n']):.1f} MB RSS "
                       f"(N = {a['n']} to {z['n']}, {a['form']})."]
+        procs = {x['n']: x for x in rows if x['form'] == 'processes'}
+        if len(procs) >= 2:
+            a, z = procs[min(procs)], procs[max(procs)]
+            lines += ['', f"As processes each machine past the first adds "
+                      f"{(z['rss_mb'] - a['rss_mb']) / (z['n'] - a['n']):.0f} MB RSS and "
+                      f"{(z['uss_mb'] - a['uss_mb']) / (z['n'] - a['n']):.0f} MB USS "
+                      f"(N = {a['n']} to {z['n']}): the libraries' file pages are shared, "
+                      'their heaps, Python objects and JIT code are not.']
     return '\n'.join(lines) + '\n'
 
 
