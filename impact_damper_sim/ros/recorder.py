@@ -11,7 +11,7 @@ It subscribes, raw (the CDR bytes as they come: nothing is deserialized), to the
 each namespace that match ``topics`` (default: every accelerometer's ``accel/<name>`` Imu and
 ``accel/<name>/batch``, the ground truth, ``impacts``, ``impactor_state``, ``rotor/*`` and the
 fault commands) and to ``/diagnostics``, as they appear in the ROS graph (polled every 0.1 s
-for the first 5 s, then every 0.5 s), with each topic's publishers' reliability and
+for the first 30 s, then every 0.5 s), with each topic's publishers' reliability and
 durability (keep last 1000). It writes them with the package's own writer
 (:class:`~impact_damper_sim.recording.AsyncRecorder`, rosbag2's MCAP layout, the schemas
 from the ament index, each topic's offered QoS), log time the arrival (ns since the epoch),
@@ -45,8 +45,9 @@ PLANT_METADATA = 'impact_damper_sim_plant'
 DEFAULT_TOPICS = ('accel/*', 'accel/*/batch', 'accel/*/truth', 'impacts', 'impactor_state',
                   'rotor/*')
 DIAGNOSTICS = '/diagnostics'
-#: graph polls: every FAST_POLL s for the first FAST_SPAN s, then every SLOW_POLL s
-FAST_POLL, FAST_SPAN, SLOW_POLL = 0.1, 5.0, 0.5
+#: graph polls: every FAST_POLL s for the first FAST_SPAN s (a plant's nodes start over many
+#: seconds on a small host: a slow poll then missed a node's first 90 ms), then SLOW_POLL s
+FAST_POLL, FAST_SPAN, SLOW_POLL = 0.1, 30.0, 0.5
 #: messages taken from one subscription per wake (the rest on the next, no starvation)
 TAKE_PER_WAKE = 1000
 
