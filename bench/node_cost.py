@@ -29,9 +29,10 @@ What is measured:
   runs'.
 
 ``--tree DIR`` runs the node from another checkout of the package (``PYTHONPATH=DIR``, its
-``config/``): how the before column of a measurement is taken, from ``git archive`` of the
-commit before a change. ``--json FILE`` keeps the results; ``--before FILE`` (a ``--json``
-of the before run) adds the before column to the printout and the page; ``--page FILE``
+``config/``); ``--vs DIR`` runs that checkout's node and this one's in turns, run by run (the
+before column of a change, from ``git archive`` of the commit before it, measured alike
+however the machine's load drifts). ``--json FILE`` keeps the results; ``--before FILE`` (a
+``--json`` of an earlier run) adds a before column to the printout and the page; ``--page FILE``
 writes docs/bench/node-cost.md (date and machine once in its header, the command, the
 tables). Quote figures taken on a quiet machine (nothing else running): the header gives the
 load and the hypervisor's steal.
@@ -40,7 +41,7 @@ Usage::
 
     .venv/bin/python bench/node_cost.py [--scene hpotp] [--seconds 20] [--runs 3]
         [--skip 2] [--no-breakdown] [--monitor] [--node-arg ARG ...] [--domain N]
-        [--tree DIR] [--json FILE] [--before FILE] [--page FILE]
+        [--tree DIR] [--vs DIR] [--json FILE] [--before FILE] [--page FILE]
 """
 from __future__ import annotations
 
@@ -228,16 +229,17 @@ def thread_groups(before, after, pid, stepping, seconds):
 
 
 # -- one run ------------------------------------------------------------------------------------
-def run_once(args, domain, log_dir, staged):
-    """Start the readers and the node, measure, stop everything; a dict of figures."""
+def run_once(args, domain, log_dir, staged, tree=None):
+    """Start the readers and the node (from checkout ``tree``, default this one), measure,
+    stop everything; a dict of figures."""
     from node_scenes import MONITOR_EXES, NODE_EXE, base_env
     from node_scenes_figures import IMU, NODE_NAME
     from node_scenes_procs import Child, CpuSampler, settled_script
     from node_scenes_readers import PY_READER, RAW_READER
 
-    tree = os.path.abspath(args.tree) if args.tree else ROOT
+    tree = os.path.abspath(tree) if tree else ROOT
     env = dict(base_env(), ROS_DOMAIN_ID=str(domain))
-    if args.tree:
+    if tree != ROOT:
         env['PYTHONPATH'] = tree + os.pathsep + env.get('PYTHONPATH', '')
     py = sys.executable
     params = os.path.join(tree, 'config', 'vibration_node.yaml')
@@ -464,7 +466,11 @@ def page(data, before=None):
              + (', the monitor' if data.get('monitor') else ''),
              f"- **Load** (1-min average): {data['load_before']:.2f} before, "
              f"{data['load_after']:.2f} after; hypervisor steal {data['steal']:.1f} %", '']
-    if before:
+    if data.get('before'):
+        lines += ['Before: the same runs of another checkout (`--vs`'
+                  + (f": {before['tree_note']}" if before.get('tree_note') else '')
+                  + '), taking turns with these run by run.', '']
+    elif before:
         lines += [f"Before: `{before['command']}` on {before['date']}"
                   + (f" ({before['tree_note']})" if before.get('tree_note') else ''), '']
     lines += report_lines(data, before)
@@ -503,6 +509,9 @@ def main(argv=None):
     parser.add_argument('--tree-note', default='', help='what --tree is, for the page')
     parser.add_argument('--json', help='write the results here')
     parser.add_argument('--before', help='a --json of the before run: printed beside')
+    parser.add_argument('--vs', metavar='DIR',
+                        help='the before checkout: its runs and this one\'s take turns')
+    parser.add_argument('--vs-note', default='', help='what --vs is, for the page')
     parser.add_argument('--page', help='write the markdown page here')
     args = parser.parse_args(argv)
     from node_scenes_figures import machine
@@ -510,16 +519,21 @@ def main(argv=None):
     domain = args.domain if args.domain is not None else pick_domain(101 + os.getpid() % 130)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     load_before, steal0 = os.getloadavg()[0], _cpu_ticks()
-    runs = []
-    plan = [False] * args.runs + ([] if args.no_breakdown else [True])
-    for k, staged in enumerate(plan):
+    # (checkout, staged): with --vs the two checkouts take turns, run by run, so that a
+    # drift of the machine's speed during the call moves both columns alike
+    trees = [args.vs, args.tree] if args.vs else [args.tree]
+    plan = [(tree, False) for _ in range(args.runs) for tree in trees]
+    plan += [] if args.no_breakdown else [(tree, True) for tree in trees]
+    runs = {tree: [] for tree in trees}
+    for tree, staged in plan:
         with tempfile.TemporaryDirectory(prefix='node_cost_') as tmp:
             try:
-                r = run_once(args, domain, tmp, staged)
+                r = run_once(args, domain, tmp, staged, tree)
             except Exception as exc:   # a bench bug must not lose the other runs
                 r = {'staged': staged, 'error': f'{type(exc).__name__}: {exc}'}
-        runs.append(r)
-        what = 'instrumented' if staged else f'run {k + 1}'
+        runs[tree].append(r)
+        what = ('before, ' if args.vs and tree == args.vs else 'after, ' if args.vs else '') + (
+            'instrumented' if staged else f'run {len(runs[tree])}')
         if 'error' in r:
             print(f'{what}: {r["error"]}', flush=True)
         else:
@@ -533,10 +547,15 @@ def main(argv=None):
             'seconds': args.seconds, 'skip': args.skip, 'monitor': args.monitor,
             'tree_note': args.tree_note, 'load_before': load_before,
             'load_after': os.getloadavg()[0], 'steal': _steal(steal0, _cpu_ticks()),
-            'runs': runs}
-    data['summary'] = summary(runs)
+            'runs': runs[args.tree]}
+    data['summary'] = summary(data['runs'])
     before = None
-    if args.before:
+    if args.vs:
+        before = dict(data, runs=runs[args.vs], tree_note=args.vs_note,
+                      command=data['command'])
+        before['summary'] = summary(before['runs'])
+        data['before'] = before
+    elif args.before:
         with open(args.before) as fh:
             before = json.load(fh)
     print()
