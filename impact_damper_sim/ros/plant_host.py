@@ -9,6 +9,13 @@ the plant, and each further machine adds its model and its DDS endpoints (a few 
 docs/bench/node-memory.md). The ROS-native form (one process per machine,
 ``plant.launch.py``) stays; both give the same graph.
 
+What one process cannot share is the interpreter lock: its machines step Python in turn, so
+one process gives them one core at most, less the switching. On a 2-core machine three hpotp
+machines keep real time in one process and five do not, where five processes do
+(docs/bench/node-memory.md). For a plant larger than one core's worth, run one
+``plant_host`` per core, each with its share of the machines (``--seed`` apart, ``--clock
+none`` on all but one), or one process per machine.
+
 Usage::
 
     ros2 run impact_damper_sim plant_host --machines pump1:hpotp pump2:rbs
