@@ -71,7 +71,6 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STAGES = (
     ('impact_damper_sim.integrate.kernels.event_loop', 'advance', 'kernel'),
     ('impact_damper_sim.integrate.forcing', 'Forcing.sample', 'forcing'),
-    ('impact_damper_sim.scene.excitation', 'UnbalanceForce.sample', 'forcing'),
     ('impact_damper_sim.integrate.exact', 'ExactPropagator.advance', 'engine glue'),
     ('impact_damper_sim.integrate.simulation', 'Simulation.advance', 'engine glue'),
     ('impact_damper_sim.live.realtime', 'LiveSimulation.step', 'sensor chain'),
