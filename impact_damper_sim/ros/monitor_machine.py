@@ -285,8 +285,8 @@ class Machine:
             (self.topic(IMPACTS), PointCloud2, self._on_impact_batch, EVENT_QOS),
             (self.topic(IMPACTS), WrenchStamped, self._on_impact, EVENT_QOS)])
         self.settle(self.impact_stream)
-        self._state_subscription = monitor.create_subscription(
-            JointState, self.topic(IMPACTOR_STATE), self._on_state, LATCHED_QOS)
+        monitor.create_subscription(JointState, self.topic(IMPACTOR_STATE), self._on_state,
+                                    LATCHED_QOS)
 
     def topic(self, relative):
         """The name to subscribe to for the machine's topic ``relative`` (str)."""
@@ -296,13 +296,6 @@ class Machine:
     def label(self):
         """The machine as status names and lines name it: its namespace, '' at the root."""
         return self.namespace.rstrip('/')
-
-    def destroy(self):
-        """Drop the machine's subscriptions."""
-        for stream in [*self.accel_streams.values(), self.impact_stream]:
-            if stream.subscription is not None:
-                self.monitor.destroy_subscription(stream.subscription)
-        self.monitor.destroy_subscription(self._state_subscription)
 
     # -- subscriptions (executor thread) -------------------------------------------------
     def watch(self, sensor):
