@@ -266,7 +266,7 @@ def analyse(res, meta, arrays, py_out, cpu, node, raw, monitor, t_spawn, t_first
             rate_of[r['topic'][:-len('/batch')]] = r['samples_per_sim_s']
     impacts_rec = next((recs[t] for t in recs if t.rsplit('/', 1)[-1] == 'impacts'), None)
     mon = [(t, name, level, message, values) for t, name, level, message, values in diags
-           if name.startswith('monitor: ')]
+           if name.split(': ', 1)[0].rsplit('/', 1)[-1] == 'monitor']
     judged = [m for m in mon if m[0] >= t_first + MONITOR_WARMUP]
     ratios, problems, ages, impact_ratios, mimp = [], [], [], [], []
     for t, name, level, message, values in judged:
