@@ -69,16 +69,16 @@ What is measured, per scene:
   ``raw lag`` is the same for the raw reader, on every topic with stamps; a topic whose
   stamps arrive more than 5 ms ahead of that sim time (taken 20 ms after the arrival: a
   reader back from a stall takes its topics' backlogs one after another) is listed.
-* **monitor kept up**: its statuses (``/monitor: <ns>/<sensor>``,
-  ``/monitor: <ns>/impacts``) received from 3.5 s after the first sample on (its 2 s window
-  full, one report more) are all OK, each sensor's ``samples_per_s`` is at least 99 % of
-  the rate of the topic it reads (``accel/<sensor>/batch``'s samples per sim s when the
-  graph shows the monitor subscribed to it, else the Imu ``accel/<sensor>``'s 1 / median stamp interval, both as
-  the raw reader saw them), and each report's ``impacts_in_window`` is
-  at least 90 % of the impacts the raw reader got, before that report, over the same
-  ``span_s`` up to ``window_end_s`` (judged when that is 50 or more; impact batches are
-  placed at the middle of their interval, so a count is exact to about a batch at each
-  end). The largest ``last_sample_age_s`` it reported is shown.
+* **monitor kept up**: its statuses (``/monitor: <ns>/<sensor>``, ``/monitor:
+  <ns>/impacts``) received from 3.5 s after the first sample on (its 2 s window full, one
+  report more) are all OK, each sensor's ``samples_per_s`` is at least 99 % of the rate of
+  the topic it reads (``accel/<sensor>/batch``'s samples per sim s when the graph shows the
+  monitor subscribed to it, else the Imu ``accel/<sensor>``'s 1 / median stamp interval,
+  both as the raw reader saw them), and each report's ``impacts_in_window`` is at least 90 %
+  of the impacts the raw reader got, before that report, over the same ``span_s`` up to
+  ``window_end_s`` (judged when that is 50 or more; impact batches are placed at the middle
+  of their interval, so a count is exact to about a batch at each end). The largest
+  ``last_sample_age_s`` it reported is shown.
 * **The hypervisor's steal**: the share of the CPU time ``/proc/stat`` counts as stolen
   over each scene (a virtual machine's cores given to other guests; over 2 % flags the run
   as not quiet, whatever this machine's own load).
