@@ -21,8 +21,12 @@ with only the environment set per host (no ``ros2 run``, no launch).
 * ``test_static_peers_cross_a_router``: the hosts on two subnets with a router between them
   (multicast is not routed). The node keeps the defaults; a probe on B with
   ``ROS_STATIC_PEERS=<A>`` receives the batches, a probe on B without receives nothing.
+* ``test_a_static_peer_reaches_four_processes_of_a_host`` (slow: seven processes, 13 s here):
+  across the router, a node started as host A's fifth ROS process is not reached from B
+  naming A, and is once it names B.
 
-Skipped, saying why, without root, ``ip``/``unshare``, network namespaces or rclpy.
+Skipped, saying why, without root, ``ip``/``unshare``, network namespaces or rclpy
+(``test_the_skip_says_why`` checks the reasons anywhere).
 """
 import importlib.util
 import json
@@ -135,6 +139,7 @@ class Runs:
     def __init__(self, hosts, tmp_path):
         self.hosts, self.tmp = hosts, tmp_path
         self.procs = {}
+        self.stopped = set()
 
     def start(self, label, host, argv, **ros):
         log = open(self.tmp / f'{label}.log', 'w')
@@ -160,7 +165,8 @@ class Runs:
         """Wait until ``label`` counted ENOUGH batches (fail after DEADLINE s, with the logs)."""
         end = time.monotonic() + DEADLINE
         while self.state(label)['batches'] < ENOUGH:
-            dead = [k for k, p in self.procs.items() if p.poll() is not None]
+            dead = [k for k, p in self.procs.items()
+                    if p.poll() is not None and k not in self.stopped]
             if dead or time.monotonic() > end:
                 logs = '\n'.join(f'--- {k}\n{self.log(k)[-1500:]}' for k in self.procs)
                 pytest.fail(f'{label} counted {self.state(label)["batches"]} batches '
@@ -171,6 +177,7 @@ class Runs:
         """SIGINT (the process is the command itself: the host wrapper execs it), wait;
         return the exit codes."""
         for label in labels:
+            self.stopped.add(label)
             self.procs[label].send_signal(signal.SIGINT)
         codes = []
         for label in labels:
@@ -235,6 +242,20 @@ def read_mcap(path):
 
 
 # --- the tests -------------------------------------------------------------------------------
+
+def test_the_skip_says_why(monkeypatch):
+    """Without root or without ``ip``, the reason names what is missing (runs anywhere)."""
+    if not sys.platform.startswith('linux'):
+        assert 'Linux only' in netns_hosts.unavailable_reason()
+        return
+    monkeypatch.setattr(netns_hosts.os, 'geteuid', lambda: 1000)
+    assert netns_hosts.unavailable_reason() == (
+        'creating network namespaces needs root (ip netns add)')
+    monkeypatch.setattr(netns_hosts.os, 'geteuid', lambda: 0)
+    monkeypatch.setattr(netns_hosts.shutil, 'which', lambda tool: None)
+    assert netns_hosts.unavailable_reason() == (
+        'no `ip` command (iproute2 / util-linux) on PATH')
+
 
 def test_subnet_reaches_the_other_host(runs):
     """SUBNET on both hosts: the recorder on B holds the node's batches at its rate and its
@@ -307,6 +328,34 @@ def test_static_peers_cross_a_router(routed_runs):
     print(f"B with the static peer: {peer['batches']} batches, without: "
           f"{multicast['batches']}; its graph: {multicast['nodes']}")
     assert multicast['batches'] == 0 and '/vibration_node' not in multicast['nodes'], multicast
+
+
+@pytest.mark.slow
+def test_a_static_peer_reaches_four_processes_of_a_host(routed_runs):
+    """Fast DDS announces to a static peer's first four participants (SUBNET's
+    maxInitialPeersRange): a node started as host A's fifth ROS process is not reached from B
+    naming A; the same node naming B reaches it (docs/guides/across-hosts.md, the limit)."""
+    runs = routed_runs
+    a, b = runs.hosts.addresses['a'], runs.hosts.addresses['b']
+    for i in range(4):                       # participants 0..3 of host A
+        runs.probe(f'filler{i}', 'a')
+    end = time.monotonic() + DEADLINE
+    while not all((runs.tmp / f'filler{i}.json').exists() for i in range(4)):
+        assert time.monotonic() < end, 'the four first processes of host A did not start'
+        time.sleep(0.1)
+    runs.start('node', 'a', NODE)            # the fifth
+    runs.probe('peer_b', 'b', peers=a)
+    runs.probe('beside', 'a')                # the node runs: a probe beside it counts
+    runs.wait_for_batches('beside')
+    assert runs.stop('node') == [0], runs.log('node')
+    one_sided = runs.state('peer_b')
+    print(f"fifth process, B names A: {one_sided['batches']} batches on B "
+          f"({runs.state('beside')['batches']} beside the node on A)")
+    assert one_sided['batches'] == 0 and '/vibration_node' not in one_sided['nodes']
+    runs.start('node_naming_b', 'a', NODE, peers=b)
+    runs.wait_for_batches('peer_b')          # fails (with the logs) if it never arrives
+    assert runs.stop('node_naming_b') == [0]
+    print(f"and naming B: {runs.state('peer_b')['batches']} batches on B")
 
 
 if __name__ == '__main__':

@@ -29,7 +29,8 @@ Names are unique per object (a prefix, the process id and a counter), so paralle
 collide (the addresses may repeat: each pair lives in namespaces of its own).
 :meth:`TwoHosts.destroy` is idempotent, runs on ``with`` exit and at interpreter exit
 (``atexit``), ends the processes still running inside its namespaces, and deletes them
-(deleting a namespace deletes the veth end inside it, and so the pair).
+(deleting a namespace deletes the veth end inside it, and so the pair). Those of a process
+killed before its ``atexit`` ran are removed by the next :meth:`TwoHosts.create`.
 
 From the command line (namespaces that outlive the command; ``down`` removes them)::
 
@@ -44,6 +45,7 @@ import argparse
 import atexit
 import itertools
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -95,6 +97,19 @@ def unavailable_reason():
     finally:
         _ip('netns', 'del', probe, check=False)
     return None
+
+
+def remove_stale():
+    """Delete the namespaces (and /dev/shm directories) of default-named :class:`TwoHosts`
+    whose process is gone (killed before its ``atexit`` ran); return their names."""
+    stale = []
+    for line in _ip('netns', 'list').stdout.splitlines():
+        match = re.fullmatch(r'(ids(\d+)x\d+)-[abr]', line.split(' ')[0])
+        if match and not os.path.exists(f'/proc/{match.group(2)}'):
+            _ip('netns', 'del', match.group(0), check=False)
+            shutil.rmtree(f'/dev/shm/netns-{match.group(0)}', ignore_errors=True)
+            stale.append(match.group(0))
+    return stale
 
 
 class TwoHosts:
@@ -156,6 +171,7 @@ class TwoHosts:
             self.
         """
         self.destroy()
+        remove_stale()
         if self._atexit:
             atexit.register(self.destroy)
         try:
