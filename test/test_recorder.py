@@ -149,12 +149,16 @@ def test_sigterm_finishes_the_file_with_every_message_taken(ros_context, tmp_pat
     assert counts == Counter({topic: 200})
 
 
-def test_a_file_that_exists_is_refused_in_one_line(tmp_path):
+@pytest.mark.parametrize('given', [['-p', 'namespaces:=[nobody]'], []],
+                         ids=['namespaces', 'no-namespaces'])
+def test_a_file_that_exists_is_refused_in_one_line(tmp_path, given):
+    """Refused in one line, the file untouched; also with ``namespaces`` not given (an
+    uninitialised string array, which ``get_parameter`` refuses to read)."""
     path = tmp_path / 'kept.mcap'
     path.write_bytes(b'keep me')
     done = subprocess.run(
         [sys.executable, '-m', 'impact_damper_sim.ros.recorder', '--ros-args',
-         '-p', f'output:={path}', '-p', 'namespaces:=[nobody]'],
+         '-p', f'output:={path}', *given],
         capture_output=True, text=True, timeout=60,
         env=dict(os.environ, ROS_DOMAIN_ID='79'))
     assert done.returncode == 2, done.stderr

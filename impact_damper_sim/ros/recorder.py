@@ -267,7 +267,9 @@ def _declare(node):
     for name, (default, description) in specs.items():
         node.declare_parameter(name, default, ParameterDescriptor(
             name=name, description=description, read_only=True))
-        value = node.get_parameter(name).value
+        # a typed array without a default is uninitialised when not given: get_parameter
+        # raises then, get_parameter_or gives the Parameter with value None
+        value = node.get_parameter_or(name).value
         values[name] = list(value) if isinstance(value, (list, tuple)) else value
     values['namespaces'] = values['namespaces'] or []
     return values
