@@ -17,7 +17,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = 'impact_damper_sim'
-ROS2_RUN_NAMES = {'vibration_node', 'monitor', 'replay', 'study'}
+ROS2_RUN_NAMES = {'vibration_node', 'monitor', 'replay', 'study', 'recorder', 'plant_host'}
 
 #: third-party modules that are not ROS packages: import name -> (PyPI distribution, rosdep
 #: key). mcap has no rosdep key of its own (rosdistro's rosdep/python.yaml, 2026-08): the pip

@@ -49,7 +49,7 @@ REQUIRED_EXEC_DEPENDS = {
 OPTIONAL_DEPENDS = {'python3-matplotlib', 'python3-dask'}
 REQUIRED_TEST_DEPENDS = {'python3-pytest'}
 #: what ``ros2 run impact_damper_sim NAME`` runs: lib/<pkg>/NAME
-ROS2_RUN_NAMES = {'vibration_node', 'monitor', 'replay', 'study'}
+ROS2_RUN_NAMES = {'vibration_node', 'monitor', 'replay', 'study', 'recorder', 'plant_host'}
 
 
 # --------------------------------------------------------------------------- helpers

@@ -33,7 +33,7 @@ README = ROOT / 'README.md'
 NODE_MD = ROOT / 'docs' / 'node.md'
 PKG = 'impact_damper_sim'
 VENV_BIN = Path(sys.prefix) / 'bin'
-ROS2_RUN_NAMES = ['monitor', 'replay', 'study', 'vibration_node']
+ROS2_RUN_NAMES = ['monitor', 'plant_host', 'recorder', 'replay', 'study', 'vibration_node']
 STARTED = 'accelerometers at'   # vibration_node's start-up line
 START_TIMEOUT = 180.0           # s: a cold Numba cache compiles the kernels first
 #: topic -> its nominal rate (Hz), for `ros2 topic hz` and the rate snippet
@@ -315,7 +315,7 @@ def check_launch_stopped(proc, rc, problems):
 # --------------------------------------------------------------------------- the tests
 
 @needs_ros2
-def test_ros2_pkg_executables_lists_the_four(tmp_path):
+def test_ros2_pkg_executables_lists_every_script(tmp_path):
     rc, out = run(f'{ROS2} pkg executables {PKG}', ros_env(tmp_path), tmp_path)
     assert rc == 0, out
     listed = sorted(line.split()[1] for line in out.splitlines() if line.startswith(PKG))
