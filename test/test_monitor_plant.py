@@ -108,9 +108,14 @@ def test_two_real_nodes_one_line_each_then_one_stops(plant):
         node.publish_diagnostics()
     spin_until(executor, lambda: all(monitor.machines[ns].node_hardware_id
                                      for ns in machines))
+    # impactor_state goes out on the node's wall-clock timer too; queue one now so that a
+    # loaded machine, whose timer has not fired yet, still shows an OK impacts line
+    for node in machines.values():
+        node.publish_state()
     run(executor, machines.values(), 0.5)
     spin_until(executor, lambda: all(
-        m.message_counts['accel'] >= 40 for m in monitor.machines.values()))
+        m.message_counts['accel'] >= 40 and m.message_counts['impactor_state'] >= 1
+        for m in monitor.machines.values()))
     array = monitor.report()
 
     # one line per machine, namespace first, the same figures as the one-machine lines
