@@ -26,7 +26,6 @@ PARAMETER_BOOL, PARAMETER_INTEGER, PARAMETER_DOUBLE, PARAMETER_STRING = 1, 2, 3,
 
 
 _STAMP = struct.Struct('<iI')
-_VECTOR = struct.Struct('<3d')
 
 
 def _stamp(ns):
@@ -87,9 +86,11 @@ def vector3_stamped_cdr(ns, frame_id, vector):
     vector : sequence of 3 float
         x, y, z (in the unit the topic states).
     """
-    x, y, z = vector
-    return b''.join((_HEADER, _stamp(ns), _frame_tail(frame_id, 8),
-                     _VECTOR.pack(float(x), float(y), float(z))))
+    w = CdrWriter()
+    w.stamp(ns)
+    w.string(frame_id)
+    w.put('3d', *(float(v) for v in vector))
+    return w.bytes()
 
 
 def joint_state_cdr(ns, names, position=(), velocity=(), effort=(), frame_id=''):
@@ -106,43 +107,14 @@ def joint_state_cdr(ns, names, position=(), velocity=(), effort=(), frame_id='')
     frame_id : str
         ``header.frame_id``.
     """
-    names = tuple(names)
-    head = _JOINT_HEADS.get((frame_id, names))
-    if head is None:   # the bytes after the stamp up to the names are made once
-        h = CdrWriter()
-        h.stamp(0)
-        h.string(frame_id)
-        h.strings(list(names))
-        head = _JOINT_HEADS[(frame_id, names)] = (b''.join(h.parts)[12:], h.size)
-        if len(_JOINT_HEADS) > 64:   # a bounded cache: the node has a few kinds
-            _JOINT_HEADS.pop(next(iter(_JOINT_HEADS)))
     w = CdrWriter()
-    w.parts.append(_stamp(ns))
-    w.parts.append(head[0])
-    w.size = head[1]
+    w.stamp(ns)
+    w.string(frame_id)
+    w.strings(list(names))
     w.doubles(position)
     w.doubles(velocity)
     w.doubles(effort)
     return w.bytes()
-
-
-#: (frame_id, names) -> (the bytes after the stamp up to the names, the size there)
-_JOINT_HEADS: dict[tuple[str, tuple[str, ...]], tuple[bytes, int]] = {}
-_FRAME_TAILS: dict[tuple[str, int], bytes] = {}
-
-
-def _frame_tail(frame_id, align):
-    """The bytes of ``frame_id`` after an 8-byte stamp, padded to ``align`` (made once)."""
-    tail = _FRAME_TAILS.get((frame_id, align))
-    if tail is None:
-        w = CdrWriter()
-        w.stamp(0)
-        w.string(frame_id)
-        w.align(align)
-        tail = b''.join(w.parts)[12:]
-        if len(_FRAME_TAILS) < 64:
-            _FRAME_TAILS[(frame_id, align)] = tail
-    return tail
 
 
 def parameter_value_type(value):
