@@ -348,10 +348,12 @@ class FaultInjector:
             ``f(samples)``: :meth:`before_limit` of this chunk in place on the (k, 3) samples
             (m/s^2).
         """
+        before = [f for f in self._by_acc[acc_index] if f.stage == 'before']
+        if not before:   # the common case (no fault at all): nothing to place in the chunk
+            return None
         t = np.asarray(t, dtype=float)
         n0 = self._start(t, len(t))
-        spans = [f.span(n0, len(t)) for f in self._by_acc[acc_index] if f.stage == 'before']
-        if not any(a < b for a, b in spans):
+        if not any(a < b for a, b in (f.span(n0, len(t)) for f in before)):
             return None
         return functools.partial(self.before_limit, t, acc_index=acc_index)
 

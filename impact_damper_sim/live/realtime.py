@@ -491,13 +491,12 @@ class LiveSimulation:
         clipped = np.zeros(n_acc, dtype=np.int64)
         valid = np.ones((t.size, n_acc), bool)
         faults = self.faults
-        any_fault = len(faults) > 0   # without one, no accelerometer has a first-stage hook
         for a, channel in enumerate(self.channels):
             # mean acceleration over each step, translations only (rotations give rates);
             # the faults that change values act before the range and ADC (a gain clips, and
             # the clip count counts it), the rest after them (stuck, missing samples)
             out = channel.process(np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt,
-                                  before_limit=faults.hook(t, a) if any_fault else None)
+                                  before_limit=faults.hook(t, a))
             lin[:, a, :], valid[:, a] = faults.after_limit(t, out.samples, a)
             truth[:, a, :], clipped[a] = out.truth, out.clipped
             ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
