@@ -5,7 +5,7 @@ per field): measured with ten synthetic hpotp machines (2,000 batch messages/s),
 about 110 us a message, most of the monitor's CPU. The monitor subscribes to its batch topics
 with ``raw=True`` instead, queues the bytes as they come, and its report thread reads them
 here: a few ``struct`` reads for the header and the layout (the layout's bytes are the same
-message after message, so its NumPy dtype is made once per layout), and the rows as one
+message after message, so a reader keeps what it read of each layout), and the rows as one
 NumPy view. The result quacks like a decoded message for
 :func:`impact_damper_sim.recording.batches.rows_of` and ``sample_times_ns``.
 
@@ -48,9 +48,6 @@ class Cloud:
 
     __slots__ = ('header', 'height', 'width', 'fields', 'is_bigendian', 'point_step',
                  'row_step', 'data')
-
-
-_layouts: dict[bytes, tuple] = {}   # the bytes of a layout -> (fields, bigendian, step, end)
 
 
 def _string(buf, at):
@@ -101,13 +98,16 @@ def rows_in(data):
         return 1
 
 
-def read_cloud(data):
+def read_cloud(data, layouts=None):
     """Read one PointCloud2 from its CDR bytes.
 
     Parameters
     ----------
     data : bytes
         The serialized message, as a ``raw=True`` subscription receives it.
+    layouts : dict, optional
+        The caller's cache of layouts read before (the bytes of a layout to its fields,
+        endianness, point step and length), filled here; None reads the layout every time.
 
     Returns
     -------
@@ -129,15 +129,15 @@ def read_cloud(data):
         at += 8
         # the layout ends at row_step: find it once per layout, by its bytes
         known = None
-        for key, value in _layouts.items():
+        for key, value in (layouts or {}).items():
             if buf[at:at + len(key)] == key:
                 known = value
                 break
         if known is None:
             fields, bigendian, step, end = _layout(buf, at)
             known = (fields, bigendian, step, end - at)
-            if len(_layouts) < 64:
-                _layouts[bytes(buf[at:end])] = known
+            if layouts is not None and len(layouts) < 64:
+                layouts[bytes(buf[at:end])] = known
         fields, bigendian, step, length = known
         at += length
         row_step, size = struct.unpack_from('<II', buf, at)

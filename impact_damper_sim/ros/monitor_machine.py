@@ -270,6 +270,7 @@ class Machine:
         self.batch = _Batch()
         self.accel_streams = {}     # sensor -> _Stream
         self.frames = {}            # sensor -> frame_id of its latest message
+        self._cloud_layouts = {}    # batch layouts read before (monitor_cdr.read_cloud)
         self.impact_frame = ''
         # owned by the report thread
         self._last_arrival = {}     # sensor -> node-clock time of its latest valid sample (s)
@@ -455,7 +456,7 @@ class Machine:
             self._last_impact_batch = clock_s
         for data in batch.impact_clouds:
             try:
-                msg = read_cloud(data)
+                msg = read_cloud(data, self._cloud_layouts)
                 self.impact_frame = msg.header.frame_id
                 times = _stamps_s(sample_times_ns(msg))
             except ValueError as error:
@@ -486,7 +487,7 @@ class Machine:
             parts.append(np.frombuffer(batch.samples[sensor], dtype=float).reshape(-1, 4))
         for data in batch.clouds[sensor]:
             try:
-                msg = read_cloud(data)
+                msg = read_cloud(data, self._cloud_layouts)
                 self.frames[sensor] = msg.header.frame_id
                 cloud = rows_of(msg)
                 parts.append(np.column_stack((_stamps_s(sample_times_ns(msg, cloud)),
