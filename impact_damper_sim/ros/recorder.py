@@ -146,6 +146,9 @@ class PlantRecorder:
             The topics subscribed to now.
         """
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+        from ..studies.log_reader import LogError
+        from .replay_plan import message_class
         new = []
         for topic, types in self.node.get_topic_names_and_types():
             if topic in self.counts or not types or not self.wanted(topic):
@@ -164,9 +167,9 @@ class PlantRecorder:
                 else DurabilityPolicy.VOLATILE)
             type_name = types[0]
             try:
-                msg_type = _message_class(type_name)
+                msg_type = message_class(type_name)
                 self.recorder.add_topic(topic, type_name, offered)
-            except (ImportError, AttributeError, ValueError, LookupError, OSError) as exc:
+            except (LogError, ValueError, LookupError, OSError) as exc:
                 self.node.get_logger().warning(f'not recording {topic} ({type_name}): {exc}',
                                                once=True)
                 self.counts[topic] = 0
@@ -240,12 +243,6 @@ class PlantRecorder:
         stats['topic_counts'] = self.recorder.topic_counts()   # written, after the drain
         return stats
 
-
-def _message_class(type_name):
-    """The message class of ``pkg/msg/Type``."""
-    import importlib
-    pkg, _, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{pkg}.msg'), name)
 
 
 def _declare(node):
