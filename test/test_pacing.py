@@ -113,3 +113,31 @@ def test_a_bad_factor_is_refused_naming_the_quantity():
     with pytest.raises(PacingError, match=r'^real-time factor: must be finite and >= 0'):
         pacer.reset(math.nan, 0.0)
     assert pacer.real_time_factor == 1.0
+
+
+def test_stepping_refills_refill_chunks_beyond_lookahead_then_waits():
+    """A simulated stepping loop at factor 1 on an empty outbox: stepping starts when less
+    than the lookahead (one chunk) is stepped ahead of the schedule and then steps 1 +
+    REFILL chunks at once; it never runs more than lookahead + REFILL + 1 chunks ahead, and
+    the stream is never short of stepped samples."""
+    clock = Clock()
+    box = Outbox(Pacer(1.0, 0.0, clock=clock), imu_rate=IMU_RATE, lookahead=0.01, chunk=0.01)
+    t_stepped, bursts = 0.0, []
+    while clock.now < 1001.0:
+        plan = box.plan(clock.now, t_stepped)
+        assert plan.step == (plan.chunks > 0)
+        if plan.step:
+            t_stepped += 0.01 * plan.chunks
+            bursts.append(plan.chunks)
+            continue             # the node loops at once after a step
+        ahead = t_stepped - box.pacer.sim_at(clock.now)
+        assert 0.0 <= ahead <= 0.01 * (2 + Outbox.REFILL) + 1e-9
+        clock.now += 0.001
+    assert set(bursts) == {1 + Outbox.REFILL}
+    # 1 s of stream in refills of 5 chunks: about 20 of them, not 100 single chunks
+    assert len(bursts) == pytest.approx(1.0 / (0.01 * (1 + Outbox.REFILL)), abs=1)
+
+
+def test_factor_zero_steps_one_chunk_per_plan():
+    box, clock, sent, send = outbox(rtf=0.0)
+    assert box.plan(clock.now, 0.2).chunks == 1

@@ -680,7 +680,10 @@ def test_samples_leave_in_small_groups_and_a_backlog_is_spread(ros_context):
         assert node.pacer.wall_at(sent[-1] * 1e-9) <= clock.now + node.outbox.EARLY
         assert np.all(np.diff(sent) == 500_000)   # every sample, in order, once
         # nobody subscribed: a chunk's samples go at once, about one wake-up per chunk
+        # (once the samples queued for a subscriber, up to 1 + REFILL chunks, are out)
         out.has_subscribers = lambda: False
+        while any(wire for *_, wire in node.outbox.pending):
+            clock.now += wake()[1]
         count0, wakes = out.count, 0
         end = clock.now + 0.1
         while clock.now < end:
@@ -812,7 +815,8 @@ def test_a_scene_without_outputs_keeps_pace(ros_context):
         while clock.now < 1001.0:
             clock.now += _wake(node)
         assert node.live.failure is None
-        assert 1.0 <= node.live.t <= 1.0 + 2 * node._tick_period
+        # stepped up to lookahead + REFILL + 1 chunks ahead (Outbox.plan), never behind
+        assert 1.0 <= node.live.t <= 1.0 + (2 + node.outbox.REFILL) * node._tick_period
         node.publish_diagnostics()
         d = node.last_diagnostics
         assert d['real_time_factor_achieved'] == pytest.approx(1.0, abs=1e-3)

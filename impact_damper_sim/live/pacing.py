@@ -105,9 +105,10 @@ class Pacer:
         return target, lag
 
 
-#: What :meth:`Outbox.plan` decided: step a chunk now (``step``), which is a whole chunk
-#: behind schedule (``late``), and the stream's lag before any deficit was dropped (wall s).
-Plan = collections.namedtuple('Plan', 'step late lag')
+#: What :meth:`Outbox.plan` decided: step now (``step``) so many chunks (``chunks``), the
+#: first a whole chunk behind schedule (``late``), and the stream's lag before any deficit
+#: was dropped (wall s).
+Plan = collections.namedtuple('Plan', 'step late lag chunks')
 
 #: ``send(ns, key, payload, wire)``: publishes one queued item
 SendFn = Callable[[int, Hashable, object, bool], object]
@@ -151,6 +152,13 @@ class Outbox:
     CATCH_UP_RATE = 4.0
     #: ... in groups of at most this many samples per accelerometer (keep-last-5 readers)
     MAX_BURST = 4
+    #: chunks stepped beyond ``lookahead`` once stepping starts, back to back in one
+    #: wake-up: the Python of each chunk after the first then runs warm. On this 2-core VM
+    #: code idle for 10 ms costs several times its warm cost when it wakes (bench/
+    #: node_cost.py: the node on hpotp 26 -> 21 % of a core); the stream is unchanged,
+    #: samples due during the refill (a few ms) leave after it as a backlog, and a command
+    #: waits up to this many chunks more to reach the stream
+    REFILL = 4
 
     def __init__(self, pacer: Pacer, *, imu_rate: float, lookahead: float, chunk: float,
                  t_sim: float = 0.0, limited: Iterable[Hashable] = ()) -> None:
@@ -257,7 +265,8 @@ class Outbox:
 
         The lag is the stream's (the delivered time's), not the last item's: at a tiny
         factor that stands still between items (500 s at 1e-6) and every wake-up dropped a
-        deficit. Stepping runs ``lookahead`` ahead of the schedule.
+        deficit. Stepping starts when less than ``lookahead`` is stepped ahead of the
+        schedule, and then steps 1 + :attr:`REFILL` chunks at once (one at factor 0).
 
         Returns
         -------
@@ -266,8 +275,9 @@ class Outbox:
         target, lag = self.pacer.target(self.delivered_t(now, t_stepped))
         ahead = self.lookahead * self.pacer.real_time_factor
         step = t_stepped < target + ahead - 1e-12 or math.isinf(target)
+        chunks = (1 if math.isinf(target) else 1 + self.REFILL) if step else 0
         late = step and t_stepped < target - self.chunk < math.inf
-        return Plan(step, late, lag)
+        return Plan(step, late, lag, chunks)
 
     def wait(self, held: bool, now: float, t_stepped: float, longest: float) -> float:
         """How long (wall s) to sleep after a wake-up that stepped nothing: until the next

@@ -138,7 +138,8 @@ class VibrationNode(Node):
             except SceneError as exc:
                 raise ParameterError(f"parameter 'schedule': {exc}") from None
         self._period = 1.0 / self.live.sample_rate
-        # samples per stepped chunk; stepping runs a chunk's wall time ahead of publishing
+        # samples per stepped chunk; stepping starts when less than a chunk's wall time is
+        # stepped ahead of publishing (and refills Outbox.REFILL more)
         self._tick_period = p['tick_period']
         self._chunk = max(1, int(round(p['tick_period'] * self.live.sample_rate)))
         self.pacer = Pacer(p['real_time_factor'], self.live.t, max_lag=p['max_lag'],
@@ -425,8 +426,8 @@ class VibrationNode(Node):
     def stop(self):
         """Stop the stepping thread and wait for it (idempotent).
 
-        What was already stepped (at most one chunk ahead of the clock) is published and
-        recorded now, so the counters, the topics and the log agree.
+        What was already stepped (up to 2 + ``Outbox.REFILL`` chunks ahead of the clock) is
+        published and recorded now, so the counters, the topics and the log agree.
         """
         self._stop.set()
         self._wake.set()
@@ -437,11 +438,12 @@ class VibrationNode(Node):
             self._flush()
 
     def _run(self):
-        """The stepping thread: compute one chunk ahead, publish each item at its time.
+        """The stepping thread: compute chunks ahead, publish each item at its time.
 
         Samples are published one by one when the wall clock reaches their sim time (through
         the pacer), not in bursts per chunk, so a keep-last-5 ``qos_profile_sensor_data``
-        subscriber keeps up. Physics runs one chunk (``tick_period`` of sim time) ahead.
+        subscriber keeps up. Physics runs one to 2 + ``Outbox.REFILL`` chunks
+        (``tick_period`` of sim time each) ahead, refilled :attr:`Outbox.REFILL` + 1 at once.
         """
         cycles = 0
         while not self._stop.is_set():
@@ -481,7 +483,9 @@ class VibrationNode(Node):
         if plan.step:
             if plan.late:
                 stats.overruns += 1   # a whole chunk behind schedule: late
-            self._step(self._chunk)
+            for _ in range(plan.chunks):   # back to back: warm (Outbox.REFILL)
+                if not self._step(self._chunk):
+                    break
             self._lock.hand_over()
             return outbox.CATCH_UP if held else 0.0   # a backlog waits, however late we are
         return outbox.wait(held, self._wall(), live.t, self._tick_period)
