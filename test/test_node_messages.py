@@ -127,3 +127,48 @@ def test_every_stamped_message_names_its_frame():
         assert frames[topic] == {'rbs_rotor'}, topic
     assert frames['impactor_state'] == frames['impacts'] and frames['impacts'] <= housing
     assert nm.rotor_frame_id('hpotp') == 'hpotp_rotor'
+
+
+@pytest.mark.parametrize('names, frame', [([], ''), (['imp01/uy'], 'f'),
+                                          (['a/uy', 'a/uz', 'long_name/x'], 'housing_é')])
+def test_joint_state_encoder_writes_joint_state_cdrs_bytes(names, frame):
+    rng = np.random.default_rng(2)
+    n = len(names)
+    pos, vel, eff = rng.normal(size=(3, n))
+    for ns in (0, 7_000_000_005, 2**31 * 1_000_000_000 - 1):
+        assert mc.JointStateEncoder(names, frame).pack(ns, pos, vel, eff) == \
+            mc.joint_state_cdr(ns, names, pos, vel, eff, frame_id=frame)
+
+
+def _state_from_dicts(messages, live):
+    """``impactor_state`` as it was written before the encoder: per impactor dicts."""
+    pos, vel, eff = [], [], []
+    for s in live.impactor_states():
+        d = len(s['position'])
+        pos += [float(x) for x in s['position']]
+        vel += [float(x) for x in s['velocity']]
+        eff += [(1.0 if s['stuck'] else 0.0) if live.dampers_enabled else -1.0] * d
+    return mc.joint_state_cdr(int(round(live.t * 1e9)), messages.joint_names, pos, vel, eff,
+                              frame_id=messages.impactor_frame)
+
+
+@pytest.mark.parametrize('scene', ['hpotp', 'sdof'])
+def test_impactor_state_is_the_per_impactor_states_bytes(scene):
+    """The flat arrays and the template give the very bytes of the per-impactor dicts, over
+    chunks with impacts and stuck impactors (both flags seen on hpotp), and with the dampers
+    off (effort -1, zeros)."""
+    from impact_damper_sim.live.realtime import LiveSimulation
+    from impact_damper_sim.live.streams import live_scene
+    model, target = live_scene(scene)
+    live = LiveSimulation(model, initial_target=target)
+    messages = nm.NodeMessages(live, model)
+    flags = set()
+    for _ in range(120):
+        live.step(20)
+        assert messages.state_message() == _state_from_dicts(messages, live)
+        flags.update(s['stuck'] for s in live.impactor_states())
+    if scene == 'hpotp':
+        assert flags == {True, False}
+    live.set_dampers_enabled(False)
+    live.step(20)
+    assert messages.state_message() == _state_from_dicts(messages, live)

@@ -451,6 +451,34 @@ class LiveSimulation:
                         'velocity': velocity})
         return out
 
+    def impactor_state_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`impactor_states` as flat arrays, one entry per impactor DOF in the
+        impactors' order (their ``position`` and ``velocity`` concatenated): the same
+        numbers without a dict per impactor.
+
+        Returns
+        -------
+        position : ndarray, shape (n_dof,)
+            Relative to the housing (m).
+        velocity : ndarray, shape (n_dof,)
+            Relative to the housing (m/s).
+        stuck : ndarray of bool, shape (n_dof,)
+            The DOF's impactor rides its housing.
+        """
+        integrator = self.sim.integrator
+        rel, vel, stuck = integrator.impactor_states()
+        dims = [imp.dim for imp in integrator.model.impactors]
+        if not dims:
+            empty = np.zeros(0)
+            return empty, empty, np.zeros(0, bool)
+        if not self.dampers_enabled:
+            zeros = np.zeros(sum(dims))
+            return zeros, zeros.copy(), np.repeat(stuck, dims)
+        _, qd = integrator.state()
+        housing = np.concatenate([R @ qd for R in integrator._housing_rows()])
+        mask = np.arange(rel.shape[1]) < np.asarray(dims)[:, None]   # row-major: per impactor
+        return rel[mask], vel[mask] - housing, np.repeat(stuck, dims)
+
     # -- stepping -------------------------------------------------------------------------
     def step(self, n_samples: int) -> Batch | None:
         """Advance ``n_samples`` output samples.

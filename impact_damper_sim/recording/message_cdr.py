@@ -161,6 +161,56 @@ def parameter_event_cdr(ns, node, changed):
     return w.bytes()
 
 
+class JointStateEncoder:
+    """Writes ``sensor_msgs/JointState`` messages whose frame and joint names are fixed.
+
+    Only the stamp and the three arrays change (one value per joint each), so the bytes are
+    a template with those slots filled in: what :func:`joint_state_cdr` writes, without its
+    per-field Python (``impactor_state`` every chunk: 24 joints on hpotp).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Joint names.
+    frame_id : str
+        ``header.frame_id``.
+    """
+
+    def __init__(self, names, frame_id=''):
+        n = len(names)
+        w = CdrWriter()
+        w.stamp(0)
+        w.string(frame_id)
+        w.strings(list(names))
+        slots = []
+        for _ in range(3):                          # position, velocity, effort
+            w.put('I', n)
+            if n:
+                w.align(8)
+                slots.append(len(_HEADER) + w.size)
+                w.raw(bytes(8 * n))
+        self._template = w.bytes()
+        self._slots = slots
+        self.n = n
+
+    def pack(self, ns, position, velocity, effort):
+        """The message's bytes.
+
+        Parameters
+        ----------
+        ns : int
+            ``header.stamp`` (ns, >= 0).
+        position, velocity, effort : array_like, shape (n,)
+            Per joint (m, m/s, N or the joint's own units).
+        """
+        buf = bytearray(self._template)
+        buf[4:12] = _stamp(ns)
+        if self.n:
+            for at, values in zip(self._slots, (position, velocity, effort)):
+                buf[at:at + 8 * self.n] = np.asarray(values, '<f8').tobytes()
+        return bytes(buf)
+
+
 class ImuEncoder:
     """Writes chunks of ``sensor_msgs/Imu`` that differ only in stamp and readings.
 
@@ -221,7 +271,7 @@ class ImuEncoder:
         return [raw[i:i + n] for i in range(0, k * n, n)]
 
 
-__all__ = ['ImuEncoder', 'PARAMETER_BOOL', 'PARAMETER_DOUBLE', 'PARAMETER_INTEGER',
-           'PARAMETER_STRING', 'clock_cdr', 'fault_command_text', 'float64_cdr',
-           'joint_state_cdr', 'parameter_event_cdr', 'parameter_value_type', 'string_cdr',
-           'vector3_stamped_cdr']
+__all__ = ['ImuEncoder', 'JointStateEncoder', 'PARAMETER_BOOL', 'PARAMETER_DOUBLE',
+           'PARAMETER_INTEGER', 'PARAMETER_STRING', 'clock_cdr', 'fault_command_text',
+           'float64_cdr', 'joint_state_cdr', 'parameter_event_cdr', 'parameter_value_type',
+           'string_cdr', 'vector3_stamped_cdr']

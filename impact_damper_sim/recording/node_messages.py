@@ -36,6 +36,7 @@ from .batches import (
 )
 from .message_cdr import (
     ImuEncoder,
+    JointStateEncoder,
     clock_cdr,
     joint_state_cdr,
     parameter_event_cdr,
@@ -157,6 +158,7 @@ class NodeMessages:
         self._impact_encoder = BatchEncoder(impact_frame, IMPACT_FIELDS, IMPACT_POINT_STEP)
         #: ``header.frame_id`` of ``impactor_state``: positions are relative to the housing
         self.impactor_frame = impact_frame
+        self._state_encoder = JointStateEncoder(self.joint_names, impact_frame)
         #: ``header.frame_id`` of ``rotor/speed`` and ``rotor/joint_states``: the rotor's
         #: frame, named after the scene as the accelerometer frames are (``hpotp_rotor``)
         self.rotor_frame = rotor_frame_id(scene.name)
@@ -312,15 +314,9 @@ class NodeMessages:
         """``impactor_state`` now (bytes): positions (m), velocities (m/s), stuck flags
         (effort 1 stuck, 0 free, -1 dampers off)."""
         live = self.live
-        pos, vel, eff = [], [], []
-        enabled = live.dampers_enabled
-        for s in live.impactor_states():
-            d = len(s['position'])
-            pos += [float(x) for x in s['position']]
-            vel += [float(x) for x in s['velocity']]
-            eff += [(1.0 if s['stuck'] else 0.0) if enabled else -1.0] * d
-        return joint_state_cdr(int(round(live.t * 1e9)), self.joint_names, pos, vel, eff,
-                               frame_id=self.impactor_frame)
+        position, velocity, stuck = live.impactor_state_arrays()
+        effort = np.where(stuck, 1.0, 0.0) if live.dampers_enabled else np.full(stuck.size, -1.0)
+        return self._state_encoder.pack(int(round(live.t * 1e9)), position, velocity, effort)
 
     def parameter_event(self, changed):
         """``/parameter_events`` bytes for parameters of this node changed now.
