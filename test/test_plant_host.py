@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from impact_damper_sim.ros.plant_host import machine_specs, parse_machine
+from impact_damper_sim.ros.plant_host import machine_specs, parse_machine, parse_share
 from impact_damper_sim.scene.schema import SceneError
 
 
@@ -48,6 +48,49 @@ def test_a_plant_file_comes_first_with_its_seeds_then_the_command_line_machines(
 def test_a_bad_machine_list_is_refused_naming_the_entry(machines, message):
     with pytest.raises(SceneError, match=message):
         machine_specs(machines)
+
+
+def test_five_shares_of_a_plant_are_disjoint_and_together_the_whole_plant():
+    """``--share i/5`` over i = 0..4: each machine in exactly one share (index i mod 5),
+    with what it has in the whole plant: namespace, seed, parameters, and /clock only from
+    machine 0's share."""
+    whole, _ = machine_specs(plant='ten_hpotp')
+    assert len(whole) == 10
+    assert len({s.parameters['noise_seed'] for s in whole}) == 10   # the seeds do differ
+    shares = [machine_specs(plant='ten_hpotp', share=(i, 5))[0] for i in range(5)]
+    for i, share in enumerate(shares):
+        assert [s.namespace for s in share] == [whole[i].namespace, whole[i + 5].namespace]
+    hosted = [s for share in shares for s in share]
+    names = [s.namespace for s in hosted]
+    assert len(names) == len(set(names)) == 10
+    by_name = {s.namespace: s.parameters for s in hosted}
+    assert by_name == {s.namespace: s.parameters for s in whole}
+    assert [s.namespace for s in shares[0] if s.parameters['publish_clock']] == \
+        [whole[0].namespace]
+    assert not any(s.parameters['publish_clock'] for share in shares[1:] for s in share)
+    # the command line's machines are counted after the plant's, seeded as in the whole
+    extra, _ = machine_specs(['spare:sdof'], plant='ten_hpotp', seed=50, share=(0, 5))
+    assert [(s.namespace, s.parameters['noise_seed']) for s in extra] == [
+        ('pump01', 50), ('pump06', 55), ('spare', 60)]
+
+
+@pytest.mark.parametrize('share, message', [
+    ((0, 0), r'--share 0/0: give I/K, integers with K >= 1 and 0 <= I < K'),
+    ((5, 5), r'--share 5/5: give I/K, integers with K >= 1 and 0 <= I < K'),
+    ((-1, 5), r'--share -1/5: give I/K'),
+    ((10, 12), r'--share 10/12: no machine of the 10 has an index 10 modulo 12; give I/K '
+               r'with 0 <= I < min\(K, 10\)'),
+])
+def test_a_bad_or_empty_share_is_refused_naming_the_option(share, message):
+    with pytest.raises(SceneError, match=message):
+        machine_specs(plant='ten_hpotp', share=share)
+
+
+@pytest.mark.parametrize('text', ['0/0', '3', 'a/5', '1/2/3', '1.0/2'])
+def test_share_text_that_is_not_i_over_k_is_refused_naming_the_option(text):
+    with pytest.raises(SceneError, match=rf'^--share {text}: give I/K'):
+        parse_share(text)
+    assert parse_share(' 2/5') == (2, 5)
 
 
 def test_parse_machine_strips_the_leading_slash():
@@ -134,6 +177,20 @@ def test_two_machines_in_one_process_are_told_apart_and_ctrl_c_exits_0(ros_conte
     assert not same, f'{len(same)} of {len(common())} batches of one instant are equal'
     assert all(len(batches[machines[0]][s]) == len(batches[machines[1]][s])
                for s in common())   # the same layout: only the values differ
+
+
+@pytest.mark.ros
+def test_an_empty_share_exits_2_with_one_line_naming_the_option():
+    pytest.importorskip('rclpy')
+    done = subprocess.run(
+        [sys.executable, '-m', 'impact_damper_sim.ros.plant_host',
+         '--machines', 'a:sdof', 'b:sdof', '--share', '2/3'],
+        capture_output=True, text=True, timeout=180,
+        env=dict(os.environ, ROS_DOMAIN_ID='67'))
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [
+        'plant_host: --share 2/3: no machine of the 2 has an index 2 modulo 3; give I/K '
+        'with 0 <= I < min(K, 2)'], done.stderr
 
 
 @pytest.mark.ros

@@ -12,14 +12,18 @@ docs/bench/node-memory.md). The ROS-native form (one process per machine,
 What one process cannot share is the interpreter lock: its machines step Python in turn, so
 one process gives them one core at most, less the switching. On a 2-core machine three hpotp
 machines keep real time in one process and five do not, where five processes do
-(docs/bench/node-memory.md). For a plant larger than one core's worth, run one
-``plant_host`` per core, each with its share of the machines (``--seed`` apart, ``--clock
-none`` on all but one), or one process per machine.
+(docs/bench/node-memory.md). For a plant larger than one core's worth, split it: ``--share
+I/K`` hosts only the machines whose index (in the whole list, from 0) is ``I`` modulo ``K``,
+each exactly as in the whole plant (its seed, parameters, hardware_id; ``/clock`` only from
+the share holding machine 0), so K processes ``--share 0/K`` ... ``--share K-1/K`` of one
+plant give the same machines as one process of all (``plant.launch.py hosts:=K`` starts
+them), or run one process per machine.
 
 Usage::
 
     ros2 run impact_damper_sim plant_host --machines pump1:hpotp pump2:rbs
     ros2 run impact_damper_sim plant_host --plant ten_hpotp
+    ros2 run impact_damper_sim plant_host --plant ten_hpotp --share 0/5   # and 1/5 ... 4/5
     ros2 run impact_damper_sim plant_host --plant my_plant.yaml --machines spare:sdof \\
         --ros-args -p real_time_factor:=0.5
 
@@ -30,21 +34,26 @@ order given (the plant's first). Each machine is seeded apart: machine ``i`` (fr
 ``noise_seed`` = base + ``i`` (``--seed``, default the plant file's ``seed``, else 0) unless the
 plant file gives it its own. Parameters after ``--ros-args -p`` apply to every machine where
 the plant does not set them. Only the first machine publishes ``/clock`` (``--clock``): one
-topic cannot carry several machines' sim times.
+topic cannot carry several machines' sim times. ``--record-mode`` overrides the plant file's
+``record`` (``none``, ``per_machine``, ``one_log``).
 
 Exit status as ``vibration_node``: 0 on Ctrl-C, SIGTERM or SIGHUP (every machine stopped and
-its recording finished), 2 (one line on stderr naming the machine) when a plant file, a scene
-or a start-up parameter is invalid.
+its recording finished), 2 (one line on stderr naming the machine or the option) when a plant
+file, a scene, a start-up parameter or ``--share`` is invalid (``--share`` leaving the process
+no machine too).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 #: the executors plant_host can spin its machines with
 EXECUTORS = ('single', 'multi')
 #: which machines publish /clock
 CLOCK_CHOICES = ('first', 'all', 'none')
+#: what --share accepts (its refusals say it)
+SHARE_RULE = 'give I/K, integers with K >= 1 and 0 <= I < K (e.g. --share 0/5)'
 
 
 class MachineSpec:
@@ -86,7 +95,40 @@ def parse_machine(text):
     return namespace, scene.strip()
 
 
-def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='first'):
+def parse_share(text):
+    """``'I/K'`` (``--share``) -> ``(I, K)``, checked as :func:`machine_specs` checks it.
+
+    Raises
+    ------
+    impact_damper_sim.scene.schema.SceneError
+        Not two integers ``I/K`` with ``K >= 1`` and ``0 <= I < K`` (the message names
+        ``--share``).
+    """
+    from ..scene.schema import SceneError
+    index, sep, count = str(text).partition('/')
+    try:
+        share = (int(index), int(count))
+    except ValueError:
+        raise SceneError(f'--share {text}: {SHARE_RULE}') from None
+    if not sep:
+        raise SceneError(f'--share {text}: {SHARE_RULE}')
+    return _checked_share(share)
+
+
+def _checked_share(share):
+    from ..scene.schema import SceneError
+    try:
+        index, count = share
+    except (TypeError, ValueError):
+        raise SceneError(f'--share {share!r}: {SHARE_RULE}') from None
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in (index, count)) \
+            or count < 1 or not 0 <= index < count:
+        raise SceneError(f'--share {index}/{count}: {SHARE_RULE}')
+    return index, count
+
+
+def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='first',
+                  share=None, record_mode=None):
     """The machines to host, in order: the plant file's, then ``machines``.
 
     Parameters
@@ -101,11 +143,18 @@ def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='fi
     record_dir : str, optional
         Directory of a ``per_machine`` plant's logs (default the plant file's rule).
     clock : {'first', 'all', 'none'}
-        Which machines publish ``/clock``.
+        Which machines publish ``/clock`` (``'first'``: machine 0 of the whole list).
+    share : tuple of int, optional
+        ``(I, K)`` (``--share I/K``): only the machines whose index in the whole list is
+        congruent to ``I`` modulo ``K``, each as in the whole list (seed, parameters,
+        ``publish_clock``). Default all.
+    record_mode : str, optional
+        Overrides the plant file's ``record`` (``none``, ``per_machine``, ``one_log``).
 
     Returns
     -------
     specs : list of MachineSpec
+        The hosted machines, in the whole list's order.
     notes : list of str
         What the caller should tell the user (e.g. a ``one_log`` plant needs ``recorder``).
 
@@ -113,14 +162,22 @@ def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='fi
     ------
     impact_damper_sim.scene.schema.SceneError
         An invalid plant file, a malformed ``--machines`` entry, two machines in one
-        namespace or none at all.
+        namespace, none at all, or an invalid ``share`` or one that holds no machine.
     """
     from ..scene.schema import SceneError
+    if share is not None:
+        share = _checked_share(share)
     specs, notes = [], []
     base = 0 if seed is None else int(seed)
     if plant is not None:
         from ..scene.plant import load_plant
         loaded = load_plant(plant)
+        if record_mode is not None:
+            from ..scene.plant import RECORD_MODES
+            if record_mode not in RECORD_MODES:
+                raise SceneError(f"--record-mode {record_mode}: use one of "
+                                 f"{' | '.join(RECORD_MODES)}")
+            loaded = dataclasses.replace(loaded, record=record_mode)
         base = loaded.seed if seed is None else base
         params = loaded.node_parameters(record_dir=loaded.record_directory(record_dir)
                                         if loaded.record == 'per_machine' else None)
@@ -155,6 +212,14 @@ def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='fi
         seen[spec.namespace] = k
         if clock != 'all':
             spec.parameters.setdefault('publish_clock', clock == 'first' and k == 0)
+    if share is not None:
+        index, count = share
+        mine = specs[index::count]
+        if not mine:
+            raise SceneError(f'--share {index}/{count}: no machine of the {len(specs)} has '
+                             f'an index {index} modulo {count}; give I/K with 0 <= I < '
+                             f'min(K, {len(specs)})')
+        specs = mine
     return specs, notes
 
 
@@ -173,8 +238,15 @@ def _parser():
     parser.add_argument('--record-dir', default=None,
                         help="directory of a per_machine plant's logs (default the plant "
                              "file's record_dir)")
+    parser.add_argument('--record-mode', default=None, metavar='MODE',
+                        help="none, per_machine or one_log: overrides the plant file's "
+                             'record')
     parser.add_argument('--clock', choices=CLOCK_CHOICES, default='first',
                         help='which machines publish /clock (default: the first)')
+    parser.add_argument('--share', default=None, metavar='I/K',
+                        help='host only the machines whose index (plant file machines, then '
+                             '--machines, from 0) is I modulo K, each as in the whole plant '
+                             '(K processes --share 0/K ... K-1/K host all)')
     parser.add_argument('--executor', choices=EXECUTORS, default='single',
                         help='rclpy executor of all machines (default single: each machine '
                              'steps in its own thread; the executor only serves commands, '
@@ -257,8 +329,10 @@ def main(args=None):
     argv = list(sys.argv if args is None else args)
     options = _parser().parse_args(remove_ros_args(argv)[1:])
     try:
+        share = None if options.share is None else parse_share(options.share)
         specs, notes = machine_specs(options.machines, options.plant, options.seed,
-                                     options.record_dir, options.clock)
+                                     options.record_dir, options.clock, share=share,
+                                     record_mode=options.record_mode)
     except SceneError as exc:
         print(f'plant_host: {exc}', file=sys.stderr)
         return 2
@@ -277,8 +351,10 @@ def main(args=None):
         executor = make_executor(options.executor)
         for node in nodes:
             executor.add_node(node)
+        share_text = '' if share is None else f', share {share[0]}/{share[1]} of the plant'
         log.info(f'{len(nodes)} machines in one process ({options.executor}-threaded '
-                 f"executor): {', '.join(n.get_fully_qualified_name() for n in nodes)}")
+                 f'executor{share_text}): '
+                 f"{', '.join(n.get_fully_qualified_name() for n in nodes)}")
         spin_guarded(executor, lambda exc: log.error(
             f'callback failed: {type(exc).__name__}: {exc}', throttle_duration_sec=1.0))
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -294,8 +370,9 @@ def main(args=None):
     return 0
 
 
-__all__ = ['CLOCK_CHOICES', 'EXECUTORS', 'MachineError', 'MachineSpec', 'build_machines',
-           'machine_specs', 'main', 'make_executor', 'parse_machine']
+__all__ = ['CLOCK_CHOICES', 'EXECUTORS', 'SHARE_RULE', 'MachineError', 'MachineSpec',
+           'build_machines', 'machine_specs', 'main', 'make_executor', 'parse_machine',
+           'parse_share']
 
 
 if __name__ == '__main__':
