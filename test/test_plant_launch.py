@@ -2,9 +2,12 @@
 file (sdof and cantilever, a few seconds): both namespaced nodes come up, their /diagnostics
 statuses have distinct names and hardware_ids, and the logs are what the plant asked for:
 one MCAP holding both machines' topics (``one_log``, the recorder), or one per machine
-(``per_machine``, each node's ``record``). Ctrl-C ends every process cleanly.
+(``per_machine``, each node's ``record``). Ctrl-C ends every process cleanly. Which processes
+``hosts:=K`` starts is read off the launch description without running it.
 Processes and isolation as test_ros2_tools.py (its helpers): own DDS domain, own session."""
+import importlib.util
 import time
+from pathlib import Path
 
 import pytest
 
@@ -118,3 +121,74 @@ machines:
     plant.write_text('machines:\n  - {namespace: m1, scene: nosuch}\n')
     rc, out = run(f'{ROS2} launch {PKG} plant.launch.py plant:={plant}', env, tmp_path)
     assert rc not in (0, None) and "machines[0].scene: unknown scene 'nosuch'" in out, out
+
+
+# --------------------------------------------------------- the processes, not started
+LAUNCH_FILE = Path(__file__).resolve().parent.parent / 'launch' / 'plant.launch.py'
+
+
+def _planned_processes(**arguments):
+    """``[(executable, namespace, arguments)]`` the launch file would start for these launch
+    arguments (the defaults for the others), read off its actions without running any."""
+    pytest.importorskip('launch', reason='the ROS 2 launch package is not installed')
+    pytest.importorskip('launch_ros', reason='the ROS 2 launch_ros package is not installed')
+    from launch.launch_context import LaunchContext
+    from launch.substitutions import LocalSubstitution
+    from launch.utilities import perform_substitutions
+    from launch_ros.actions import Node
+    spec = importlib.util.spec_from_file_location('plant_launch', LAUNCH_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    context = LaunchContext()
+    for action in module.generate_launch_description().entities:
+        default = getattr(action, 'default_value', None)
+        if default is not None:
+            context.launch_configurations[action.name] = perform_substitutions(context,
+                                                                               default)
+    context.launch_configurations.update(arguments)
+    planned = []
+    for action in module._plant_actions(context):
+        assert isinstance(action, Node), action
+        # the last item is the ROS arguments, substituted only when the process starts
+        args = [perform_substitutions(context, item) for item in action.cmd[1:]
+                if not any(isinstance(s, LocalSubstitution) for s in item)]
+        planned.append((action.node_executable, action._Node__node_namespace, args))
+    return planned
+
+
+def test_hosts_5_starts_five_plant_hosts_each_a_share_and_no_vibration_node():
+    from impact_damper_sim.scene.plant import load_plant
+    source = load_plant('ten_hpotp').source
+    planned = _planned_processes(plant='ten_hpotp', hosts='5', monitor='false')
+    assert [exe for exe, _, _ in planned] == ['plant_host'] * 5, planned
+    for i, (_, namespace, args) in enumerate(planned):
+        assert namespace is None, planned   # a namespace remap would move every machine
+        assert args[:2] == ['--plant', source], args
+        assert args[args.index('--share') + 1] == f'{i}/5', args
+        assert args[args.index('--record-mode') + 1] == 'none', args
+
+
+def test_hosts_with_per_machine_logs_give_every_host_the_same_directory(tmp_path):
+    planned = _planned_processes(plant='ten_hpotp', hosts='2', monitor='false',
+                                 record=str(tmp_path / 'logs'))
+    assert [exe for exe, _, _ in planned] == ['plant_host'] * 2, planned
+    for _, _, args in planned:
+        assert args[args.index('--record-mode') + 1] == 'per_machine', args
+        assert args[args.index('--record-dir') + 1] == str(tmp_path / 'logs'), args
+    one_log = _planned_processes(plant='ten_hpotp', hosts='2', monitor='false',
+                                 record=str(tmp_path / 'one'), record_mode='one_log')
+    assert [exe for exe, _, _ in one_log] == ['recorder', 'plant_host', 'plant_host']
+    assert all('--record-dir' not in args for _, _, args in one_log[1:]), one_log
+
+
+def test_by_default_each_machine_is_a_vibration_node_process_of_its_own():
+    from impact_damper_sim.scene.plant import load_plant
+    planned = _planned_processes(plant='ten_hpotp', monitor='false')
+    assert [exe for exe, _, _ in planned] == ['vibration_node'] * 10, planned
+    assert [ns for _, ns, _ in planned] == load_plant('ten_hpotp').namespaces
+
+
+@pytest.mark.parametrize('hosts', ['11', '-1', 'two'])
+def test_hosts_beyond_the_machines_or_not_a_count_is_refused_naming_it(hosts):
+    with pytest.raises(RuntimeError, match=rf'^hosts:={hosts}: give 0 .* or 1 to 10 '):
+        _planned_processes(plant='ten_hpotp', hosts=hosts, monitor='false')
