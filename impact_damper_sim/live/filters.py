@@ -136,6 +136,10 @@ DECIMATION_STOPBAND_DB = 80.0
 #: 0.4 x the output rate, stopband from the output Nyquist frequency on (as delta-sigma DAQ
 #: decimators are specified), so nothing above it folds back below it.
 DECIMATION_PASSBAND_FRACTION = 0.4
+#: Largest decimation factor (dimensionless). The anti-alias FIR is ~52 x factor taps
+#: (delay ~26 output periods) and each chunk copies its history: at 2000 (1 Hz from 2 kHz)
+#: 1e5 taps, +0.5 ms per 10 ms chunk of hpotp; at 2e6 (1 mHz) 1e8 taps, GBs a chunk.
+MAX_DECIMATION_FACTOR = 2000
 
 
 def kaiser_lowpass_fir(cutoff_hz: float, transition_hz: float, sample_rate_hz: float,

@@ -75,6 +75,7 @@ class LiveSimulation:
         Rate of the decimated per-sample stream (Hz), ``sample_rate / k`` for a whole
         number k; default :func:`default_imu_rate`. Decimated through a linear-phase
         anti-alias FIR (flat to 0.4 x ``imu_rate``, 80 dB from 0.5 x ``imu_rate`` on).
+        k is at most :data:`~.filters.MAX_DECIMATION_FACTOR` (2000): the FIR has ~52 k taps.
     initial_target : float, optional
         Rotor speed commanded at t = 0 (rad/s).
     max_speed : float, optional
@@ -102,7 +103,7 @@ class LiveSimulation:
                  max_speed: float | None = None, max_unbalance: float = 100.0,
                  noise_std: float = 0.0, seed: int = 0, dampers_enabled: bool = True,
                  method: str | None = None, ledger: bool = False) -> None:
-        from .filters import StreamingDecimator
+        from .filters import MAX_DECIMATION_FACTOR, StreamingDecimator
         sample_rate = (default_sample_rate(scene_model) if sample_rate is None
                        else float(sample_rate))
         if not (math.isfinite(sample_rate) and sample_rate > 0):
@@ -130,6 +131,10 @@ class LiveSimulation:
         self.channels = self._channels(seed)
         imu_rate = default_imu_rate(sample_rate) if imu_rate is None else float(imu_rate)
         factor = sample_rate / imu_rate if math.isfinite(imu_rate) and imu_rate > 0 else 0.0
+        if factor > MAX_DECIMATION_FACTOR + 0.5:   # the anti-alias FIR is ~52 x k taps
+            raise SceneError(f'imu rate: must be in [{sample_rate / MAX_DECIMATION_FACTOR:g}, '
+                             f'{sample_rate:g}] Hz (sample rate / k, k at most '
+                             f'{MAX_DECIMATION_FACTOR}), got {imu_rate:g} Hz')
         if not (factor >= 1 - 1e-9 and abs(factor - round(factor)) < 1e-6 * factor):
             raise SceneError(f"imu rate: must be the sample rate "
                              f'{sample_rate:g} Hz divided by a whole number (e.g. '
