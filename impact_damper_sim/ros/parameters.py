@@ -53,7 +53,8 @@ PARAMETERS = {
                     (0.0, 100000.0), True),
     'imu_rate': Spec(0.0, 'rate of the per-sample Imu stream accel/<name> (Hz): the full-rate '
                       'signal (accel/<name>/batch) decimated through an anti-alias FIR, '
-                      'sample_rate / k for a whole number k; 0 = the highest such rate not '
+                      'sample_rate / k for a whole number k from 1 to 2000 (so at least '
+                      'sample_rate / 2000: 1 Hz from 2 kHz); 0 = the highest such rate not '
                       'above 1000 Hz (hpotp 1000 Hz from 2000 Hz, rbs 1000 Hz from 20000 Hz)',
                  (0.0, 100000.0), True),
     'dampers_enabled': Spec(True, 'impact dampers act (dynamic: compare with and without live)',
@@ -83,7 +84,8 @@ PARAMETERS = {
                              'anti-alias low-pass only, in the batch layout (recorded when on); '
                              'off: a real test stand has none', None, True),
     'tick_period': Spec(_topics.TICK_PERIOD, 'sim time stepped per chunk (s); samples are '
-                    'computed one chunk ahead and published one by one at their own time',
+                    'computed one to six chunks ahead (five stepped at a time) and published '
+                    'one by one at their own time',
                     _topics.TICK_PERIOD_RANGE, True),
     'state_period': Spec(_topics.STATE_PERIOD, 'period of the impactor_state republish (s); it '
                      'is also sent on every change', _topics.STATE_PERIOD_RANGE, True),
