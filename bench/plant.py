@@ -394,6 +394,10 @@ def run_plant(label, machines, args, domain, log_dir):
             cpu_windows, cpu_mean = cpu.windows(c.pid, t_first, t_stop)
             per.append({
                 'namespace': ns, 'scene': scene, 'windows': len(values),
+                'series': [round(v, 3) for v in values],   # the windows in time order
+                # seconds after every machine's first batch at which the worst window ends
+                # (the first window is left out: the series starts at 2)
+                'worst_at_s': (int(np.argmin(values)) + 2) if values else None,
                 'worst': min(values) if values else math.nan,
                 'median': float(np.median(values)) if values else math.nan,
                 'worst_rtf': min((r for _, r, _ in ratios), default=math.nan),
@@ -536,10 +540,11 @@ def page(data):
         if r['status'] != 'ran':
             continue
         lines += [f'**{label}** (N = {r["n"]}):', '',
-                  '| machine | scene | worst | median | worst RTF | worst delivery | '
-                  'CPU % | RSS MB | peak RSS MB |', '|---|---|---|---|---|---|---|---|---|']
+                  '| machine | scene | worst | worst at s | median | worst RTF | worst delivery | '
+                  'CPU % | RSS MB | peak RSS MB |', '|---|---|---|---|---|---|---|---|---|---|']
         for m in r['machines']:
             lines.append(f'| {m["namespace"]} | {m["scene"]} | {g(m["worst"], ".3f")} | '
+                         f'{g(m.get("worst_at_s"), "d")} | '
                          f'{g(m["median"], ".3f")} | {g(m["worst_rtf"], ".3f")} | '
                          f'{g(m["worst_delivery"], ".3f")} | {g(m["cpu_percent"], ".0f")} | '
                          f'{g(m["rss_mb"], ".0f")} | {g(m["hwm_mb"], ".0f")} |')
@@ -549,6 +554,8 @@ def page(data):
         '- **worst / median window**: delivered/expected of the 1 s windows (the first, the '
         'start, left out); per machine the worst accelerometer; for a plant the worst '
         'machine, and the median of the machines\' medians.',
+        '- **worst at s**: when the worst window ended, in seconds after every machine\'s '
+        'first batch (2 = the first window judged: start-up transients land there).',
         "- **worst RTF**: the node's own `real_time_factor_achieved`, its worst window; "
         '**worst delivery**: the worst window\'s share of the samples it published that '
         'reached the subscriber. The window figure is about their product.',
