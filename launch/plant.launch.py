@@ -127,8 +127,10 @@ def _plant_actions(context):
                          'overwrite': plant.record_overwrite}]))
     if hosts:
         # no name or namespace: a remap of __node/__ns would apply to every machine
-        record = ['--record-mode', mode] + (['--record-dir', str(directory)]
-                                            if mode == 'per_machine' else [])
+        # one_log: the recorder above writes the log; the hosts record nothing (and so do
+        # not tell the user to start a recorder that is already running)
+        record = ['--record-mode', 'none' if mode == 'one_log' else mode] + (
+            ['--record-dir', str(directory)] if mode == 'per_machine' else [])
         actions += [Node(package=PACKAGE, executable='plant_host', output='screen',
                          emulate_tty=True,
                          arguments=['--plant', plant.source, *record,

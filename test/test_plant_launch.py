@@ -179,6 +179,9 @@ def test_hosts_with_per_machine_logs_give_every_host_the_same_directory(tmp_path
                                  record=str(tmp_path / 'one'), record_mode='one_log')
     assert [exe for exe, _, _ in one_log] == ['recorder', 'plant_host', 'plant_host']
     assert all('--record-dir' not in args for _, _, args in one_log[1:]), one_log
+    # the recorder writes the one log: the hosts record nothing and say nothing of it
+    assert all(args[args.index('--record-mode') + 1] == 'none'
+               for _, _, args in one_log[1:]), one_log
 
 
 def test_by_default_each_machine_is_a_vibration_node_process_of_its_own():
