@@ -155,8 +155,9 @@ class Outbox:
     #: chunks stepped beyond ``lookahead`` once stepping starts, back to back in one
     #: wake-up: the Python of each chunk after the first then runs warm. On this 2-core VM
     #: code idle for 10 ms costs several times its warm cost when it wakes (bench/
-    #: node_cost.py: the node on hpotp 26 -> 21 % of a core); the stream is unchanged,
-    #: samples due during the refill (a few ms) leave after it as a backlog, and a command
+    #: wake_cost.py; bench/node_cost.py: the node on hpotp 24 -> 19 % of a core, paired
+    #: runs); the stream is unchanged, samples due during the refill (a few ms) leave
+    #: after it as a backlog, and a command
     #: waits up to this many chunks more to reach the stream
     REFILL = 4
 
