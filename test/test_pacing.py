@@ -125,8 +125,7 @@ def test_stepping_refills_refill_chunks_beyond_lookahead_then_waits():
     t_stepped, bursts = 0.0, []
     while clock.now < 1001.0:
         plan = box.plan(clock.now, t_stepped)
-        assert plan.step == (plan.chunks > 0)
-        if plan.step:
+        if plan.chunks:
             t_stepped += 0.01 * plan.chunks
             bursts.append(plan.chunks)
             continue             # the node loops at once after a step

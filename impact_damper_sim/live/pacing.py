@@ -19,6 +19,7 @@ import collections
 import math
 import time
 from collections.abc import Callable, Hashable, Iterable
+from typing import NamedTuple
 
 
 class PacingError(ValueError):
@@ -105,10 +106,20 @@ class Pacer:
         return target, lag
 
 
-#: What :meth:`Outbox.plan` decided: step now (``step``) so many chunks (``chunks``), the
-#: first a whole chunk behind schedule (``late``), and the stream's lag before any deficit
-#: was dropped (wall s).
-Plan = collections.namedtuple('Plan', 'step late lag chunks')
+class Plan(NamedTuple):
+    """What :meth:`Outbox.plan` decided."""
+
+    #: chunks to step now, back to back (0: none)
+    chunks: int
+    #: the first of them is a whole chunk behind schedule
+    late: bool
+    #: the stream's lag before any deficit was dropped (wall s)
+    lag: float
+
+    @property
+    def step(self) -> bool:
+        """bool: Step now (``chunks`` > 0)."""
+        return self.chunks > 0
 
 #: ``send(ns, key, payload, wire)``: publishes one queued item
 SendFn = Callable[[int, Hashable, object, bool], object]
@@ -278,7 +289,7 @@ class Outbox:
         step = t_stepped < target + ahead - 1e-12 or math.isinf(target)
         chunks = (1 if math.isinf(target) else 1 + self.REFILL) if step else 0
         late = step and t_stepped < target - self.chunk < math.inf
-        return Plan(step, late, lag, chunks)
+        return Plan(chunks, late, lag)
 
     def wait(self, held: bool, now: float, t_stepped: float, longest: float) -> float:
         """How long (wall s) to sleep after a wake-up that stepped nothing: until the next

@@ -127,6 +127,11 @@ class LiveSimulation:
         names, rows = self._output_rows()
         self.sim = scene_model.make_simulation(method=method, dt=self.dt,
                                                outputs=(names, rows), ledger=ledger)
+        # each impactor's DOF count, and which (impactor, column) cells of the integrator's
+        # (n_i, 2) state arrays hold them, row-major: impactor_state_arrays' flat order
+        self._impactor_dims = [imp.dim for imp in self.sim.integrator.model.impactors]
+        self._impactor_cells = (np.arange(2) < np.asarray(self._impactor_dims,
+                                                          dtype=int).reshape(-1, 1))
         n_acc = len(self.accelerometers)
         self.channels = self._channels(seed)
         imu_rate = default_imu_rate(sample_rate) if imu_rate is None else float(imu_rate)
@@ -470,19 +475,18 @@ class LiveSimulation:
         stuck : ndarray of bool, shape (n_dof,)
             The DOF's impactor rides its housing.
         """
-        integrator = self.sim.integrator
-        rel, vel, stuck = integrator.impactor_states()
-        dims = [imp.dim for imp in integrator.model.impactors]
+        integrator, dims = self.sim.integrator, self._impactor_dims
         if not dims:
             empty = np.zeros(0)
             return empty, empty, np.zeros(0, bool)
+        rel, vel, stuck = integrator.impactor_states()
         if not self.dampers_enabled:
             zeros = np.zeros(sum(dims))
             return zeros, zeros.copy(), np.repeat(stuck, dims)
         _, qd = integrator.state()
         housing = np.concatenate([R @ qd for R in integrator._housing_rows()])
-        mask = np.arange(rel.shape[1]) < np.asarray(dims)[:, None]   # row-major: per impactor
-        return rel[mask], vel[mask] - housing, np.repeat(stuck, dims)
+        cells = self._impactor_cells
+        return rel[cells], vel[cells] - housing, np.repeat(stuck, dims)
 
     # -- stepping -------------------------------------------------------------------------
     def step(self, n_samples: int) -> Batch | None:
