@@ -378,6 +378,10 @@ def run_plant(label, machines, args, domain, log_dir):
             return res
         res.update(status='ran', seconds=t_stop - t_first)
         _, res['machine_cpu_percent'] = cpu.windows('all', t_first, t_stop)
+        # the start-up: the machine's busy cores and each node's CPU per 1 s from the spawn,
+        # and when each machine's first batch arrived (s after the spawn)
+        res['machine_cpu_from_spawn'] = [round(v) for v in cpu.windows('all', t_spawn,
+                                                                        t_stop)[0]]
         _, res['reader_cpu_percent'] = cpu.windows(reader.pid, t_first, t_stop)
         topics = {}
         for m in meta['topics']:
@@ -404,6 +408,8 @@ def run_plant(label, machines, args, domain, log_dir):
                 'worst_delivery': min((d for _, _, d in ratios), default=math.nan),
                 'cpu_percent': float(np.median(cpu_windows)) if cpu_windows else math.nan,
                 'cpu_mean': cpu_mean,
+                'first_batch_s': round(firsts[ns] - t_spawn, 2),
+                'cpu_from_spawn': [round(v) for v in cpu.windows(c.pid, t_spawn, t_stop)[0]],
                 'rss_mb': rss[ns][0], 'hwm_mb': rss[ns][1],
                 'exited': exited.get(ns)})
         res['machines'] = per
@@ -615,13 +621,15 @@ def main(argv=None):
     parser.add_argument('--page', nargs='?', const=PAGE, metavar='FILE',
                         help=f'add the results to this page (default {PAGE})')
     parser.add_argument('--keep-logs', metavar='DIR', help="keep the processes' output here")
+    parser.add_argument('--json', metavar='FILE', help='write every figure of the runs here '
+                        '(with the start-up: CPU per 1 s from the spawn)')
     args = parser.parse_args(argv)
     given = list(sys.argv[1:] if argv is None else argv)
-    for flag in ('--domain', '--keep-logs'):   # isolation details, not what was measured
+    for flag in ('--domain', '--keep-logs', '--json'):   # not what was measured
         while flag in given:
             k = given.index(flag)
             del given[k:k + 2]
-    given = [a for a in given if not a.startswith(('--domain=', '--keep-logs='))]
+    given = [a for a in given if not a.startswith(('--domain=', '--keep-logs=', '--json='))]
     command = shlex.join(['bench/plant.py', *given])
     # a SIGTERM unwinds like Ctrl-C: the nodes and the reader are stopped, not left running
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
@@ -671,6 +679,9 @@ def main(argv=None):
                                   'date': date}
         print(f'ceiling of {args.ceiling}: {ceiling if ceiling else "none"} (tried '
               + ', '.join(f'{t["n"]}: {_f(t["worst"], ".3f")}' for t in tried) + ')')
+    if args.json:
+        with open(args.json, 'w') as f:
+            json.dump({'runs': _jsonable(runs), 'ceilings': _jsonable(ceilings)}, f, indent=1)
     if args.page:
         data = _load_page_data(args.page)
         data['machine'] = machine()

@@ -203,6 +203,43 @@ def test_a_kernel_another_process_is_compiling_is_waited_for_and_loaded(tmp_path
     assert int(misses) == 2   # top and middle compiled there; leaf loaded, not compiled twice
 
 
+HOLD_ONLY = '''
+import sys
+import kernel_module as m
+from impact_damper_sim.integrate import kernels
+args = (kernels.types.float64[::1], kernels.types.float64[::1])
+with kernels._compile_lock(m.leaf.internal(), args):
+    print(kernels._CACHE_DIR, flush=True)
+    sys.stdin.readline()                  # held until the test lets go
+'''
+
+
+@pytest.mark.skipif(kernels.fcntl is None, reason='needs flock (POSIX)')
+def test_a_warm_load_takes_no_lock(tmp_path):
+    """Issue 39: ten nodes starting at once queued on these locks for every kernel they
+    loaded (seconds at 0 % CPU, and a staggered start). A kernel the cache holds is loaded
+    while another process holds its lock: the load finishes, nothing is compiled."""
+    (tmp_path / 'kernel_module.py').write_text(MODULE)
+    assert run(tmp_path, RUN, 0).returncode == 0   # warm the cache
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / 'cache'),
+               PYTHONPATH=os.pathsep.join([str(tmp_path)] + sys.path),
+               **{kernels.HELPERS_ENV: '0'})
+    holder = subprocess.Popen([sys.executable, '-c', HOLD_ONLY], env=env, cwd=tmp_path,
+                              text=True, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    try:
+        assert holder.stdout.readline().strip()   # the lock is held from here
+        # before issue 39 this blocked on the lock until the holder let go
+        warm = subprocess.run([sys.executable, '-c', RUN], env=env, capture_output=True,
+                              text=True, cwd=tmp_path, timeout=60)
+        assert warm.returncode == 0, warm.stderr
+        value, _, _, misses = warm.stdout.split()
+        assert float(value) == 3 * 14.0 and int(misses) == 0
+        assert holder.poll() is None              # the lock was held all along
+    finally:
+        holder.stdin.close()
+        holder.wait(60)
+
+
 PREFETCH = '''
 from impact_damper_sim.integrate import kernels
 from impact_damper_sim.integrate.kernels.prefetch import prefetch
