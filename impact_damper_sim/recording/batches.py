@@ -58,6 +58,7 @@ from .node_topics import BATCH_SUFFIX, POINTCLOUD2
 #: PointField datatypes (sensor_msgs/PointField) and their NumPy formats.
 _DATATYPES = {1: 'i1', 2: 'u1', 3: 'i2', 4: 'u2', 5: 'i4', 6: 'u4', 7: 'f4', 8: 'f8'}
 FLOAT64, UINT32 = 8, 6
+_CDR_HEADER = b'\x00\x01\x00\x00'   # encapsulation: little-endian CDR (XCDR1)
 
 #: Fields of an accelerometer batch: (name, offset in bytes, datatype).
 ACCEL_FIELDS = (('t', 0, FLOAT64), ('ax', 8, FLOAT64), ('ay', 16, FLOAT64),
@@ -110,7 +111,7 @@ class CdrWriter:
     """
 
     def __init__(self):
-        self.parts = [b'\x00\x01\x00\x00']
+        self.parts = [_CDR_HEADER]
         self.size = 0
 
     def align(self, n):
@@ -179,8 +180,7 @@ class BatchEncoder:
         head.raw(b'\x00' * 8)            # stamp: sec int32, nanosec uint32
         head.string(frame_id)
         head.align(4)
-        self._head = b''.join(head.parts)
-        self._stamp_at = 4
+        frame = b''.join(head.parts[2:])  # frame_id's length, text and pad
         # height, width, fields, is_bigendian, point_step, row_step, data length: width
         # changes per message, so the part after it is made once with a fixed offset
         mid = CdrWriter()
@@ -193,7 +193,10 @@ class BatchEncoder:
             mid.u32(1)
         mid.raw(b'\x00')                 # is_bigendian
         mid.u32(self.point_step)
-        self._mid = b''.join(mid.parts[1:])
+        self._frame, self._mid = frame, b''.join(mid.parts[1:])
+        # everything before ``data`` in one pack: header, stamp, frame, height, width, the
+        # fixed middle, row_step and data's length (each u32 lands aligned)
+        self._prefix = struct.Struct(f'<4siI{len(frame)}sII{len(self._mid)}sII')
 
     def encode(self, stamp_ns, rows):
         """CDR bytes of one batch.
@@ -209,20 +212,34 @@ class BatchEncoder:
         -------
         bytes
         """
-        sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
-        n = len(rows)
         # field by field into zeros: a structured copy leaves the gaps between fields
         # uninitialised, and equal batches must be equal bytes
-        out = np.zeros(n, self.dtype)
+        out = np.zeros(len(rows), self.dtype)
         for name in self.dtype.names:
             out[name] = rows[name]
-        data = out.tobytes()
-        return b''.join((
-            self._head[:self._stamp_at], struct.pack('<iI', sec, nsec),
-            self._head[self._stamp_at + 8:],
-            struct.pack('<II', 1, n), self._mid,   # row_step follows aligned
-            struct.pack('<II', self.point_step * n, len(data)), data,
-            b'\x01'))                    # is_dense: no invalid samples
+        return self.encode_data(stamp_ns, out.size, out.tobytes())
+
+    def encode_data(self, stamp_ns, width, data):
+        """CDR bytes of one batch whose rows are already laid out: what :meth:`encode`
+        writes for rows whose bytes (every gap zero) are ``data``.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            ``header.stamp`` (ns, >= 0).
+        width : int
+            Number of rows.
+        data : bytes
+            ``width`` rows of :attr:`point_step` bytes in the layout of :attr:`dtype`.
+
+        Returns
+        -------
+        bytes
+        """
+        sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+        return b''.join((self._prefix.pack(_CDR_HEADER, sec, nsec, self._frame, 1, width,
+                                           self._mid, self.point_step * width, len(data)),
+                         data, b'\x01'))   # is_dense: no invalid samples
 
 
 def rows_of(msg):

@@ -13,6 +13,7 @@ message classes and :func:`impact_damper_sim.ros.cdr.serialize`.
 """
 from __future__ import annotations
 
+import functools
 import struct
 
 import numpy as np
@@ -74,6 +75,36 @@ def fault_command_text(key, value):
     return yaml.safe_dump(data, default_flow_style=True, sort_keys=False, width=1 << 16).strip()
 
 
+class Vector3StampedEncoder:
+    """Writes ``geometry_msgs/Vector3Stamped`` messages of one frame: one ``struct.pack``
+    of the stamp, the frame's bytes (made once) and the vector.
+
+    Parameters
+    ----------
+    frame_id : str
+        ``header.frame_id``.
+    """
+
+    def __init__(self, frame_id):
+        w = CdrWriter()
+        w.stamp(0)
+        w.string(frame_id)
+        w.align(8)                                  # the vector's doubles
+        self._frame = w.bytes()[len(_HEADER) + 8:]  # frame_id's length, text and pad
+        self._struct = struct.Struct(f'<4siI{len(self._frame)}s3d')
+
+    def pack(self, ns, x, y, z):
+        """The message's bytes: ``header.stamp`` ``ns`` (ns, >= 0), the vector (x, y, z)
+        (float, in the unit the topic states)."""
+        sec, nsec = divmod(int(ns), 1_000_000_000)
+        return self._struct.pack(_HEADER, sec, nsec, self._frame, x, y, z)
+
+
+@functools.lru_cache(maxsize=64)
+def _vector3_encoder(frame_id):
+    return Vector3StampedEncoder(frame_id)
+
+
 def vector3_stamped_cdr(ns, frame_id, vector):
     """``geometry_msgs/Vector3Stamped`` bytes.
 
@@ -86,11 +117,8 @@ def vector3_stamped_cdr(ns, frame_id, vector):
     vector : sequence of 3 float
         x, y, z (in the unit the topic states).
     """
-    w = CdrWriter()
-    w.stamp(ns)
-    w.string(frame_id)
-    w.put('3d', *(float(v) for v in vector))
-    return w.bytes()
+    x, y, z = (float(v) for v in vector)
+    return _vector3_encoder(frame_id).pack(ns, x, y, z)
 
 
 def joint_state_cdr(ns, names, position=(), velocity=(), effort=(), frame_id=''):
@@ -174,26 +202,31 @@ class JointStateEncoder:
         Joint names.
     frame_id : str
         ``header.frame_id``.
+    effort : bool
+        Whether ``effort`` carries a value per joint; False: it is empty (``rotor/joint_states``
+        sends position and velocity only).
     """
 
-    def __init__(self, names, frame_id=''):
+    def __init__(self, names, frame_id='', *, effort=True):
         n = len(names)
         w = CdrWriter()
         w.stamp(0)
         w.string(frame_id)
         w.strings(list(names))
         slots = []
-        for _ in range(3):                          # position, velocity, effort
+        for _ in range(3 if effort else 2):         # position, velocity[, effort]
             w.put('I', n)
             if n:
                 w.align(8)
                 slots.append(len(_HEADER) + w.size)
                 w.raw(bytes(8 * n))
+        if not effort:
+            w.put('I', 0)                           # effort: empty
         self._template = w.bytes()
         self._slots = slots
         self.n = n
 
-    def pack(self, ns, position, velocity, effort):
+    def pack(self, ns, position, velocity, effort=()):
         """The message's bytes.
 
         Parameters
@@ -201,7 +234,8 @@ class JointStateEncoder:
         ns : int
             ``header.stamp`` (ns, >= 0).
         position, velocity, effort : array_like, shape (n,)
-            Per joint (m, m/s, N or the joint's own units).
+            Per joint (m, m/s, N or the joint's own units); ``effort`` is not read when the
+            encoder was made with ``effort=False``.
         """
         buf = bytearray(self._template)
         buf[4:12] = _stamp(ns)
@@ -246,7 +280,7 @@ class ImuEncoder:
                                'formats': ['<i4', '<u4', ('<f8', 3), ('<f8', 3)],
                                'offsets': [head, head + 4, head + linear_at, head + angular_at],
                                'itemsize': self.size})
-        self._template = np.frombuffer(raw, np.uint8).copy()
+        self._template = bytearray(raw)
 
     def pack(self, t_ns, linear_acceleration, angular_velocity):
         """Serialized messages (list of bytes), one per row.
@@ -261,17 +295,18 @@ class ImuEncoder:
             Readings (rad/s).
         """
         k = len(t_ns)
-        buf = np.empty(k, self.dtype)
-        buf.view(np.uint8).reshape(k, self.size)[:] = self._template
+        # k copies of the template (fixed fields, zero pads), viewed as rows to fill in
+        block = self._template * k
+        buf = np.frombuffer(block, self.dtype)
         buf['sec'], buf['nsec'] = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
         buf['lin'] = linear_acceleration
         buf['ang'] = angular_velocity
-        raw = buf.tobytes()
+        raw = bytes(block)
         n = self.size
         return [raw[i:i + n] for i in range(0, k * n, n)]
 
 
 __all__ = ['ImuEncoder', 'JointStateEncoder', 'PARAMETER_BOOL', 'PARAMETER_DOUBLE',
-           'PARAMETER_INTEGER', 'PARAMETER_STRING', 'clock_cdr', 'fault_command_text',
-           'float64_cdr', 'joint_state_cdr', 'parameter_event_cdr', 'parameter_value_type',
-           'string_cdr', 'vector3_stamped_cdr']
+           'PARAMETER_INTEGER', 'PARAMETER_STRING', 'Vector3StampedEncoder', 'clock_cdr',
+           'fault_command_text', 'float64_cdr', 'joint_state_cdr', 'parameter_event_cdr',
+           'parameter_value_type', 'string_cdr', 'vector3_stamped_cdr']

@@ -17,6 +17,7 @@ or :mod:`..live`.
 from __future__ import annotations
 
 import math
+import operator
 from typing import NamedTuple
 
 import numpy as np
@@ -37,10 +38,9 @@ from .batches import (
 from .message_cdr import (
     ImuEncoder,
     JointStateEncoder,
+    Vector3StampedEncoder,
     clock_cdr,
-    joint_state_cdr,
     parameter_event_cdr,
-    vector3_stamped_cdr,
 )
 
 
@@ -131,6 +131,9 @@ class NodeMessages:
                                               TACH_POINT_STEP)
             self._keyphasor_encoder = BatchEncoder(rotor_frame_id(scene.name),
                                                    KEYPHASOR_FIELDS, KEYPHASOR_POINT_STEP)
+            self._speed_encoder = Vector3StampedEncoder(rotor_frame_id(scene.name))
+            self._joint_encoder = JointStateEncoder(['rotor'], rotor_frame_id(scene.name),
+                                                    effort=False)
         self.clock = add(nt.CLOCK, nt.CLOCK_QOS) if publish_clock else None
         self.speed_command = add(nt.SPEED_COMMAND, nt.COMMAND_QOS)
         self.unbalance_command = add(nt.UNBALANCE_COMMAND, nt.COMMAND_QOS)
@@ -144,11 +147,12 @@ class NodeMessages:
                    for spec in specs]
         axis_of = {'ux': 0, 'uy': 1, 'uz': 2}
         self.impactor_axes = [[axis_of[d] for d in dofs] for dofs in dofs_of]
-        # per impactor, the frame axis of each normal component; 3 (a dropped column) where
-        # a one-directional impactor has no second one
-        self._axis_table = np.full((max(1, len(dofs_of)), 2), 3, np.int64)
+        # per normal component, each impactor's frame axis; 3 (a dropped column) where a
+        # one-directional impactor has no second one
+        table = np.full((2, max(1, len(dofs_of))), 3, np.int64)
         for j, axes in enumerate(self.impactor_axes):
-            self._axis_table[j, :len(axes)] = axes
+            table[:len(axes), j] = axes
+        self._axis_columns = list(table)
         self.joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
                             for d in dofs]
         # the housings' frame; with housings at several nodes, the scene's (axes are global)
@@ -206,108 +210,122 @@ class NodeMessages:
             Send time (sim ns), stream, CDR bytes; sorted by send time, then accelerometer.
         """
         live = self.live
-        delay_ns = int(round(live.imu_delay * 1e9))
-        imu_ns = np.rint(batch.imu_t * 1e9).astype(np.int64)
+        n_acc = len(self.imu)
         items = []
-        for a, encoder in enumerate(self._imu_encoders):
-            keep = _present(batch.imu_valid, a)
-            if keep is None:
-                data = encoder.pack(imu_ns, batch.imu_linear_acceleration[:, a, :],
-                                    batch.imu_angular_velocity[:, a, :])
-                sent = imu_ns
-            else:   # the samples a fault lost are not sent
-                sent = imu_ns[keep]
-                data = encoder.pack(sent, batch.imu_linear_acceleration[keep, a, :],
-                                    batch.imu_angular_velocity[keep, a, :])
-            stream = self.imu[a]
-            items += [(ns + delay_ns, a, stream, d) for ns, d in zip(sent.tolist(), data)]
+        if batch.imu_t.size:
+            delay_ns = int(round(live.imu_delay * 1e9))
+            imu_ns = np.rint(batch.imu_t * 1e9).astype(np.int64)
+            send_ns = (imu_ns + delay_ns).tolist()
+            lin, ang = batch.imu_linear_acceleration, batch.imu_angular_velocity
+            for a, keep in enumerate(_present_each(batch.imu_valid, n_acc)):
+                imu_encoder, stream = self._imu_encoders[a], self.imu[a]
+                if keep is None:
+                    data = imu_encoder.pack(imu_ns, lin[:, a], ang[:, a])
+                    items += [(ns, a, stream, d) for ns, d in zip(send_ns, data)]
+                else:   # the samples a fault lost are not sent
+                    data = imu_encoder.pack(imu_ns[keep], lin[keep, a], ang[keep, a])
+                    sent = (imu_ns[keep] + delay_ns).tolist()
+                    items += [(ns, a, stream, d) for ns, d in zip(sent, data)]
         t_ns = np.rint(batch.t * 1e9).astype(np.int64)
-        if t_ns.size:
-            for a, encoder in enumerate(self._batch_encoders):
-                rows = np.empty(t_ns.size, encoder.dtype)
-                rows['t'] = (t_ns - t_ns[0]) * 1e-9
-                for name, column in zip(('ax', 'ay', 'az'), batch.linear_acceleration[:, a].T):
-                    rows[name] = column
-                for name, column in zip(('wx', 'wy', 'wz'), batch.angular_velocity[:, a].T):
-                    rows[name] = column
-                keep = _present(batch.valid, a)
-                items.append((int(t_ns[-1]), a, self.batch[a], encoder.encode(
-                    t_ns[0], rows if keep is None else rows[keep])))
-                if self.truth:   # the same rows with the model's acceleration
-                    for name, column in zip(('ax', 'ay', 'az'), batch.truth[:, a].T):
-                        rows[name] = column
-                    items.append((int(t_ns[-1]), a, self.truth[a],
-                                  encoder.encode(t_ns[0], rows)))
+        k = t_ns.size
+        if k:
+            first, last = int(t_ns[0]), int(t_ns[-1])
+            t_rel = (t_ns - t_ns[0]) * 1e-9   # each row's t (s) after the stamp
+        if k and n_acc:
+            # every accelerometer's rows at once: t, ax ay az, wx wy wz (seven float64, no
+            # gaps, so every byte is written)
+            rows = np.empty((n_acc, k, 7))
+            rows[:, :, 0] = t_rel
+            rows[:, :, 1:4] = batch.linear_acceleration.transpose(1, 0, 2)
+            rows[:, :, 4:7] = batch.angular_velocity.transpose(1, 0, 2)
+            for a, keep in enumerate(_present_each(batch.valid, n_acc)):
+                encoder = self._batch_encoders[a]
+                mine = rows[a] if keep is None else rows[a, keep]
+                items.append((last, a, self.batch[a],
+                              encoder.encode_data(first, len(mine), mine.tobytes())))
+            if self.truth:   # the same rows with the model's acceleration
+                rows[:, :, 1:4] = batch.truth.transpose(1, 0, 2)
+                for a, encoder in enumerate(self._batch_encoders):
+                    items.append((last, a, self.truth[a],
+                                  encoder.encode_data(first, k, rows[a].tobytes())))
         end_ns = int(round(live.t * 1e9))
         if self.scene.impactors:
-            ev = batch.events
-            items.append((end_ns, len(self.imu), self.impacts,
-                          self._impact_batch(ev[ev['kind'] == IMPACT])))
+            items.append((end_ns, n_acc, self.impacts, self._impact_batch(batch.events)))
         if self.tach is not None:
-            items += self._tach_items(batch, t_ns, end_ns)
+            # the tachometer (angle and speed at every full-rate sample) and the keyphasor
+            # (the turns completed in the interval the impact batch covers), after it
+            if k:
+                tach = np.empty((k, 3))   # t, angle, speed: no gaps
+                tach[:, 0] = t_rel
+                tach[:, 1] = batch.shaft_angle
+                tach[:, 2] = batch.shaft_speed
+                items.append((end_ns, n_acc, self.tach,
+                              self._tach_encoder.encode_data(first, k, tach.tobytes())))
+            items.append((end_ns, n_acc, self.keyphasor, self._keyphasor_batch(batch.keyphasor)))
         self.impacts_from = end_ns
-        items.sort(key=lambda item: item[:2])   # by send time, then accelerometer
+        items.sort(key=_SEND_ORDER)   # by send time, then accelerometer (stable)
         return [(ns, stream, data) for ns, _, stream, data in items]
 
-    def _tach_items(self, batch, t_ns, end_ns):
-        """The tachometer batch (the angle and speed at every full-rate sample) and the
-        keyphasor batch (the turns completed in the chunk's interval, which the impact batch
-        covers too) of a stepped chunk, both sent at its end: list of items."""
-        items = []
-        order = len(self.imu)   # after the impacts at the same time
-        if t_ns.size:
-            rows = np.empty(t_ns.size, self._tach_encoder.dtype)
-            rows['t'] = (t_ns - t_ns[0]) * 1e-9
-            rows['angle'], rows['speed'] = batch.shaft_angle, batch.shaft_speed
-            items.append((end_ns, order, self.tach, self._tach_encoder.encode(t_ns[0], rows)))
-        events = batch.keyphasor
-        rows = np.empty(events.size, self._keyphasor_encoder.dtype)
+    def _keyphasor_batch(self, events):
+        """The CDR bytes of the keyphasor batch: the turns completed in the chunk just
+        stepped (the interval the impact batch covers too)."""
+        encoder = self._keyphasor_encoder
+        n = events.size
+        if not n:
+            return encoder.encode_data(self.impacts_from, 0, b'')
+        # a row is t (float64), revolution (uint32 and 4 zero bytes), speed (float64)
+        rows = np.zeros((n, 3), '<f8')
         # the exact crossing time, relative to the interval's start (ns) in float64 (s)
-        rows['t'] = np.maximum(events['t'] - self.impacts_from * 1e-9, 0.0)
-        rows['revolution'] = events['revolution']
-        rows['speed'] = events['speed']
-        items.append((end_ns, order, self.keyphasor,
-                      self._keyphasor_encoder.encode(self.impacts_from, rows)))
-        return items
+        rows[:, 0] = np.maximum(events['t'] - self.impacts_from * 1e-9, 0.0)
+        rows.view('<u4')[:, 2] = events['revolution']
+        rows[:, 2] = events['speed']
+        return encoder.encode_data(self.impacts_from, n, rows.tobytes())
 
-    def _impact_batch(self, impacts):
-        """The CDR bytes of the impact batch covering the chunk just stepped."""
+    def _impact_batch(self, events):
+        """The CDR bytes of the impact batch covering the chunk just stepped: the impacts
+        among its ``events``, in time order."""
         encoder = self._impact_encoder
-        rows = np.zeros(impacts.size, encoder.dtype)
-        if impacts.size:
-            t_ns = np.rint(impacts['t'] * 1e9).astype(np.int64)
-            rows['t'] = (t_ns - self.impacts_from) * 1e-9
-            which = impacts['impactor'].astype(np.int64)
-            rows['impactor'] = which
-            # plane DOFs -> x, y, z of the frame, in one scatter per DOF of the plane
-            impulse = np.zeros((impacts.size, 4))   # column 3 takes a DOF a plane lacks
-            axes = self._axis_table[which]
-            index = np.arange(impacts.size)
-            for k in range(axes.shape[1]):
-                impulse[index, axes[:, k]] = impacts['impulse'] * impacts['normal'][:, k]
-            rows['jx'], rows['jy'], rows['jz'] = impulse[:, :3].T
-            rows['v_approach'] = np.abs(impacts['v_n'])
-            rows['v_separation'] = np.abs(impacts['v_n_after'])
-            rows['energy'] = impacts['loss']
-            order = np.argsort(t_ns, kind='stable')
-            rows = rows[order]
-        return encoder.encode(self.impacts_from, rows)
+        # fields are taken one by one at the impacts' indices: indexing the structured
+        # events (with their 2-vector normals) costs several times more
+        at = np.flatnonzero(events['kind'] == IMPACT)
+        n = at.size
+        if not n:
+            return encoder.encode_data(self.impacts_from, 0, b'')
+        t_ns = np.rint(events['t'][at] * 1e9).astype(np.int64)
+        order = np.argsort(t_ns, kind='stable')
+        at, t_ns = at[order], t_ns[order]
+        # a row is t, impactor (uint32 and 4 zero bytes), jx jy jz, v_approach,
+        # v_separation, energy: eight 8-byte slots, zeros where nothing is written
+        rows = np.zeros((n, 8), '<f8')
+        rows[:, 0] = (t_ns - self.impacts_from) * 1e-9
+        which = events['impactor'][at].astype(np.int64)
+        rows.view('<u4')[:, 2] = which
+        # plane DOFs -> x, y, z of the frame, in one scatter per DOF of the plane
+        impulse = np.zeros((n, 4))   # column 3 takes a DOF a plane lacks
+        index = np.arange(n)
+        magnitude, normal = events['impulse'][at], events['normal']
+        for k, axis in enumerate(self._axis_columns):
+            impulse[index, axis[which]] = magnitude * normal[:, k][at]
+        rows[:, 2:5] = impulse[:, :3]
+        rows[:, 5] = np.abs(events['v_n'][at])
+        rows[:, 6] = np.abs(events['v_n_after'][at])
+        rows[:, 7] = events['loss'][at]
+        return encoder.encode_data(self.impacts_from, n, rows.tobytes())
 
     def time_items(self):
         """``/clock``, ``rotor/speed`` and ``rotor/joint_states`` now: list of (ns, stream,
         bytes) (only ``/clock`` without a rotor)."""
         live = self.live
-        ns = int(round(live.t * 1e9))
+        t = live.t
+        ns = int(round(t * 1e9))
         items = []
         if self.clock is not None:
             items.append((ns, self.clock, clock_cdr(ns)))
         if live.has_rotor:
             speed, rate, x = live.rotor_state()
-            items.append((ns, self.speed, vector3_stamped_cdr(ns, self.rotor_frame,
-                                                              (speed, rate, x))))
-            angle = float(live.profile.angle(np.asarray(live.t))) % (2.0 * math.pi)
-            items.append((ns, self.joint, joint_state_cdr(ns, ['rotor'], [angle], [speed],
-                                                          frame_id=self.rotor_frame)))
+            items.append((ns, self.speed, self._speed_encoder.pack(ns, speed, rate, x)))
+            angle = float(live.profile.angle(t)) % (2.0 * math.pi)
+            items.append((ns, self.joint, self._joint_encoder.pack(ns, (angle,), (speed,))))
         return items
 
     def state_message(self):
@@ -329,14 +347,16 @@ class NodeMessages:
         return parameter_event_cdr(int(round(self.live.t * 1e9)), self.node_name, changed)
 
 
-def _present(valid, a):
-    """The mask of accelerometer ``a``'s samples that are there (ndarray of bool), or None
+def _present_each(valid, n_acc):
+    """Per accelerometer, the mask of its samples that are there (ndarray of bool), or None
     when every one is (or no mask is given): the fast path, the bytes of a run without
     faults."""
-    if valid is None:
-        return None
-    keep = valid[:, a]
-    return None if keep.all() else keep
+    if valid is None or valid.all():
+        return [None] * n_acc
+    return [None if keep.all() else keep for keep in valid.T]
+
+
+_SEND_ORDER = operator.itemgetter(0, 1)
 
 
 def published_samples(batch):
