@@ -217,6 +217,13 @@ class SensorChannel:
                         else np.zeros((self._pre_sos.shape[0], 2, 3)))
         self._lp_energy: np.ndarray | None = None
         self._sosfilt: _SosFilt | None = None
+        # scratch arrays per chunk length (steps) and per limited shape: see _step_work
+        self._work: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._limit_work: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        # the range's and the ADC's constants as 0-d arrays for _limit: (r, -r); (lsb, lo, hi)
+        self._range_0d = (None if self.range is None
+                          else (np.array(float(self.range)), np.array(-float(self.range))))
+        self._adc_0d = None if self._adc is None else tuple(np.array(v) for v in self._adc[:3])
 
     def _load_kernel(self) -> _SosFilt:
         # imported on first use, as StreamingLowpass does: importing this module loads no Numba
@@ -304,42 +311,74 @@ class SensorChannel:
             ``k`` output samples (sensor frame), the ground truth (model frame), the clip
             count; every value in m/s^2. Neither is delayed beyond the anti-alias filter.
         """
-        sosfilt = self._sosfilt or self._load_kernel()
         a = np.ascontiguousarray(mean_acc, dtype=float)
         if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] % self.decimation:
             raise ValueError(self._msg(f'expected shape (k * {self.decimation}, 3), '
                                        f'got {a.shape}'))
+        k = a.shape[0] // self.decimation
+        samples, truth = np.empty((k, 3)), np.empty((k, 3))
+        clipped = self._process_into(a, before_limit, samples, truth)
+        return ChannelOutput(samples, truth, clipped)
+
+    def _process_into(self, a: np.ndarray, before_limit: Callable[[np.ndarray], object] | None,
+                      samples: np.ndarray, truth: np.ndarray) -> int:
+        """:meth:`process` of a checked C-contiguous ``(k * decimation, 3)`` float chunk
+        ``a`` (m/s^2) into ``samples`` and ``truth`` (each ``(k, 3)``, any strides, m/s^2);
+        returns the clip count. The same operations in the same order, without the checks,
+        the output allocations or the :class:`ChannelOutput` (``LiveSimulation.step`` writes
+        straight into its batch's arrays)."""
+        sosfilt = self._sosfilt or self._load_kernel()
+        work = self._work.get(a.shape[0])
+        if work is None:
+            work = self._step_work(a.shape[0])
         # no early return for k = 0: that call compiles the kernel where the node warms up
         if self._step_ideal:
-            y = np.empty_like(a)
+            y = work[1]
             sosfilt(self._lp_sos, a, self._zi_lp, y)
-            truth = y[self._pick]
-            samples = truth.copy()
+            picked = y[self._pick]
+            truth[...] = picked
+            samples[...] = picked
         else:
-            x = np.empty((a.shape[0], 6))
+            x, y = work[0], work[1]
             x[:, :3] = a
-            x[:, 3:] = self._step_chain(a, sosfilt)
-            y = np.empty_like(x)
+            x[:, 3:] = self._step_chain(a, sosfilt, work[2])
             sosfilt(self._lp_sos, x, self._zi_lp, y)
             picked = y[self._pick]
-            truth, samples = picked[:, :3].copy(), picked[:, 3:].copy()
+            truth[...] = picked[:, :3]
+            samples[...] = picked[:, 3:]
         if self.white_noise_std > 0:
             samples += self._rng_white.normal(0.0, self.white_noise_std, samples.shape)
         if before_limit is not None:
             before_limit(samples)
-        clipped = self._limit(samples, self._adc is not None and self._adc[3] > 0)
-        return ChannelOutput(samples, truth, clipped)
+        return self._limit(samples, self._adc is not None and self._adc[3] > 0)
 
-    def _step_chain(self, a: np.ndarray, sosfilt: _SosFilt) -> np.ndarray:
-        """Stages 1-4 at the step rate: (n, 3) model frame -> (n, 3) sensor, before the LP."""
+    def _step_work(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Scratch arrays of an ``n``-step chunk, made once per chunk length (a live run
+        steps one length): the low-pass's input and output and the sensor-frame signal."""
+        if len(self._work) >= 8:   # chunk lengths vary (a paced run catching up): keep few
+            self._work.clear()
+        width = 3 if self._step_ideal else 6
+        work = (np.empty((n, width)), np.empty((n, width)), np.empty((n, 3)))
+        self._work[n] = work
+        return work
+
+    def _step_chain(self, a: np.ndarray, sosfilt: _SosFilt,
+                    scratch: np.ndarray | None = None) -> np.ndarray:
+        """Stages 1-4 at the step rate: (n, 3) model frame -> (n, 3) sensor, before the LP.
+
+        ``scratch``, an (n, 3) array, receives the result when given (it may be returned)."""
         x = a if self.mounting is None else a @ self.mounting.T
         if self._pre_sos is not None:
             assert self._zi_pre is not None   # made with _pre_sos
-            y = np.empty_like(x)
+            y = np.empty_like(x) if scratch is None else scratch
             sosfilt(self._pre_sos, np.ascontiguousarray(x), self._zi_pre, y)
             x = y
         elif x is a:
-            x = a.copy()
+            if scratch is None:
+                x = a.copy()
+            else:
+                scratch[...] = a
+                x = scratch
         n = len(x)
         if self.noise_std_per_step > 0:
             x += self._rng_noise.normal(0.0, self.noise_std_per_step, (n, 3))
@@ -356,26 +395,40 @@ class SensorChannel:
 
     def _limit(self, x: np.ndarray, adc_noise: bool) -> int:
         """Range clip and ADC (noise, clip, grid) in place; the number of clipped values."""
-        over = None
-        if self.range is not None:
-            r = self.range
-            over = np.abs(x) > r
-            np.minimum(x, r, out=x)   # ufuncs, not np.clip: a third of its call overhead
-            np.maximum(x, -r, out=x)
+        work = self._limit_work.get(x.shape)
+        if work is None:
+            if len(self._limit_work) >= 8:
+                self._limit_work.clear()
+            work = self._limit_work[x.shape] = (np.empty(x.shape), np.empty(x.shape, bool),
+                                                np.empty(x.shape, bool))
+        scratch, over, high = work
+        # ufuncs into scratch arrays, not np.clip nor new arrays, and the constants as 0-d
+        # arrays (a Python float operand costs a ufunc call twice as much): the same values
+        clips = False
+        if self._range_0d is not None:
+            r, minus_r = self._range_0d
+            np.greater(np.abs(x, out=scratch), r, out=over)
+            np.minimum(x, r, out=x)
+            np.maximum(x, minus_r, out=x)
+            clips = True
         if self._adc is not None:
-            lsb, lo, hi, noise, rng = self._adc
+            assert self._adc_0d is not None   # made with _adc
+            lsb, lo, hi = self._adc_0d
             if adc_noise:
-                x += rng.normal(0.0, noise, x.shape)
-            codes = np.rint(x / lsb)
+                x += self._adc[4].normal(0.0, self._adc[3], x.shape)
+            codes = np.rint(np.divide(x, lsb, out=scratch), out=scratch)
             # the ADC's codes run -2^(b-1) .. 2^(b-1) - 1: a value past half an LSB beyond
             # the end codes is clipped (so every unclipped value is within LSB/2 of its code)
-            beyond = codes < lo
-            beyond |= codes > hi
-            over = beyond if over is None else over | beyond
+            if clips:
+                np.logical_or(over, np.less(codes, lo, out=high), out=over)
+            else:
+                np.less(codes, lo, out=over)
+            np.logical_or(over, np.greater(codes, hi, out=high), out=over)
             np.minimum(codes, hi, out=codes)
             np.maximum(codes, lo, out=codes)
             np.multiply(codes, lsb, out=x)
-        return 0 if over is None else int(np.count_nonzero(over))
+            clips = True
+        return int(np.count_nonzero(over)) if clips else 0
 
     def process_decimated(self, imu: npt.ArrayLike) -> tuple[npt.NDArray[np.float64], int]:
         """Range clip and re-quantize samples decimated from this channel's output.

@@ -231,6 +231,10 @@ class StreamingDecimator:
         """Forget the history (a signal at rest before the next sample)."""
         self._history = np.zeros((self.n_channels, len(self.taps) - 1))
         self._consumed = 0   # input samples taken so far
+        # apply's scratch: buffer pairs per length, the one in use, gather positions
+        self._buffers: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._current: np.ndarray | None = None
+        self._gather: dict[tuple[int, int, int], np.ndarray] = {}
 
     def apply(self, x: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
         """Take the next chunk; return the outputs that are now complete.
@@ -255,24 +259,51 @@ class StreamingDecimator:
             index = np.arange(self._consumed, self._consumed + len(x), dtype=np.int64)
             self._consumed += len(x)
             return index, x.copy()
-        # channel-major, so that each output is a dot product over contiguous memory
-        buf = np.concatenate([self._history, x.T], axis=1)   # buf[:, i]: sample start + i
-        start = self._consumed - self._history.shape[1]
-        self._consumed += len(x)
-        self._history = buf[:, buf.shape[1] - self._history.shape[1]:]
+        return self._filter(x.T)
+
+    def _filter(self, x_t: np.ndarray) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """:meth:`apply` (factor > 1) of the transposed chunk ``x_t``, shape
+        ``(n_channels, k)``."""
+        hist = self._history.shape[1]
+        k = x_t.shape[1]
+        # channel-major, so that each output is a dot product over contiguous memory:
+        # buf[:, i] is sample start + i, the history then the chunk, in one of two buffers
+        # per length that take turns (the history is a view of the other one's tail)
+        pair = self._buffers.get(hist + k)
+        if pair is None:
+            if len(self._buffers) >= 8:   # chunk lengths vary (a paced run catching up)
+                self._buffers.clear()
+            pair = self._buffers[hist + k] = (np.empty((self.n_channels, hist + k)),
+                                              np.empty((self.n_channels, hist + k)))
+        buf = pair[1] if pair[0] is self._current else pair[0]
+        buf[:, :hist] = self._history
+        buf[:, hist:] = x_t
+        self._current = buf
+        start = self._consumed - hist
+        self._consumed += k
+        self._history = buf[:, k:]
         # outputs at input index c need inputs up to c + delay, all taken by now
         last = self._consumed - 1 - self.delay
-        first = max(0, -(-(self._consumed - len(x) - self.delay) // self.factor) * self.factor)
+        first = max(0, -(-(self._consumed - k - self.delay) // self.factor) * self.factor)
         index = np.arange(first, last + 1, self.factor, dtype=np.int64)
         if index.size == 0:
             return index, np.empty((0, self.n_channels))
         n = len(self.taps)
         # window of output c: inputs c + delay - n + 1 .. c + delay (before t = 0: zeros),
         # gathered in one indexing into the layout a sliding_window_view indexed by lo has
-        # (outputs, channels, taps): the product then rounds alike, bit for bit
-        lo = index + self.delay - (n - 1) - start
-        windows = buf[self._channels, (lo[:, None] + self._offsets)[:, None, :]].transpose(
-            1, 0, 2)
+        # (outputs, channels, taps): the product then rounds alike, bit for bit. The flat
+        # positions depend only on the first window's place and the buffer's length: made
+        # once per pair (a steady run repeats one)
+        lo0 = first + self.delay - (n - 1) - start
+        key = (lo0, index.size, hist + k)
+        flat = self._gather.get(key)
+        if flat is None:
+            if len(self._gather) >= 16:
+                self._gather.clear()
+            lo = lo0 + self.factor * np.arange(index.size)
+            flat = self._gather[key] = (self._channels * (hist + k)
+                                        + (lo[:, None] + self._offsets)[:, None, :])
+        windows = buf.reshape(-1).take(flat).transpose(1, 0, 2)
         return index, (windows @ self._kernel).T
 
 

@@ -148,6 +148,9 @@ class LiveSimulation:
         self._decimator = StreamingDecimator(round(factor), sample_rate, 6 * n_acc)
         self._t_first: float | None = None       # time of the first one (s)
         self._v_prev = np.zeros(6 * n_acc)
+        self._pick = slice(self.decimation - 1, None, self.decimation)   # the output steps
+        self._mean_work: dict[int, np.ndarray] = {}   # step's scratch per chunk length
+        self._dt_0d = np.array(self.dt)   # a 0-d operand: a cheaper ufunc call, same values
         self.max_unbalance = float(max_unbalance)
         self.profile = scene_model.speed_profile
         self.unbalance = scene_model.unbalance
@@ -171,6 +174,7 @@ class LiveSimulation:
                                                  seed=self.noise_seed)
         self.sim.set_impacts_enabled(dampers_enabled)
         self._stuck = self._stuck_flags()
+        self._stuck_raw: bytes | None = None   # the integrator's flags' bytes _stuck is of
         self.failure: str | None = None
         self.steps = 0
         # the time (s) and rotor angle (rad) at the end of the last chunk
@@ -418,6 +422,7 @@ class LiveSimulation:
         """Switch the impact dampers on or off (see ``Simulation.set_impacts_enabled``)."""
         self.sim.set_impacts_enabled(bool(enabled))
         self._stuck = self._stuck_flags()
+        self._stuck_raw = None
 
     @property
     def dampers_enabled(self) -> bool:
@@ -514,48 +519,74 @@ class LiveSimulation:
             self.failure = f'{type(exc).__name__}: {exc}'
             return None
         vel = samples.velocity
-        if not np.all(np.isfinite(vel)):
+        # the sum is finite only when every value is (an inf or a NaN spreads into it)
+        if not math.isfinite(vel.sum()) and not np.all(np.isfinite(vel)):
             self.failure = f'non-finite sensor velocity before t = {self.sim.t:.6g} s'
             return None
-        n_acc = len(self.accelerometers)
-        v = np.vstack([self._v_prev[None, :], vel])
-        self._v_prev = v[-1].copy()
-        pick = slice(self.decimation - 1, None, self.decimation)
+        k = int(n_samples)
+        n_acc = len(self.channels)
+        pick = self._pick
         t = samples.t[pick]
-        lin = np.empty((int(n_samples), n_acc, 3))
-        ang = np.empty((int(n_samples), n_acc, 3))
-        truth = np.empty((int(n_samples), n_acc, 3))
+        lin = np.empty((k, n_acc, 3))
+        ang = np.empty((k, n_acc, 3))
+        truth = np.empty((k, n_acc, 3))
         clipped = np.zeros(n_acc, dtype=np.int64)
-        valid = np.ones((t.size, n_acc), bool)
+        valid = np.ones((k, n_acc), bool)
         faults = self.faults
+        # one accelerometer's mean acceleration over each step, made in this buffer per
+        # chunk length: the channel reads it and keeps nothing of it
+        mean = self._mean_work.get(n_steps)
+        if mean is None:
+            if len(self._mean_work) >= 8:   # chunk lengths vary (a paced run catching up)
+                self._mean_work.clear()
+            mean = self._mean_work[n_steps] = np.empty((n_steps, 3))
+        v_prev, dt = self._v_prev, self._dt_0d
+        n0 = round(float(t[0]) * faults.sample_rate_hz) if k else 0   # as faults._start
         for a, channel in enumerate(self.channels):
-            # mean acceleration over each step, translations only (rotations give rates);
+            # mean acceleration over each step, translations only (rotations give rates):
+            # the difference of the velocities at the steps' ends (the first from the last
+            # chunk's end) over dt, as np.diff of them stacked, / dt
+            c = 6 * a
+            if n_steps:
+                np.subtract(vel[:1, c:c + 3], v_prev[c:c + 3], out=mean[:1])
+                np.subtract(vel[1:, c:c + 3], vel[:-1, c:c + 3], out=mean[1:])
+                np.divide(mean, dt, out=mean)
             # the faults that change values act before the range and ADC (a gain clips, and
             # the clip count counts it), the rest after them (stuck, missing samples)
-            out = channel.process(np.diff(v[:, 6 * a:6 * a + 3], axis=0) / self.dt,
-                                  before_limit=faults.hook(t, a))
-            lin[:, a, :], valid[:, a] = faults.after_limit(t, out.samples, a)
-            truth[:, a, :], clipped[a] = out.truth, out.clipped
-            ang[:, a, :] = vel[pick, 6 * a + 3:6 * a + 6]
-        if self._t_first is None and t.size:
+            out = lin[:, a, :]
+            if faults._by_acc[a]:
+                clipped[a] = channel._process_into(mean, faults.hook(t, a), out,
+                                                   truth[:, a, :])
+                valid[:, a] = faults.after_limit(t, out, a)[1]
+            else:   # no fault: the stream's position and last value only
+                clipped[a] = channel._process_into(mean, None, out, truth[:, a, :])
+                faults._pass(n0, out, a)
+            ang[:, a, :] = vel[pick, c + 3:c + 6]
+        if n_steps:
+            self._v_prev = vel[-1].copy()
+        if self._t_first is None and k:
             self._t_first = float(t[0])
         # the sensor's noise passes through the DAQ's decimation filter, as in hardware
         index, dec = self._decimator.apply(
-            np.concatenate([lin, ang], axis=2).reshape(t.size, 6 * n_acc))
+            np.concatenate([lin, ang], axis=2).reshape(k, 6 * n_acc))
         dec = dec.reshape(index.size, n_acc, 6)
-        imu_lin = np.empty((index.size, n_acc, 3))
+        imu_lin = dec[:, :, :3].copy()
         imu_clipped = np.zeros(n_acc, dtype=np.int64)
         for a, channel in enumerate(self.channels):   # the Imu is on the ADC's grid too
-            imu_lin[:, a, :], imu_clipped[a] = channel.process_decimated(dec[:, a, :3])
+            # process_decimated without its copy and checks
+            imu_clipped[a] = channel._limit(imu_lin[:, a, :], False)
         imu_t = (self._t_first or 0.0) + index / self.sample_rate
         imu_valid = np.ones((imu_t.size, n_acc), bool)
         if len(faults):   # a missing sample is missing in both streams
             for a in range(n_acc):
                 imu_valid[:, a] = faults.valid_at(imu_t, a)
         events = self.sim.take_events()
-        stuck = self._stuck_flags()
-        changed = stuck != self._stuck
-        self._stuck = stuck
+        raw = self.sim.integrator._stuck.tobytes()   # the flags change rarely: compare bytes
+        changed = False
+        if raw != self._stuck_raw:
+            stuck = self._stuck_flags()
+            changed = stuck != self._stuck
+            self._stuck, self._stuck_raw = stuck, raw
         self.steps += n_steps
         angle, speed, keyphasor = self._tachometer(t)
         return Batch(t, lin, ang, events, changed, imu_t, imu_lin, dec[:, :, 3:], truth,
