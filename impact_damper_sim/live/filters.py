@@ -234,7 +234,7 @@ class StreamingDecimator:
         # apply's scratch: buffer pairs per length, the one in use, gather positions
         self._buffers: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._current: np.ndarray | None = None
-        self._gather: dict[tuple[int, int, int], np.ndarray] = {}
+        self._gather: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
 
     def apply(self, x: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
         """Take the next chunk; return the outputs that are now complete.
@@ -296,15 +296,16 @@ class StreamingDecimator:
         # once per pair (a steady run repeats one)
         lo0 = first + self.delay - (n - 1) - start
         key = (lo0, index.size, hist + k)
-        flat = self._gather.get(key)
-        if flat is None:
+        gather = self._gather.get(key)
+        if gather is None:
             if len(self._gather) >= 16:
                 self._gather.clear()
             lo = lo0 + self.factor * np.arange(index.size)
-            flat = self._gather[key] = (self._channels * (hist + k)
-                                        + (lo[:, None] + self._offsets)[:, None, :])
-        windows = buf.reshape(-1).take(flat).transpose(1, 0, 2)
-        return index, (windows @ self._kernel).T
+            flat = self._channels * (hist + k) + (lo[:, None] + self._offsets)[:, None, :]
+            gather = self._gather[key] = (flat, np.empty(flat.shape))
+        flat, windows = gather
+        buf.reshape(-1).take(flat, out=windows)
+        return index, (windows.transpose(1, 0, 2) @ self._kernel).T
 
 
 class SensorLowpass:

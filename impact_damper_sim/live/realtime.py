@@ -150,7 +150,8 @@ class LiveSimulation:
         self._v_prev = np.zeros(6 * n_acc)
         self._pick = slice(self.decimation - 1, None, self.decimation)   # the output steps
         self._mean_work: dict[int, np.ndarray] = {}   # step's scratch per chunk length
-        self._dt_0d = np.array(self.dt)   # a 0-d operand: a cheaper ufunc call, same values
+        # 0-d operands: a cheaper ufunc call than with a Python float, the same values
+        self._dt_0d, self._sample_rate_0d = np.array(self.dt), np.array(sample_rate)
         self.max_unbalance = float(max_unbalance)
         self.profile = scene_model.speed_profile
         self.unbalance = scene_model.unbalance
@@ -531,7 +532,8 @@ class LiveSimulation:
         ang = np.empty((k, n_acc, 3))
         truth = np.empty((k, n_acc, 3))
         clipped = np.zeros(n_acc, dtype=np.int64)
-        valid = np.ones((k, n_acc), bool)
+        valid = np.empty((k, n_acc), bool)
+        valid.fill(True)   # np.ones costs a copyto call more
         faults = self.faults
         # one accelerometer's mean acceleration over each step, made in this buffer per
         # chunk length: the channel reads it and keeps nothing of it
@@ -575,8 +577,9 @@ class LiveSimulation:
         for a, channel in enumerate(self.channels):   # the Imu is on the ADC's grid too
             # process_decimated without its copy and checks
             imu_clipped[a] = channel._limit(imu_lin[:, a, :], False)
-        imu_t = (self._t_first or 0.0) + index / self.sample_rate
-        imu_valid = np.ones((imu_t.size, n_acc), bool)
+        imu_t = (self._t_first or 0.0) + index / self._sample_rate_0d
+        imu_valid = np.empty((imu_t.size, n_acc), bool)
+        imu_valid.fill(True)
         if len(faults):   # a missing sample is missing in both streams
             for a in range(n_acc):
                 imu_valid[:, a] = faults.valid_at(imu_t, a)
