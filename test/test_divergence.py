@@ -11,6 +11,7 @@ from impact_damper_sim.integrate.divergence import (
     MAX_DISPLACEMENT,
     Divergence,
     check_samples,
+    check_state,
     from_engine_error,
 )
 from impact_damper_sim.integrate.events import Samples
@@ -62,6 +63,50 @@ def test_check_samples_reports_a_bad_rate(field, bad):
     getattr(huge, field)[:, 0] = 1e308
     check_samples(huge, ['a'])
     check_samples(Samples(huge.t, np.zeros((2, 0)), np.zeros((2, 0)), np.zeros((2, 0))))
+
+
+@pytest.mark.parametrize('bad', [np.inf, -np.inf, np.nan])
+def test_check_samples_needs_no_error_state(bad):
+    # the clean-chunk test uses no sums: under np.errstate(all='raise') huge finite values
+    # pass and a bad one is still a Divergence, never a FloatingPointError
+    with np.errstate(all='raise'):
+        huge = samples([0.0, 1.0, -1.0])
+        huge.velocity[:, 0] = huge.acceleration[:, 0] = [1e308, 1e308, -1e308]
+        check_samples(huge, ['a'])
+        huge.acceleration[1, 0] = bad
+        with pytest.raises(Divergence, match="sensor 'a' acceleration is"):
+            check_samples(huge, ['a'])
+        with pytest.raises(Divergence, match="displacement"):
+            check_samples(samples([0.0, bad]), ['a'])
+    # other dtypes are examined entry by entry, with the same answers
+    ints = Samples(np.array([1e-3, 2e-3]), np.array([[1], [2000]]), np.zeros((2, 1), int),
+                   np.zeros((2, 1), int))
+    with pytest.raises(Divergence, match='exceeds 1000 m') as info:
+        check_samples(ints, ['a'])
+    assert info.value.t == 2e-3
+    single = Samples(np.array([1e-3]), np.float32([[1.0]]), np.float32([[bad]]),
+                     np.float32([[0.0]]))
+    with pytest.raises(Divergence, match="sensor 'a' velocity is"):
+        check_samples(single, ['a'])
+
+
+@pytest.mark.parametrize('bad', [np.inf, -np.inf, np.nan])
+def test_check_state_reports_the_first_bad_mode(bad):
+    q, qd = np.zeros(4), np.full(4, 1e308)
+    with np.errstate(all='raise'):
+        check_state(q, qd, 0.5)   # huge is finite
+        check_state(np.zeros(0), np.zeros(0), 0.5)
+        qd[2] = bad
+        qd[3] = bad
+        with pytest.raises(Divergence, match=r'modal velocities not finite \(mode 3 of 4\)'):
+            check_state(q, qd, 0.5)
+        q[1] = bad
+        with pytest.raises(Divergence, match=r'modal coordinates not finite \(mode 2 of 4\)') \
+                as info:
+            check_state(q, qd, 0.5)
+    assert info.value.t == 0.5
+    with pytest.raises(Divergence, match='mode 1 of 2'):   # not real: entry by entry
+        check_state(np.array([bad, 0.0], dtype=complex), np.zeros(2), 0.5)
 
 
 def test_engine_errors_that_mean_divergence():

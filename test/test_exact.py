@@ -375,3 +375,40 @@ def test_planar_stick_and_release_agree_with_anisotropic_mobility():
     # no release at the very instant of its stick
     paired = min(sticks.size, releases.size)
     assert np.all(releases[:paired] - sticks[:paired] > 1e-9)
+
+
+def test_successive_calls_return_new_arrays_and_the_same_results():
+    # advance keeps its step offsets, clock and kernel arguments between calls; what it
+    # returns must still be new arrays each call (callers keep them), and taking the events
+    # after every call or once at the end must give the same bytes
+    def make():
+        return ExactPropagator(_conservative_mdof(cor=0.7), Forcing(1), dt=1e-3,
+                               q0=[0.05, -0.01, 0.002])
+    each, once = make(), make()
+    kept, events = [], []
+    for n in (50, 50, 7, 50):
+        kept.append(each.advance(n))
+        events.append(each.take_events())
+        once.advance(n)
+    all_events = once.take_events()
+    assert all_events.size >= 20 and sum(e.size for e in events) == all_events.size
+    assert np.concatenate(events).tobytes() == all_events.tobytes()
+    assert each.t == once.t and np.array_equal(each.state()[1], once.state()[1])
+    arrays = [a for s in kept for a in (s.t, s.displacement, s.velocity, s.acceleration)]
+    arrays += [e for e in events if e.size]
+    for i, a in enumerate(arrays):
+        assert a.flags.writeable
+        for b in arrays[i + 1:]:
+            assert not np.shares_memory(a, b)
+    # writing into what was returned changes nothing that follows
+    before = [s.velocity.copy() for s in kept]
+    for s in kept:
+        s.t[:] = -1.0
+        s.velocity[:] = np.nan
+    for e in events:
+        e['t'] = -1.0
+    nxt_each, nxt_once = each.advance(50), once.advance(50)
+    assert nxt_each.t[0] == pytest.approx(each.t - 49e-3, abs=1e-12)
+    assert np.array_equal(nxt_each.velocity, nxt_once.velocity)
+    assert each.take_events().tobytes() == once.take_events().tobytes()
+    assert all(np.isfinite(b).all() for b in before)

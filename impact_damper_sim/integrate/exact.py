@@ -10,7 +10,7 @@ is :class:`~.basis_switch.BasisSwitch`.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -100,6 +100,8 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
 PREBUILD_SLOTS = 64
 #: Degree of the Taylor models of the event search (see :mod:`.kernels.search`).
 TAYLOR_ORDER = 6
+#: Stuck-flag patterns whose configuration key is remembered (:meth:`ExactPropagator._key`).
+_MAX_KEYS = 4096
 
 
 def _interchangeable_groups(model: LinearModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -268,6 +270,15 @@ class ExactPropagator(IntegratorBase):
         self._flows: dict[Key, tuple[FlowConfig, LinearModel]] = {}
         self._tables: dict[Key | str, _Table] = {}     # table key ('all' in table mode)
         self._slot_state = np.zeros(1, dtype=np.int64)
+        # stuck flags' bytes -> key (see _key)
+        self._keys: dict[bytes, Key] = {}
+        # table mode, (key, ni) -> (model, slot, the kernel's table and impactor arguments):
+        # what the kernel call needs of a configuration, once it is built (see _prepare)
+        self._prepared: dict[tuple[Key, int], tuple[LinearModel, int,
+                                                    tuple[np.ndarray, ...]]] = {}
+        # output-step offsets dt * arange(n + 1) of the last n (s), and the kernel's t_state
+        self._offsets: tuple[int, float, FloatArray] | None = None
+        self._t_state = np.zeros(1)
         cfg = self._config()
         # highest retained mode sets the paper's sticking time
         omega_max = float(np.max(np.abs(cfg.lam))) if cfg.lam.size else 1.0
@@ -299,10 +310,19 @@ class ExactPropagator(IntegratorBase):
     # -- configuration ----------------------------------------------------------------------
     def _key(self) -> Key:
         """Configuration key: the stuck count of each group (table mode) or the stuck flags."""
-        if self._table_mode:
-            return tuple(int(c) for c in np.bincount(self._imp_group, weights=self._stuck,
-                                                     minlength=self._radix.size))
-        return tuple(int(s) for s in self._stuck)
+        # read several times a chunk: looked up by the flags' bytes, computed once per pattern
+        raw = self._stuck.tobytes()
+        key = self._keys.get(raw)
+        if key is None:
+            if self._table_mode:
+                key = tuple(int(c) for c in np.bincount(self._imp_group, weights=self._stuck,
+                                                        minlength=self._radix.size))
+            else:
+                key = tuple(int(s) for s in self._stuck)
+            if len(self._keys) >= _MAX_KEYS:   # 2^impactors patterns: bound the memory
+                self._keys.clear()
+            self._keys[raw] = key
+        return key
 
     def _slot(self, key: Key) -> int:
         return int(np.dot(key, self._radix)) if self._table_mode else 0
@@ -336,8 +356,9 @@ class ExactPropagator(IntegratorBase):
         return entry[0]
 
     def _config_model(self) -> LinearModel:
-        self._config()
-        return self._flows[self._key()][1]
+        key = self._key()
+        self._config(key)
+        return self._flows[key][1]
 
     def _table(self, key: Key | None = None) -> _Table:
         """The kernel's table holding configuration ``key``, built on first use."""
@@ -401,9 +422,11 @@ class ExactPropagator(IntegratorBase):
 
     def take_events(self) -> np.ndarray:
         """Return the events recorded since the last call (see ``EVENT_DTYPE``) and clear."""
-        if not self._events:
+        events = self._events
+        if not events:
             return np.zeros(0, dtype=EVENT_DTYPE)
-        out = np.concatenate(self._events)
+        # one chunk (the usual case) is a new array that nothing else holds: no copy
+        out = events[0] if len(events) == 1 else np.concatenate(events)
         self._events = []
         return out
 
@@ -424,35 +447,35 @@ class ExactPropagator(IntegratorBase):
         n_steps = int(n_steps)
         ns = self.model.sensors.shape[0]
         t_base = self.t
-        times = t_base + self.dt * np.arange(1, n_steps + 1)
-        u_grid = self.forcing.sample(t_base + self.dt * np.arange(n_steps + 1))
+        dt = self.dt
+        offsets = self._step_offsets(n_steps, dt)
+        times = t_base + offsets[1:]
+        u_grid = self.forcing.sample(t_base + offsets)
         disp = np.empty((n_steps, ns))
         vel = np.empty((n_steps, ns))
         acc = np.empty((n_steps, ns))
-        t_state = np.array([self.t])
+        t_state = self._t_state   # the kernel's clock, read back after each call
+        t_state[0] = t_base
         k = 0
         # the event buffers are read into a new array after each kernel call: made once
-        (ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after,
-         ev_count) = self._event_buffers()
+        ev = self._event_buffers()
+        (ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count) = ev
         rule = _RULE_CODES[self.stick_rule]
+        slot_state, info = self._slot_state, self._info
         while True:
             key = self._key()
-            # built (or marked most recently used) before the kernel runs
-            self._config(key)
-            model = self._flows[key][1]
-            table = self._table(key)
-            self._slot_state[0] = self._slot(key)
-            ev_count[0] = 0
             # disabled dampers (all free, no walls) are left out of the scan altogether: their
             # free flight is not needed, they are put back at their housings when re-enabled
             ni = len(self._imp_dim) if self.impacts_enabled else 0
+            # built (or marked most recently used) before the kernel runs
+            model, slot, config_args = self._prepare(key, ni)
+            slot_state[0] = slot
+            ev_count[0] = 0
             status = kernels.advance(
-                t_state, t_base, self.dt, k, n_steps, u_grid, self._omegas, self._amps,
-                self._yh, self._slot_state, self._table_mode, *table.kernel_args(ni),
-                *self._impactor_args(ni), rule, self.stick_time, self.max_events_per_step,
-                self.taylor_order, *self._ledger_model(model), self._ledger, disp, vel, acc,
-                ev_t, ev_imp, ev_kind, ev_n, ev_vn, ev_J, ev_loss, ev_after, ev_count, self._info,
-                self.counters,
+                t_state, t_base, dt, k, n_steps, u_grid, self._omegas, self._amps,
+                self._yh, slot_state, self._table_mode, *config_args, rule, self.stick_time,
+                self.max_events_per_step, self.taylor_order, *self._ledger_model(model),
+                self._ledger, disp, vel, acc, *ev, info, self.counters,
                 self._work_arrays(ni, model.C.shape[0]))
             m = int(ev_count[0])
             if m:
@@ -467,14 +490,15 @@ class ExactPropagator(IntegratorBase):
                 chunk['v_n_after'] = ev_after[:m, 0]
                 chunk['v_h_jump'] = ev_after[:m, 1]
                 self._events.append(chunk)
-            self.grazing_undecided = int(self._info[2])
-            self.max_impacts_per_step = max(self.max_impacts_per_step, int(self._info[3]))
-            k = int(self._info[0])
+            k, changed, undecided, most = info.tolist()
+            self.grazing_undecided = undecided
+            if most > self.max_impacts_per_step:
+                self.max_impacts_per_step = most
             if status == kernels.DONE:
                 break
             if status == kernels.CONFIG_CHANGE:
                 # the kernel left yh in the configuration of slot_state, before the change
-                old_key = self._key_of_slot(key, int(self._slot_state[0]))
+                old_key = self._key_of_slot(key, int(slot_state[0]))
                 self._switch(float(t_state[0]), self._config(old_key), old_key)
                 continue
             if status == kernels.BUFFER_FULL:
@@ -483,9 +507,41 @@ class ExactPropagator(IntegratorBase):
             if status == kernels.NONFINITE:
                 raise FloatingPointError(f'non-finite state at t = {self.t:.6g} s')
             raise RuntimeError(f'chatter not resolved at t = {self.t:.6g} s for impactor '
-                               f'{model.impactors[int(self._info[1])].name!r}')
+                               f'{model.impactors[changed].name!r}')
         self.t = float(t_state[0])
         return Samples(times, disp, vel, acc)
+
+    def _step_offsets(self, n_steps: int, dt: float) -> FloatArray:
+        """``dt * arange(n_steps + 1)`` (s), read-only, made again only when ``n_steps`` or
+        ``dt`` changes (a live run advances the same chunk every time)."""
+        cached = self._offsets
+        if cached is not None and cached[0] == n_steps and cached[1] == dt:
+            return cached[2]
+        offsets = cast(FloatArray, dt * np.arange(n_steps + 1))
+        offsets.flags.writeable = False
+        self._offsets = (n_steps, dt, offsets)
+        return offsets
+
+    def _prepare(self, key: Key, ni: int) -> tuple[LinearModel, int, tuple[np.ndarray, ...]]:
+        """Build (or mark most recently used) configuration ``key`` and return its model, its
+        slot and the kernel's table and impactor arguments (impactors ``[:ni]``).
+
+        In table mode nothing of a built configuration changes (one table, never evicted,
+        filled in place; the impactor arguments are views): the answer is kept per
+        ``(key, ni)``. Otherwise the configurations are a least-recently-used cache and it is
+        made each call.
+        """
+        if self._table_mode:
+            prepared = self._prepared.get((key, ni))
+            if prepared is not None:
+                return prepared
+        self._config(key)
+        model = self._flows[key][1]
+        table = self._table(key)
+        prepared = (model, self._slot(key), table.kernel_args(ni) + self._impactor_args(ni))
+        if self._table_mode:
+            self._prepared[key, ni] = prepared
+        return prepared
 
     def _ledger_model(self, model: LinearModel
                       ) -> tuple[tuple[FloatArray, FloatArray, FloatArray] | None,

@@ -15,6 +15,8 @@ when), and a request whose samples would not fit in memory raises
 """
 from __future__ import annotations
 
+import math
+import sys
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -38,6 +40,15 @@ METHODS = ('exact', 'newmark', 'newmark_step_end', 'direct')
 #: on sdof and hpotp, 6 to 12 % of the exact engine's time at 1024 samples, within run-to-run
 #: noise at 8192).
 CHECK_EVERY = 8192
+
+
+def _spacing(x: float) -> float:
+    """``np.spacing(abs(x))`` of a float ``x`` (its unit in the last place), without a NumPy
+    call: ``math.ulp`` is the same below the largest float."""
+    return math.ulp(x) if abs(x) < _FLOAT_MAX else float(np.spacing(abs(x)))
+
+
+_FLOAT_MAX = sys.float_info.max
 
 
 def make_integrator(method: str, model: LinearModel, forcing: Forcing, dt: float,
@@ -139,11 +150,12 @@ class Simulation:
             stays at the end of that chunk.
         """
         n_steps = int(n_steps)
-        check_allocation(n_steps, self.integrator.model.sensors.shape[0])
+        integrator = self.integrator
+        check_allocation(n_steps, integrator.model.sensors.shape[0])
         self._velocity_before_advance = self._last_velocity
         chunks: list[Samples] = []
         done = 0
-        t_start, dt = self.integrator.t, getattr(self.integrator, 'dt', self.dt)
+        t_start, dt = integrator.t, getattr(integrator, 'dt', self.dt)
         while True:
             n = min(CHECK_EVERY, n_steps - done)
             chunks.append(self._checked_advance(n))
@@ -151,8 +163,8 @@ class Simulation:
             # the engines stamp time as chunk start + k dt: put the time base back on
             # t_start + done dt, where one call would have left it (no drift of an ulp a chunk)
             t_exact = t_start + dt * done
-            if abs(self.integrator.t - t_exact) <= 8 * np.spacing(abs(t_exact)):
-                self.integrator.t = t_exact
+            if abs(integrator.t - t_exact) <= 8 * _spacing(t_exact):
+                integrator.t = t_exact
             if done >= n_steps:
                 break
         samples = chunks[0] if len(chunks) == 1 else Samples(
@@ -163,17 +175,18 @@ class Simulation:
         return samples
 
     def _checked_advance(self, n: int) -> Samples:
+        integrator = self.integrator
         try:
             with np.errstate(over='ignore', invalid='ignore'):
-                samples = self.integrator.advance(n)
+                samples = integrator.advance(n)
         except (FloatingPointError, RuntimeError) as exc:
-            div = from_engine_error(exc, self.integrator.t)
+            div = from_engine_error(exc, integrator.t)
             if div is None:
                 raise
             raise div from exc
         check_samples(samples, self.sensor_names)
-        q, qd = self.integrator.state()
-        check_state(q, qd, self.integrator.t)
+        q, qd = integrator.state()
+        check_state(q, qd, integrator.t)
         return samples
 
     def advance_to(self, t_end: float) -> Samples:
