@@ -205,18 +205,30 @@ class Forcing:
         ndarray, shape (len(t), n_inputs)
             Forces (N). Raises ValueError if a callable returns a wrong shape or non-finite value.
         """
-        times = np.atleast_1d(np.asarray(t, dtype=float))
-        out = np.zeros((times.size, self.n_inputs))
-        for term in self.sampled:
-            if isinstance(term, CallableForce):
-                value = np.asarray(term(times), dtype=float)
-                if value.shape != out.shape:
-                    raise ValueError(f'forcing callable returned shape {value.shape}, '
-                                     f'expected {out.shape}')
-                out += value
-            else:
-                out[:, term.input_index] += term(times)
-        if not np.all(np.isfinite(out)):
+        if type(t) is np.ndarray and t.ndim == 1 and t.dtype == np.float64:
+            times = t   # a propagator's grid: nothing to convert
+        else:
+            times = np.atleast_1d(np.asarray(t, dtype=float))
+        sampled = self.sampled
+        if len(sampled) == 1 and type(sampled[0]) is CallableForce:
+            # one callable (an unbalance): its value added to zeros, in one operation
+            value = np.asarray(sampled[0].fn(times), dtype=float)
+            if value.shape != (times.size, self.n_inputs):
+                raise ValueError(f'forcing callable returned shape {value.shape}, '
+                                 f'expected {(times.size, self.n_inputs)}')
+            out = np.add(value, 0.0, order='C')   # as 0 + value: -0 becomes +0
+        else:
+            out = np.zeros((times.size, self.n_inputs))
+            for term in sampled:
+                if isinstance(term, CallableForce):
+                    value = np.asarray(term(times), dtype=float)
+                    if value.shape != out.shape:
+                        raise ValueError(f'forcing callable returned shape {value.shape}, '
+                                         f'expected {out.shape}')
+                    out += value
+                else:
+                    out[:, term.input_index] += term(times)
+        if not np.isfinite(out).all():   # the method: np.all's dispatch costs more
             raise ValueError('forcing produced a non-finite value')
         return out
 

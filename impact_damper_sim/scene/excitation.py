@@ -17,8 +17,10 @@ integrates exactly; otherwise they are a sampled term held first-order between s
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+import bisect
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -49,10 +51,31 @@ def _finite(value: float | str, name: str, low: float | None = None, strict: boo
     return number
 
 
-def _shaped(t: npt.ArrayLike) -> tuple[FloatArray, Callable[[FloatArray], FloatOrArray]]:
-    """Return ``t`` as a float array and a function restoring scalars for scalar input."""
-    array = np.asarray(t, dtype=float)
-    return array, (lambda a: a[()] if array.ndim == 0 else a)
+#: the one-segment paths take times, angles and knot values within +-this (s, rad, rad/s,
+#: rad/s^2): nothing there overflows, so no inf or nan arises and their shortcuts hold
+_TAME = 1e100
+#: arrays up to this size are ranged through a list: its sum, min and max cost less than
+#: two NumPy reductions
+_SMALL = 64
+#: a ramp from rest takes the one-segment angle search when ``2 s d`` is at least this
+#: (rad^2/s^2): its square root is then > 0, never a division by zero
+_TINY = 1e-300
+_MIN = np.minimum.reduce
+_MAX = np.maximum.reduce
+
+
+def _filled(value: FloatOrArray, t: FloatArray) -> FloatOrArray:
+    """``value`` as an array shaped like ``t`` when it is one segment's Python float."""
+    if type(value) is float:
+        out = np.empty(t.shape)
+        out.fill(value)
+        return out
+    return value
+
+
+def _one(value: FloatOrArray, t: FloatArray) -> FloatOrArray:
+    """``value`` as a numpy scalar for a 0-d ``t`` (what a scalar query returns)."""
+    return value[()] if t.ndim == 0 else value   # type: ignore[index]
 
 
 class _Knots:
@@ -60,6 +83,12 @@ class _Knots:
 
     Segment ``k`` spans ``[t_k, t_{k+1})`` with ``omega = w_k + s_k (t - t_k)``; the speed is
     held at ``w_0`` before ``t_0`` and at ``w_last`` after the last knot. ``phi(0) = 0``.
+
+    Times that all lie in one segment (a chunk's output times, one instant: the live node's
+    queries) take a path that uses the segment's values as Python floats. It does the general
+    path's floating-point operations on every element in the same order, so it returns the
+    same bits; where it leaves out a slope term the term is an exact zero that cannot change
+    the sum (see :meth:`_angle_one`, :meth:`_speed_one`, :meth:`_time_one`).
     """
 
     def __init__(self, times: npt.ArrayLike, speeds: npt.ArrayLike,
@@ -73,7 +102,15 @@ class _Knots:
         inc = self.w[:-1] * dt + 0.5 * self.s[:-1] * dt * dt
         self.phi = np.concatenate(([0.0], np.cumsum(inc)))
         self.phi -= self._raw_angle(np.asarray(0.0))
+        # the knots as Python floats for the one-segment paths
+        self._tl: list[float] = self.t.tolist()
+        self._wl: list[float] = self.w.tolist()
+        self._sl: list[float] = self.s.tolist()
+        self._phil: list[float] = self.phi.tolist()
+        self._tame = all(abs(v) <= _TAME
+                         for v in self._tl + self._wl + self._sl + self._phil)   # no nan
 
+    # -- the general path: any times, one search of the knots per element --------------------
     def _locate(self, t: FloatArray) -> tuple[np.ndarray, FloatArray, FloatArray]:
         k = np.searchsorted(self.t, t, side='right') - 1
         before = k < 0
@@ -91,21 +128,165 @@ class _Knots:
     def _raw_angle(self, t: FloatArray) -> FloatArray:
         return self._angle_at(*self._locate(t))
 
-    def speed(self, t: FloatArray) -> FloatArray:
-        return self._speed_at(*self._locate(t))
+    # -- the one-segment paths ----------------------------------------------------------------
+    def _range(self, x: FloatArray) -> tuple[float, float] | None:
+        """``(min, max)`` of a non-empty 1-D ``x`` when every element is within +-_TAME."""
+        if x.size <= _SMALL:
+            values = x.tolist()
+            if not math.isfinite(sum(values)):   # an inf or nan in it: min/max unreliable
+                return None
+            lo, hi = min(values), max(values)
+        else:
+            lo, hi = float(_MIN(x)), float(_MAX(x))   # these propagate nan
+        if -_TAME <= lo and hi <= _TAME:
+            return lo, hi
+        return None
 
-    def acceleration(self, t: FloatArray) -> FloatArray:
-        return self._locate(t)[2]
+    def _segment(self, t: FloatArray) -> tuple[int, float] | None:
+        """``(k, s)``: every time of ``t`` lies in segment ``k`` (0 also before the first
+        knot) with slope ``s``; None if they span segments or are not tame."""
+        if t.ndim == 0:
+            x = float(t)
+            lo = hi = x
+            if not (self._tame and -_TAME <= x <= _TAME):
+                return None
+        else:
+            if not (self._tame and t.ndim == 1 and t.size):
+                return None
+            span = self._range(t)
+            if span is None:
+                return None
+            lo, hi = span
+        knots = self._tl
+        k = bisect.bisect_right(knots, lo) - 1   # searchsorted(side='right') - 1
+        if k + 1 < len(knots) and hi >= knots[k + 1]:
+            return None
+        return (k, self._sl[k]) if k >= 0 else (0, 0.0)   # held at w_0 before the first knot
 
-    def angle(self, t: FloatArray) -> FloatArray:
-        return self._raw_angle(t)
+    def _angle_one(self, k: int, dt: FloatArray, s: float) -> FloatArray:
+        """``phi_k + w_k dt + 0.5 s dt dt`` on segment ``k`` (a new array).
 
-    def state(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        With ``s = 0`` the last term is a zero of the sign of ``s`` (``0.5 s dt`` and ``dt``
+        share a sign), which changes no sum unless it is +0 and ``phi_k + w_k dt`` is -0;
+        that needs ``phi_k = -0``, and only then is it added.
+        """
+        phi_k = self._phil[k]
+        angle = self._wl[k] * dt
+        angle += phi_k
+        if s != 0.0 or math.copysign(1.0, phi_k) < 0.0:
+            term = (0.5 * s) * dt
+            term *= dt
+            angle += term
+        return angle
+
+    def _speed_one(self, k: int, t: FloatArray, s: float) -> FloatOrArray:
+        """``w_k + s dt`` on segment ``k``: the float ``w_k`` when ``s = 0`` (adding the zero
+        ``s dt`` leaves it, unless ``w_k = -0``), else a new array."""
+        w_k = self._wl[k]
+        if s == 0.0 and math.copysign(1.0, w_k) > 0.0:
+            return w_k
+        speed = s * (t - self._tl[k])
+        speed += w_k
+        return speed
+
+    # -- queries -------------------------------------------------------------------------------
+    def state_parts(self, t: FloatArray) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray]:
+        """``(angle, speed, acceleration)`` at the times ``t``; for times in one segment the
+        speed and acceleration may be Python floats, the value at every time."""
+        seg = self._segment(t)
+        if seg is None:
+            k_, dt_, s_ = self._locate(t)
+            return self._angle_at(k_, dt_, s_), self._speed_at(k_, dt_, s_), s_
+        k, s = seg
+        if t.ndim == 0:
+            dt = float(t) - self._tl[k]
+            w_k = self._wl[k]
+            return (np.float64(self._phil[k] + w_k * dt + 0.5 * s * dt * dt),
+                    np.float64(w_k + s * dt), np.float64(s))
+        return self._angle_one(k, t - self._tl[k], s), self._speed_one(k, t, s), s
+
+    def state(self, t: FloatArray) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray]:
         """``(angle, speed, acceleration)`` at ``t`` from one search of the knots."""
-        k, dt, s = self._locate(t)
-        return self._angle_at(k, dt, s), self._speed_at(k, dt, s), s
+        angle, speed, acceleration = self.state_parts(t)
+        return angle, _filled(speed, t), _filled(acceleration, t)
 
-    def time_at(self, angle: npt.ArrayLike) -> FloatArray:
+    def speed(self, t: FloatArray) -> FloatOrArray:
+        seg = self._segment(t)
+        if seg is None:
+            return self._speed_at(*self._locate(t))
+        k, s = seg
+        if t.ndim == 0:
+            return np.float64(self._wl[k] + s * (float(t) - self._tl[k]))
+        return _filled(self._speed_one(k, t, s), t)
+
+    def acceleration(self, t: FloatArray) -> FloatOrArray:
+        seg = self._segment(t)
+        if seg is None:
+            return self._locate(t)[2]
+        return np.float64(seg[1]) if t.ndim == 0 else _filled(seg[1], t)
+
+    def angle(self, t: FloatArray) -> FloatOrArray:
+        seg = self._segment(t)
+        if seg is None:
+            return self._raw_angle(t)
+        k, s = seg
+        if t.ndim == 0:
+            dt = float(t) - self._tl[k]
+            return np.float64(self._phil[k] + self._wl[k] * dt + 0.5 * s * dt * dt)
+        return self._angle_one(k, t - self._tl[k], s)
+
+    def _time_one(self, a: FloatArray) -> FloatOrArray | None:
+        """:meth:`time_at` for angles ``a`` all after the first knot's, on one segment, within
+        +-_TAME; None for any other.
+
+        There ``d = a - phi_k > 0`` and, with ``w_k > 0`` or ``2 s d >= _TINY`` (a ramp from
+        rest), ``w_k + root > 0``, finite: the general path's ``d == 0``, divide-by-zero and
+        nan cases cannot arise. With ``s = 0``, ``w_k^2 + 2 s d = w_k^2`` (the zero added to
+        ``w_k^2 >= 0`` leaves it): one root for all.
+        """
+        if not self._tame:
+            return None
+        if a.ndim == 0:
+            lo = hi = float(a)
+            if not -_TAME <= lo <= _TAME:
+                return None
+        elif a.ndim == 1 and a.size:
+            span = self._range(a)
+            if span is None:
+                return None
+            lo, hi = span
+        else:
+            return None
+        phis = self._phil
+        j = bisect.bisect_left(phis, lo)   # searchsorted(side='left')
+        if j == 0 or (j < len(phis) and hi > phis[j]):
+            return None
+        k = j - 1
+        w = self._wl[k]
+        s = self._sl[k] if j < len(phis) else 0.0   # held after the last knot
+        if not (w > 0.0 or (2.0 * s) * (lo - phis[k]) >= _TINY):   # else a root may be 0
+            return None
+        if a.ndim == 0:
+            d0 = lo - phis[k]
+            root0 = math.sqrt(max(w * w + 2.0 * s * d0, 0.0))
+            return np.float64(self._tl[k] + 2.0 * d0 / (w + root0))
+        d = a - phis[k]
+        den: FloatOrArray
+        if s == 0.0:
+            den = w + math.sqrt(w * w)
+        else:
+            root = (2.0 * s) * d
+            root += w * w
+            np.maximum(root, 0.0, out=root)
+            np.sqrt(root, out=root)
+            root += w
+            den = root
+        dt = 2.0 * d
+        dt /= den
+        dt += self._tl[k]
+        return dt
+
+    def time_at(self, angle: npt.ArrayLike) -> FloatOrArray:
         """The first time the angle reaches each of ``angle`` (rad, non-decreasing angle).
 
         On its segment the angle is ``phi_k + w_k dt + s_k dt^2 / 2``; the root is taken in
@@ -114,6 +295,9 @@ class _Knots:
         (inf when that is 0 and the angle is never reached).
         """
         a = np.asarray(angle, dtype=float)
+        one = self._time_one(a)
+        if one is not None:
+            return one
         j = np.searchsorted(self.phi, a, side='left')   # first knot at or beyond the angle
         k = np.maximum(j - 1, 0)
         d = a - self.phi[k]
@@ -165,8 +349,8 @@ class SpeedProfile:
         float or ndarray
             Speed (rad/s), same shape as ``t``.
         """
-        times, out = _shaped(t)
-        return out(self._knots().speed(times))
+        times = np.asarray(t, dtype=float)
+        return _one(self._knots().speed(times), times)
 
     def acceleration(self, t: npt.ArrayLike) -> FloatOrArray:
         """Angular acceleration ``alpha(t) = omega'(t)``, right-continuous at knots.
@@ -181,8 +365,8 @@ class SpeedProfile:
         float or ndarray
             Angular acceleration (rad/s^2), same shape as ``t``.
         """
-        times, out = _shaped(t)
-        return out(self._knots().acceleration(times))
+        times = np.asarray(t, dtype=float)
+        return _one(self._knots().acceleration(times), times)
 
     def angle(self, t: npt.ArrayLike) -> FloatOrArray:
         """Rotor angle ``phi(t)``, the exact integral of the speed from ``t = 0``.
@@ -197,14 +381,16 @@ class SpeedProfile:
         float or ndarray
             Angle (rad), same shape as ``t``.
         """
-        times, out = _shaped(t)
-        return out(self._knots().angle(times))
+        times = np.asarray(t, dtype=float)
+        return _one(self._knots().angle(times), times)
 
     def state(self, t: npt.ArrayLike) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray]:
         """Return ``(phi, omega, alpha)`` at times ``t`` (rad, rad/s, rad/s^2)."""
-        times, out = _shaped(t)
+        times = np.asarray(t, dtype=float)
         phi, omega, alpha = self._knots().state(times)
-        return out(phi), out(omega), out(alpha)
+        if times.ndim == 0:
+            return phi[()], omega[()], alpha[()]   # type: ignore[index]
+        return phi, omega, alpha
 
     def time_at_angle(self, angle: npt.ArrayLike) -> FloatOrArray:
         """The first time the rotor angle ``phi`` reaches ``angle``, solved exactly.
@@ -223,8 +409,8 @@ class SpeedProfile:
             Times (s), same shape as ``angle``; inf for an angle a rotor held at 0 rad/s
             never reaches.
         """
-        angle, out = _shaped(angle)
-        return out(self._knots().time_at(angle))
+        angles = np.asarray(angle, dtype=float)
+        return _one(self._knots().time_at(angles), angles)
 
 
 class PiecewiseLinearSpeed(SpeedProfile):
@@ -488,11 +674,55 @@ class UnbalanceForce:
         ndarray, shape (len(t), n_inputs)
             Forces (N) on the model's force inputs.
         """
-        times = np.atleast_1d(np.asarray(t, dtype=float)).ravel()
+        if type(t) is np.ndarray and t.ndim == 1 and t.dtype == np.float64:
+            times = t   # the sampler's grid: nothing to convert
+        else:
+            times = np.atleast_1d(np.asarray(t, dtype=float)).ravel()
         n = self.n_inputs if n_inputs is None else int(n_inputs)
-        out = np.zeros((times.size, n))
-        phi, omega, alpha = self.profile.state(times)
+        profile = self.profile
+        if type(profile).state is SpeedProfile.state:
+            # speed and acceleration are Python floats when the times share a segment
+            phi, omega, alpha = profile._knots().state_parts(times)
+            steady = type(alpha) is float and alpha == 0.0
+        else:
+            phi, omega, alpha = profile.state(times)
+            steady = False
+        phi = cast(FloatArray, phi)
         w2 = omega * omega
+        columns = self.input_pairs.ravel().tolist()   # [y0, z0, y1, z1, ...]
+        if len(set(columns)) < len(columns):
+            return self._summed(times, n, phi, w2, alpha)
+        # every bearing at once, as a (time, bearing, y/z) array: element by element the
+        # operations of the loop in _summed, and cos/sin of the same angles
+        if np.ndim(w2) == 1:
+            w2 = w2[:, None]   # type: ignore[index]
+        angle = phi[:, None] + self.phase
+        c, s = np.cos(angle), np.sin(angle)
+        both = np.empty(angle.shape + (2,))
+        fy, fz = both[:, :, 0], both[:, :, 1]
+        np.multiply(w2, c, out=fy)
+        np.multiply(w2, s, out=fz)
+        if not steady:
+            # (steady: one segment's tame times, so c and s are finite and these terms are
+            # +-0, which leave the sums but for the sign of a zero; adding the result to
+            # zeros below gives +0 either way)
+            if np.ndim(alpha) == 1:
+                alpha = alpha[:, None]   # type: ignore[index]
+            fy += alpha * s
+            fz -= alpha * c
+        both *= (self._multiplier * self.m_e)[:, None]
+        both += 0.0   # what adding to zeros does: -0 becomes +0
+        flat = both.reshape(times.size, 2 * angle.shape[1])
+        if columns == list(range(n)):
+            return flat
+        out = np.zeros((times.size, n))
+        out[:, columns] = flat
+        return out
+
+    def _summed(self, times: FloatArray, n: int, phi: FloatArray, w2: FloatOrArray,
+                alpha: FloatOrArray) -> FloatArray:
+        """:meth:`forces` summed bearing by bearing, for bearings that share an input."""
+        out = np.zeros((times.size, n))
         for m_e, p, (iy, iz) in zip(self.m_e, self.phase, self.input_pairs):
             angle = phi + p
             c, s = np.cos(angle), np.sin(angle)
