@@ -222,8 +222,13 @@ class JointStateEncoder:
                 w.raw(bytes(8 * n))
         if not effort:
             w.put('I', 0)                           # effort: empty
-        self._template = w.bytes()
-        self._slots = slots
+        template = w.bytes()
+        # the fixed bytes between the stamp and the arrays, and after the last one: the
+        # message is one struct.pack of these pieces, the stamp and the values
+        edges = [len(_HEADER) + 8] + [e for at in slots for e in (at, at + 8 * n)]
+        edges.append(len(template))
+        self._pieces = [template[a:b] for a, b in zip(edges[::2], edges[1::2])]
+        self._struct = struct.Struct('<4siI' + f'{n}d'.join(f'{len(p)}s' for p in self._pieces))
         self.n = n
 
     def pack(self, ns, position, velocity, effort=()):
@@ -237,12 +242,12 @@ class JointStateEncoder:
             Per joint (m, m/s, N or the joint's own units); ``effort`` is not read when the
             encoder was made with ``effort=False``.
         """
-        buf = bytearray(self._template)
-        buf[4:12] = _stamp(ns)
-        if self.n:
-            for at, values in zip(self._slots, (position, velocity, effort)):
-                buf[at:at + 8 * self.n] = np.asarray(values, '<f8').tobytes()
-        return bytes(buf)
+        args = [_HEADER, *divmod(int(ns), 1_000_000_000), self._pieces[0]]
+        for piece, values in zip(self._pieces[1:], (position, velocity, effort)):
+            # as Python floats: what struct packs fastest (the same doubles)
+            args += values.tolist() if isinstance(values, np.ndarray) else values
+            args.append(piece)
+        return self._struct.pack(*args)
 
 
 class ImuEncoder:
