@@ -288,7 +288,7 @@ class NodeMessages:
         encoder = self._impact_encoder
         # fields are taken one by one at the impacts' indices: indexing the structured
         # events (with their 2-vector normals) costs several times more
-        at = np.flatnonzero(events['kind'] == IMPACT)
+        at = (events['kind'] == IMPACT).nonzero()[0]
         n = at.size
         if not n:
             return encoder.encode_data(self.impacts_from, 0, b'')
