@@ -8,14 +8,17 @@ cause (unresolved chatter, a floating-point error). :class:`Divergence` says wha
 when, and which setting to change; :func:`impact_damper_sim.scene.advice.scene_advice`
 finds that setting in a scene. Memory budgets are :mod:`.memory`.
 
-Pure NumPy, no rclpy: :class:`~impact_damper_sim.integrate.simulation.Simulation` checks every
-chunk it advances, the ``study`` command turns :class:`Divergence` into exit status
-``EXIT_DIVERGED`` (3), and a node reports ``str(exc)`` in its diagnostics.
+NumPy, no rclpy (a chunk's clean-chunk test is one compiled call,
+:mod:`.kernels.divergence_check`, imported on the first check):
+:class:`~impact_damper_sim.integrate.simulation.Simulation` checks every chunk it advances, the
+``study`` command turns :class:`Divergence` into exit status ``EXIT_DIVERGED`` (3), and a node
+reports ``str(exc)`` in its diagnostics.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -102,6 +105,24 @@ def _abs_max(values: npt.ArrayLike) -> float:
 
 
 _MAXIMUM = np.maximum.reduce
+_F8 = np.dtype(np.float64)
+#: The compiled checks (:mod:`.kernels.divergence_check`), imported on the first check (it
+#: imports Numba, which importing this module does not); False when Numba's JIT is off.
+_compiled: Any = None
+
+
+def _kernels() -> Any:
+    global _compiled
+    if _compiled is None:
+        from .kernels import divergence_check
+        _compiled = divergence_check if hasattr(divergence_check.samples_clean,
+                                                'py_func') else False
+    return _compiled
+
+
+def _float_array(values: object, ndim: int) -> bool:
+    """True for a float64 ndarray of ``ndim`` dimensions: what the compiled checks take."""
+    return type(values) is np.ndarray and values.dtype is _F8 and values.ndim == ndim
 
 
 def check_state(q: npt.ArrayLike, qd: npt.ArrayLike, t: float) -> None:
@@ -114,7 +135,11 @@ def check_state(q: npt.ArrayLike, qd: npt.ArrayLike, t: float) -> None:
     t : float
         Time of the state (s).
     """
-    if _abs_max(q) < math.inf and _abs_max(qd) < math.inf:   # the rule: all finite
+    compiled = _compiled if _compiled is not None else _kernels()
+    if compiled and _float_array(q, 1) and _float_array(qd, 1):
+        if compiled.state_finite(q, qd):   # the rule, in one call
+            return
+    elif _abs_max(q) < math.inf and _abs_max(qd) < math.inf:   # the rule: all finite
         return
     for name, given in (('modal coordinates', q), ('modal velocities', qd)):
         v = np.asarray(given)
@@ -138,12 +163,18 @@ def check_samples(samples: Samples, names: Sequence[str] = (),
     """
     if samples.t.size == 0:
         return
-    # a clean chunk, the rule: one largest |value| per field (a NaN or inf fails each test)
-    disp = np.asarray(samples.displacement)
-    if ((disp.size == 0 or _abs_max(disp) <= max_displacement)
-            and _abs_max(samples.velocity) < math.inf
-            and _abs_max(samples.acceleration) < math.inf):
-        return
+    # a clean chunk, the rule: in one compiled pass, or one largest |value| per field (a NaN
+    # or inf fails each test)
+    disp, vel, acc = samples.displacement, samples.velocity, samples.acceleration
+    compiled = _compiled if _compiled is not None else _kernels()
+    if compiled and _float_array(disp, 2) and _float_array(vel, 2) and _float_array(acc, 2):
+        if compiled.samples_clean(disp, vel, acc, float(max_displacement)):
+            return
+    else:
+        disp = np.asarray(disp)
+        if ((disp.size == 0 or _abs_max(disp) <= max_displacement)
+                and _abs_max(vel) < math.inf and _abs_max(acc) < math.inf):
+            return
     bad_rows = None
     for field in ('displacement', 'velocity', 'acceleration'):
         values = getattr(samples, field)
