@@ -100,6 +100,11 @@ _RULE_CODES = {'paper': kernels.STICK_PAPER, 'accumulation': kernels.STICK_ACCUM
 PREBUILD_SLOTS = 64
 #: Degree of the Taylor models of the event search (see :mod:`.kernels.search`).
 TAYLOR_ORDER = 6
+#: Whether the fields ExactPropagator.advance writes cover every byte of an event record
+_EVENT_FIELDS: bool = (EVENT_DTYPE.names == ('t', 'impactor', 'kind', 'normal', 'v_n',
+                                             'impulse', 'loss', 'v_n_after', 'v_h_jump')
+                       and EVENT_DTYPE.itemsize == sum(   # no padding between them
+                           EVENT_DTYPE[name].itemsize for name in EVENT_DTYPE.names or ()))
 #: Stuck-flag patterns whose configuration key is remembered (:meth:`ExactPropagator._key`).
 _MAX_KEYS = 4096
 
@@ -279,6 +284,7 @@ class ExactPropagator(IntegratorBase):
         # output-step offsets dt * arange(n + 1) of the last n (s), and the kernel's t_state
         self._offsets: tuple[int, float, FloatArray] | None = None
         self._t_state = np.zeros(1)
+        self._zero_particular: dict[int, npt.NDArray[np.complex128]] = {}
         cfg = self._config()
         # highest retained mode sets the paper's sticking time
         omega_max = float(np.max(np.abs(cfg.lam))) if cfg.lam.size else 1.0
@@ -390,6 +396,12 @@ class ExactPropagator(IntegratorBase):
         return counts
 
     def _particular(self, cfg: FlowConfig, t: float) -> npt.NDArray[np.complex128]:
+        if not self._omegas.size:   # no harmonics: zero, made once per size (read-only)
+            zero = self._zero_particular.get(cfg.lam.size)
+            if zero is None:
+                zero = self._zero_particular[cfg.lam.size] = np.zeros(cfg.lam.size, complex)
+                zero.flags.writeable = False
+            return zero
         yp = np.zeros(cfg.lam.size, dtype=complex)
         for h, om in enumerate(self._omegas):
             e = np.exp(1j * om * t)
@@ -479,7 +491,9 @@ class ExactPropagator(IntegratorBase):
                 self._work_arrays(ni, model.C.shape[0]))
             m = int(ev_count[0])
             if m:
-                chunk = np.zeros(m, dtype=EVENT_DTYPE)
+                # every byte is written below (_EVENT_FIELDS): no zeroing needed
+                chunk = np.empty(m, dtype=EVENT_DTYPE) if _EVENT_FIELDS else \
+                    np.zeros(m, dtype=EVENT_DTYPE)
                 chunk['t'] = ev_t[:m]
                 chunk['impactor'] = ev_imp[:m]
                 chunk['kind'] = ev_kind[:m]
