@@ -13,9 +13,14 @@ import pytest
 
 from impact_damper_sim.integrate.forcing import Forcing
 from impact_damper_sim.scene import excitation
-from impact_damper_sim.scene.excitation import (CommandedSpeed, ConstantSpeed, PaperRamp,
-                                                PiecewiseLinearSpeed, UnbalanceForce,
-                                                unbalance_forcing)
+from impact_damper_sim.scene.excitation import (
+    CommandedSpeed,
+    ConstantSpeed,
+    PaperRamp,
+    PiecewiseLinearSpeed,
+    UnbalanceForce,
+    unbalance_forcing,
+)
 
 
 def _bits(value):

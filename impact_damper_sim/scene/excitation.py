@@ -694,8 +694,8 @@ class UnbalanceForce:
             return self._summed(times, n, phi, w2, alpha)
         # every bearing at once, as a (time, bearing, y/z) array: element by element the
         # operations of the loop in _summed, and cos/sin of the same angles
-        if np.ndim(w2) == 1:
-            w2 = w2[:, None]   # type: ignore[index]
+        if isinstance(w2, np.ndarray) and w2.ndim == 1:
+            w2 = w2[:, None]
         angle = phi[:, None] + self.phase
         c, s = np.cos(angle), np.sin(angle)
         both = np.empty(angle.shape + (2,))
@@ -706,8 +706,8 @@ class UnbalanceForce:
             # (steady: one segment's tame times, so c and s are finite and these terms are
             # +-0, which leave the sums but for the sign of a zero; adding the result to
             # zeros below gives +0 either way)
-            if np.ndim(alpha) == 1:
-                alpha = alpha[:, None]   # type: ignore[index]
+            if isinstance(alpha, np.ndarray) and alpha.ndim == 1:
+                alpha = alpha[:, None]
             fy += alpha * s
             fz -= alpha * c
         both *= (self._multiplier * self.m_e)[:, None]
