@@ -166,9 +166,9 @@ class _Knots:
     def _angle_one(self, k: int, dt: FloatArray, s: float) -> FloatArray:
         """``phi_k + w_k dt + 0.5 s dt dt`` on segment ``k`` (a new array).
 
-        With ``s = 0`` the last term is a zero of the sign of ``s`` (``0.5 s dt`` and ``dt``
-        share a sign), which changes no sum unless it is +0 and ``phi_k + w_k dt`` is -0;
-        that needs ``phi_k = -0``, and only then is it added.
+        With ``s = 0`` and a finite ``dt`` the last term is a zero with the sign of ``s``
+        (``dt`` enters it twice), which changes no sum unless it is +0 and
+        ``phi_k + w_k dt`` is -0; that needs ``phi_k = -0``, and only then is it added.
         """
         phi_k = self._phil[k]
         angle = self._wl[k] * dt
