@@ -192,19 +192,6 @@ class _Load:
         getattr(importlib.import_module(self.module), self.name).internal().compile(self.args)
 
 
-def _in_cache(dispatcher, sig):
-    """Whether Numba's on-disk cache has ``dispatcher`` compiled for ``sig`` (its index
-    names it for this source and machine); False when unsure, and the caller locks."""
-    cache = dispatcher._cache
-    if type(cache).__name__ == 'NullCache':
-        return False
-    try:
-        key = cache._index_key(sig, dispatcher.targetctx.codegen())
-        return key in cache._cache_file._load_index()
-    except Exception:   # Numba's private cache API moved, or a torn index: lock and load
-        return False
-
-
 @contextlib.contextmanager
 def _compile_lock(dispatcher, args):
     """Hold an exclusive lock (``flock``) on a file named after the kernel and its argument
@@ -326,7 +313,8 @@ def _helper_budget():
 
 
 def _in_cache(dispatcher, args):
-    """True when Numba's cache holds the kernel for ``args`` (it is loaded, not compiled)."""
+    """True when Numba's cache holds the kernel for ``args`` (it is loaded, not compiled);
+    False when unsure (the caller then locks or farms)."""
     try:
         cache = dispatcher._cache
         key = cache._index_key(args, dispatcher.targetctx.codegen())
