@@ -4,7 +4,9 @@
 ``sensor_msgs/JointState``, ``rcl_interfaces/ParameterEvent``, and per-sample
 ``sensor_msgs/Imu`` in chunks (:class:`ImuEncoder`, one NumPy pass per chunk);
 :class:`~impact_damper_sim.recording.node_messages.NodeMessages` puts them on the node's
-streams.
+streams. The messages of every chunk have encoders that make their fixed bytes once
+(:class:`ImuEncoder`, :class:`Vector3StampedEncoder`, :class:`JointStateEncoder`); the
+functions write the same bytes field by field (``test/test_packing_templates.py``).
 
 The CDR written here is canonical little-endian XCDR1 as rosbags writes it (alignment counted
 after the 4-byte encapsulation header, pads zero, nothing after the last field), so equal
@@ -193,8 +195,9 @@ class JointStateEncoder:
     """Writes ``sensor_msgs/JointState`` messages whose frame and joint names are fixed.
 
     Only the stamp and the three arrays change (one value per joint each), so the bytes are
-    a template with those slots filled in: what :func:`joint_state_cdr` writes, without its
-    per-field Python (``impactor_state`` every chunk: 24 joints on hpotp).
+    a template with those slots filled in, one ``struct.pack``: what :func:`joint_state_cdr`
+    writes, without its per-field Python (``impactor_state`` every chunk: 24 joints on
+    hpotp; ``rotor/joint_states``: one joint, no effort).
 
     Parameters
     ----------
