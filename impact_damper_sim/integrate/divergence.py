@@ -114,9 +114,17 @@ _compiled: Any = None
 def _kernels() -> Any:
     global _compiled
     if _compiled is None:
-        from .kernels import divergence_check
-        _compiled = divergence_check if hasattr(divergence_check.samples_clean,
-                                                'py_func') else False
+        from .kernels import divergence_check as compiled
+        if hasattr(compiled.samples_clean, 'py_func'):
+            # compiled (or loaded) now, for the array types a run passes, so that a node's
+            # warm-up (an empty chunk: only the state is checked) leaves no compile for its
+            # first chunk: samples are C arrays, the exact state a view of a complex product
+            real = np.zeros(2, dtype=complex).real
+            block = np.zeros((1, 1))
+            compiled.samples_clean(block, block, block, 1.0)
+            compiled.state_finite(real, real)
+            compiled.state_finite(block[0], block[0])
+        _compiled = compiled if hasattr(compiled.samples_clean, 'py_func') else False
     return _compiled
 
 
