@@ -16,7 +16,8 @@ kinds, sticking rules, work counters), :mod:`.ledger` (energy ledger quadrature:
 with :mod:`.quadrature` (the series, integrals and factors they share), :mod:`.event_loop` (the
 exact propagator's event loop, and the entry point of :mod:`impact_damper_sim.integrate.exact`),
 :mod:`.prefetch` (what a cold start compiles in helper processes first), :mod:`.newmark_step`
-(the Newmark step) and :mod:`.filters` (the streaming low-pass).
+(the Newmark step), :mod:`.filters` (the streaming low-pass) and :mod:`.divergence_check` (each
+chunk's divergence check, one pass over its samples).
 
 Compile time (an empty cache compiles the kernels a run calls, once): a kernel is compiled
 for the first call that needs it, once per argument types (:class:`Kernel`). Numba links a
