@@ -17,7 +17,9 @@ DDS domain of this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``), with one 
   each node's ``/diagnostics`` status (deserialized, 1 Hz a node).
 
 The run lasts ``--seconds`` from the moment every machine has delivered its first batch (the
-start column: from the spawn of the nodes to then; N nodes start at once on 2 cores). Then the
+start column: from the spawn of the first node to then). The nodes start at once on 2 cores,
+or machine i ``i`` x ``--stagger`` s after the first (default: the plant file's ``stagger``),
+as a plant's pumps are started; each machine is judged from its own first batch. Then the
 reader and the nodes get SIGINT. What is measured, per machine:
 
 * **delivered/expected per 1 s window**: the node's own ``/diagnostics`` windows (period 1 s
@@ -222,8 +224,9 @@ def scene_machines(scene, n):
 
 
 def plant_machines(name):
-    """The machines of a plant file: [(namespace, scene name, node parameters)] and the
-    plant's name, its logs off (a bench measures the plant, not its disk)."""
+    """The machines of a plant file: [(namespace, scene name, node parameters)], the
+    plant's name and its stagger (s), its logs off (a bench measures the plant, not its
+    disk)."""
     sys.path.insert(0, ROOT)
     from impact_damper_sim.scene.plant import load_plant
     plant = load_plant(name)
@@ -233,7 +236,7 @@ def plant_machines(name):
         p = {k: v for k, v in params[m.namespace].items()
              if k not in ('record', 'record_overwrite')}
         out.append((m.namespace, m.scene_name, p))
-    return out, plant.name
+    return out, plant.name, plant.stagger
 
 
 def _rss_mb(pid):
@@ -294,10 +297,11 @@ def window_ratios(windows, topics):
     return out
 
 
-def run_plant(label, machines, args, domain, log_dir):
-    """Run the machines; a dict of figures per machine and for the plant."""
+def run_plant(label, machines, args, domain, log_dir, stagger=0.0):
+    """Run the machines, machine i started i x ``stagger`` s after the first; a dict of
+    figures per machine and for the plant."""
     env = dict(base_env(), ROS_DOMAIN_ID=str(domain))
-    res = {'label': label, 'n': len(machines), 'domain': domain,
+    res = {'label': label, 'n': len(machines), 'domain': domain, 'stagger_s': stagger,
            'scenes': sorted({s for _, s, _ in machines}), 'status': 'error', 'reason': ''}
     node_exe = settled_script([NODE_EXE])
     if node_exe is None:
@@ -319,7 +323,10 @@ def run_plant(label, machines, args, domain, log_dir):
                 continue
             if line is None or '"ready"' in line:
                 break
+        t_start = time.monotonic()
         for i, (ns, _scene, params) in enumerate(machines):
+            # a staggered plant: machine i starts i x stagger after the first
+            time.sleep(max(0.0, t_start + i * stagger - time.monotonic()))
             pfile = os.path.join(log_dir, f'{ns.replace("/", ".")}.yaml')
             with open(pfile, 'w') as f:
                 yaml.safe_dump({'/**': {'ros__parameters': dict(
@@ -329,10 +336,11 @@ def run_plant(label, machines, args, domain, log_dir):
                 env, log_dir, pipe=False)
             children.append(c)
             nodes.append((ns, c))
-        t_spawn = min(c.t_spawn for _, c in nodes)
-        for c in children:
             cpu.add(c.pid)
-        cpu.add('all')
+            if i == 0:
+                cpu.add(reader.pid)
+                cpu.add('all')
+        t_spawn = min(c.t_spawn for _, c in nodes)
         firsts = {}
         hard = t_spawn + args.start_timeout
         while len(firsts) < len(machines) and time.monotonic() < hard:
@@ -391,15 +399,17 @@ def run_plant(label, machines, args, domain, log_dir):
         res['checks'] = sorted({m['check'] for m in meta['topics']} - {'ok'})
         per = []
         for (ns, scene, _), (_, c) in zip(machines, nodes):
+            # every window of the machine from its own first batch (with a stagger the first
+            # machines run long before the last one's first batch)
             windows = machine_windows(meta['diagnostics'], f'/{ns}/vibration_node: simulation',
-                                      t_first, t_stop + 1.0)
+                                      firsts[ns], t_stop + 1.0)
             ratios = window_ratios(windows, topics.get(ns, []))
             values = [r for r, _, _ in ratios]
-            cpu_windows, cpu_mean = cpu.windows(c.pid, t_first, t_stop)
+            cpu_windows, cpu_mean = cpu.windows(c.pid, firsts[ns], t_stop)
             per.append({
                 'namespace': ns, 'scene': scene, 'windows': len(values),
                 'series': [round(v, 3) for v in values],   # the windows in time order
-                # seconds after every machine's first batch at which the worst window ends
+                # seconds after this machine's first batch at which the worst window ends
                 # (the first window is left out: the series starts at 2)
                 'worst_at_s': (int(np.argmin(values)) + 2) if values else None,
                 'worst': min(values) if values else math.nan,
@@ -560,8 +570,8 @@ def page(data):
         '- **worst / median window**: delivered/expected of the 1 s windows (the first, the '
         'start, left out); per machine the worst accelerometer; for a plant the worst '
         'machine, and the median of the machines\' medians.',
-        '- **worst at s**: when the worst window ended, in seconds after every machine\'s '
-        'first batch (2 = the first window judged: start-up transients land there).',
+        '- **worst at s**: when the worst window ended, in seconds after the machine\'s '
+        'own first batch (2 = the first window judged: start-up transients land there).',
         "- **worst RTF**: the node's own `real_time_factor_achieved`, its worst window; "
         '**worst delivery**: the worst window\'s share of the samples it published that '
         'reached the subscriber. The window figure is about their product.',
@@ -571,8 +581,9 @@ def page(data):
         '- **node RSS**: resident memory at the end of the run; **peak**: `VmHWM`.',
         '- **load before**: the 1-minute load average when the run began (a quiet 2-core '
         'machine reads well under 1).',
-        '- **start**: from spawning the nodes to every machine\'s first batch at the '
-        'subscriber (all start at once and compete for the cores).',
+        '- **start**: from spawning the first node to every machine\'s first batch at the '
+        'subscriber (all start at once and compete for the cores, or a stagger apart: the '
+        'label gives it).',
         '',
         DATA_MARK + json.dumps(data, sort_keys=True) + ' -->',
     ]
@@ -621,6 +632,9 @@ def main(argv=None):
     parser.add_argument('--page', nargs='?', const=PAGE, metavar='FILE',
                         help=f'add the results to this page (default {PAGE})')
     parser.add_argument('--keep-logs', metavar='DIR', help="keep the processes' output here")
+    parser.add_argument('--stagger', type=float, metavar='S',
+                        help='start machine i i x S s after the first (default: the plant '
+                             "file's stagger; 0 for --scene; --ceiling starts all at once)")
     parser.add_argument('--json', metavar='FILE', help='write every figure of the runs here '
                         '(with the start-up: CPU per 1 s from the spawn)')
     args = parser.parse_args(argv)
@@ -638,7 +652,7 @@ def main(argv=None):
     print(f'load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores); '
           f'domain {domain}; {args.seconds:g} s from every machine\'s first batch', flush=True)
 
-    def run(label, machines):
+    def run(label, machines, stagger=0.0):
         load_before = os.getloadavg()[0]
         with tempfile.TemporaryDirectory(prefix='plant_bench_') as tmp:
             log_dir = tmp
@@ -646,7 +660,7 @@ def main(argv=None):
                 log_dir = os.path.join(args.keep_logs, label)
                 os.makedirs(log_dir, exist_ok=True)
             try:
-                res = run_plant(label, machines, args, domain, log_dir)
+                res = run_plant(label, machines, args, domain, log_dir, stagger)
             except Exception as exc:   # one failed run still reports
                 res = {'label': label, 'n': len(machines), 'status': 'error',
                        'scenes': sorted({s for _, s, _ in machines}),
@@ -657,11 +671,14 @@ def main(argv=None):
 
     runs, ceilings = {}, {}
     if args.plant:
-        machines, name = plant_machines(args.plant)
-        runs[f'plant {name}'] = run(f'plant {name}', machines)
+        machines, name, stagger = plant_machines(args.plant)
+        stagger = stagger if args.stagger is None else args.stagger
+        label = f'plant {name}' + (f' (stagger {stagger:g} s)' if stagger else '')
+        runs[label] = run(label, machines, stagger)
     elif args.scene:
-        label = f'{args.n} x {args.scene}'
-        runs[label] = run(label, scene_machines(args.scene, args.n))
+        stagger = args.stagger or 0.0
+        label = f'{args.n} x {args.scene}' + (f' (stagger {stagger:g} s)' if stagger else '')
+        runs[label] = run(label, scene_machines(args.scene, args.n), stagger)
     else:
         ns = list(CEILING_NS)
         while ns[-1] < args.max_n:

@@ -9,6 +9,7 @@ after ``colcon build``)::
     ros2 launch impact_damper_sim plant.launch.py plant:=/path/to/my_plant.yaml \
         record_mode:=one_log monitor:=false
     ros2 launch impact_damper_sim plant.launch.py plant:=ten_hpotp hosts:=5
+    ros2 launch impact_damper_sim plant.launch.py plant:=ten_hpotp stagger:=0
 
 Arguments: ``plant`` (required: a name under ``config/plants`` or a plant file),
 ``record`` (directory of the logs; overrides the file's ``record_dir``; given while the file
@@ -16,7 +17,9 @@ says ``record: none``, each machine records its own log), ``record_mode`` (``non
 ``per_machine``, ``one_log``; empty = the file's), ``monitor`` (true/false), ``hosts``
 (0, the default: one ``vibration_node`` process per machine; K >= 1: K ``plant_host``
 processes, ``--share 0/K`` ... ``--share K-1/K`` of the plant file, machine ``i`` in process
-``i mod K``; at most as many as machines).
+``i mod K``; at most as many as machines), ``stagger`` (s; empty = the file's ``stagger``:
+machine ``i`` starts ``i`` x this after the first; with ``hosts:=K`` process ``i`` does, and
+starts its machines together).
 
 What starts (docs/guides/plant.md): ``/<namespace>/vibration_node`` per machine with the
 parameters :meth:`Machine.node_parameters` gives (seed, unbalance, preset, faults as a
@@ -39,7 +42,7 @@ import tempfile
 from types import SimpleNamespace
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, TimerAction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -96,6 +99,34 @@ def plant_hosts(text, machines):
     return hosts
 
 
+def plant_stagger(text, default):
+    """The ``stagger`` launch argument -> seconds between two machines' starts (empty: the
+    plant file's ``default``).
+
+    Raises
+    ------
+    RuntimeError
+        Not a number of seconds in [0, STAGGER_MAX].
+    """
+    from impact_damper_sim.scene.plant import STAGGER_MAX
+    if not text:
+        return default
+    try:
+        stagger = float(text)
+    except ValueError:
+        stagger = -1.0
+    if not 0 <= stagger <= STAGGER_MAX:
+        raise RuntimeError(f'stagger:={text}: give seconds from 0 to {STAGGER_MAX:g} (machine i '
+                           'starts i x this after the first)')
+    return stagger
+
+
+def staggered(actions, stagger):
+    """``actions`` with action ``i`` started ``i`` x ``stagger`` s after the launch."""
+    return [a if i == 0 or not stagger else TimerAction(period=i * stagger, actions=[a])
+            for i, a in enumerate(actions)]
+
+
 def _plant_actions(context):
     from impact_damper_sim.scene.plant import RECORD_MODES, PlantError, load_plant
     get = lambda name: LaunchConfiguration(name).perform(context).strip()   # noqa: E731
@@ -110,6 +141,7 @@ def _plant_actions(context):
     if mode not in RECORD_MODES:
         raise RuntimeError(f"record_mode:={mode!r}: use one of {' | '.join(RECORD_MODES)}")
     hosts = plant_hosts(get('hosts'), len(plant.machines))
+    stagger = plant_stagger(get('stagger'), plant.stagger)
     if record_dir and mode == 'none':
         mode = 'per_machine'   # asked to record: each machine its own (complete) log
     plant = dataclasses.replace(plant, record=mode)
@@ -131,20 +163,20 @@ def _plant_actions(context):
         # not tell the user to start a recorder that is already running)
         record = ['--record-mode', 'none' if mode == 'one_log' else mode] + (
             ['--record-dir', str(directory)] if mode == 'per_machine' else [])
-        actions += [Node(package=PACKAGE, executable='plant_host', output='screen',
-                         emulate_tty=True,
-                         arguments=['--plant', plant.source, *record,
-                                    '--share', f'{i}/{hosts}'])
-                    for i in range(hosts)]
+        actions += staggered([Node(package=PACKAGE, executable='plant_host', output='screen',
+                                   emulate_tty=True,
+                                   arguments=['--plant', plant.source, *record,
+                                              '--share', f'{i}/{hosts}'])
+                              for i in range(hosts)], stagger)
     else:
         schedule_dir = directory if directory is not None else tempfile.mkdtemp(
             prefix=f'plant_{plant.name}_')
         params = plant.node_parameters(record_dir=directory, schedule_dir=schedule_dir)
-        for i, m in enumerate(plant.machines):
-            actions.append(Node(
-                package=PACKAGE, executable='vibration_node', name='vibration_node',
-                namespace=m.namespace, output='screen', emulate_tty=True,
-                parameters=[{**params[m.namespace], 'publish_clock': i == 0}]))
+        actions += staggered([Node(
+            package=PACKAGE, executable='vibration_node', name='vibration_node',
+            namespace=m.namespace, output='screen', emulate_tty=True,
+            parameters=[{**params[m.namespace], 'publish_clock': i == 0}])
+            for i, m in enumerate(plant.machines)], stagger)
     if get('monitor').lower() in ('true', '1', 'yes'):
         if monitor_follows_namespaces():
             actions.append(Node(
@@ -174,5 +206,8 @@ def generate_launch_description():
                               description='0: one vibration_node process per machine; K: K '
                                           'plant_host processes, each a share (--share i/K) '
                                           'of the machines'),
+        DeclareLaunchArgument('stagger', default_value='',
+                              description="s between two machines' starts; empty = the "
+                                          "file's stagger"),
         OpaqueFunction(function=_plant_actions),
     ])

@@ -8,6 +8,7 @@ import yaml
 
 from impact_damper_sim.scene.plant import (
     SEED_MAX,
+    STAGGER_MAX,
     PlantError,
     load_plant,
     plant_files,
@@ -185,6 +186,16 @@ machines:
     assert entries == [{'at': '1 s', 'noise_std': 0.1},               # the file's, then
                        {'at': '0 s', 'fault': {'kind': 'dropout', 'accelerometer': 'sdof_x',
                                                'onset': '2 s', 'duration': '0.1 s'}}]
+
+
+def test_the_stagger_is_a_time_in_range(tmp_path):
+    machines = 'machines:\n  - {namespace: a, scene: sdof}\n'
+    assert load_plant(_plant(tmp_path, machines)).stagger == 0.0   # all at once by default
+    assert load_plant(_plant(tmp_path, 'stagger: 1500 ms\n' + machines)).stagger == 1.5
+    errors = _errors(tmp_path, 'stagger: 2 min\n' + machines)
+    assert errors == [f'stagger: 2 min = 120 s is out of range [0, {STAGGER_MAX:g}] s '
+                      '(= [0, 1] min)'], errors
+    assert _errors(tmp_path, 'stagger: -1 s\n' + machines)[0].startswith('stagger: ')
 
 
 def test_the_shipped_plants_load_and_are_found_by_name():

@@ -127,11 +127,13 @@ machines:
 LAUNCH_FILE = Path(__file__).resolve().parent.parent / 'launch' / 'plant.launch.py'
 
 
-def _planned_processes(**arguments):
+def _planned_processes(with_delay=False, **arguments):
     """``[(executable, namespace, arguments)]`` the launch file would start for these launch
-    arguments (the defaults for the others), read off its actions without running any."""
+    arguments (the defaults for the others), read off its actions without running any;
+    ``with_delay``: ``(executable, namespace, arguments, delay s)``."""
     pytest.importorskip('launch', reason='the ROS 2 launch package is not installed')
     pytest.importorskip('launch_ros', reason='the ROS 2 launch_ros package is not installed')
+    from launch.actions import TimerAction
     from launch.launch_context import LaunchContext
     from launch.substitutions import LocalSubstitution
     from launch.utilities import perform_substitutions
@@ -148,11 +150,18 @@ def _planned_processes(**arguments):
     context.launch_configurations.update(arguments)
     planned = []
     for action in module._plant_actions(context):
+        delay = 0.0
+        if isinstance(action, TimerAction):
+            period = action.period   # a float, or substitutions when given as text
+            delay = float(period if isinstance(period, (int, float))
+                          else perform_substitutions(context, period))
+            action, = action.actions
         assert isinstance(action, Node), action
         # the last item is the ROS arguments, substituted only when the process starts
         args = [perform_substitutions(context, item) for item in action.cmd[1:]
                 if not any(isinstance(s, LocalSubstitution) for s in item)]
-        planned.append((action.node_executable, action._Node__node_namespace, args))
+        planned.append((action.node_executable, action._Node__node_namespace, args)
+                       + ((delay,) if with_delay else ()))
     return planned
 
 
@@ -195,3 +204,27 @@ def test_by_default_each_machine_is_a_vibration_node_process_of_its_own():
 def test_hosts_beyond_the_machines_or_not_a_count_is_refused_naming_it(hosts):
     with pytest.raises(RuntimeError, match=rf'^hosts:={hosts}: give 0 .* or 1 to 10 '):
         _planned_processes(plant='ten_hpotp', hosts=hosts, monitor='false')
+
+
+def test_a_staggered_plant_starts_machine_i_i_times_the_stagger_after_the_first():
+    """Issue 39: a plant's pumps are not all started at once; ten hpotp run up through
+    their resonance together and the cores were short for the first seconds."""
+    from impact_damper_sim.scene.plant import load_plant
+    planned = _planned_processes(with_delay=True, plant='ten_hpotp', monitor='false',
+                                 stagger='1.5')
+    assert [(exe, ns) for exe, ns, _, _ in planned] == [
+        ('vibration_node', ns) for ns in load_plant('ten_hpotp').namespaces], planned
+    assert [delay for *_, delay in planned] == pytest.approx([1.5 * i for i in range(10)])
+    hosts = _planned_processes(with_delay=True, plant='ten_hpotp', monitor='false',
+                               stagger='2', hosts='3')
+    assert [(exe, delay) for exe, _, _, delay in hosts] == [
+        ('plant_host', 0.0), ('plant_host', 2.0), ('plant_host', 4.0)], hosts
+    together = _planned_processes(with_delay=True, plant='ten_hpotp', monitor='false',
+                                  stagger='0')
+    assert {delay for *_, delay in together} == {0.0}, together
+
+
+@pytest.mark.parametrize('stagger', ['-1', '61', 'soon'])
+def test_a_stagger_out_of_range_is_refused_naming_it(stagger):
+    with pytest.raises(RuntimeError, match=rf'^stagger:={stagger}: give seconds from 0 to 60'):
+        _planned_processes(plant='ten_hpotp', stagger=stagger, monitor='false')

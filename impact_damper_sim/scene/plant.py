@@ -7,6 +7,7 @@ A plant file is YAML, checked at load like a scene (every problem is one line na
     seed: 100                   # base seed: machine i gets seed + i unless it gives its own
     record: per_machine         # none | per_machine | one_log
     record_dir: logs/pumps_a    # where the logs go (default: ./<plant>_<date>-<time>)
+    stagger: 2 s                # machine i starts i x this after the first (default 0)
     machines:
       - namespace: pump1        # ROS namespace: the node is /pump1/vibration_node
         scene: hpotp            # scene name or file (relative to the plant file)
@@ -70,13 +71,16 @@ from .schema import (
     validate,
 )
 
-__all__ = ['MACHINE_KEYS', 'PLANT_KEYS', 'RECORD_MODES', 'SCHEMA', 'SEED_MAX', 'Machine',
-           'Plant', 'PlantError', 'fault_schedule_entries', 'load_plant', 'plant_files',
+__all__ = ['MACHINE_KEYS', 'PLANT_KEYS', 'RECORD_MODES', 'SCHEMA', 'SEED_MAX', 'STAGGER_MAX',
+           'Machine', 'Plant', 'PlantError', 'fault_schedule_entries', 'load_plant', 'plant_files',
            'resolve_plant']
 
 #: how a plant records: not at all, one MCAP per machine (each node's ``record``
 #: parameter), or one MCAP for all (the ``recorder`` node)
 RECORD_MODES = ('none', 'per_machine', 'one_log')
+#: the longest start stagger between two machines (s): a minute apart is a plant started by
+#: hand; more is a typo
+STAGGER_MAX = 60.0
 
 #: the largest seed (``noise_seed``'s range, 2^31 - 1)
 SEED_MAX = 2**31 - 1
@@ -177,6 +181,9 @@ PLANT_KEYS = {
                          doc='directory of the logs (relative to where it is launched); empty '
                              '= ./<plant>_<YYYYmmdd-HHMMSS>'),
     'record_overwrite': Boolean(False, doc='overwrite existing logs (otherwise refused)'),
+    'stagger': Quantity('time', 0.0, min=0, max=STAGGER_MAX,
+                        doc='machine i (from 0) starts i x this after the first, as pumps of '
+                            'a plant are not all started at once (0: all together)'),
     'machines': ListOf(Section(MACHINE_KEYS), min_len=1, doc='the machines'),
 }
 
@@ -351,6 +358,8 @@ class Plant:
         Directory of the logs as written (``''`` = :meth:`record_directory`'s default).
     record_overwrite : bool
     machines : tuple of Machine
+    stagger : float
+        Start of machine ``i`` after machine 0: ``i`` x this (s).
     """
 
     name: str
@@ -360,6 +369,7 @@ class Plant:
     record_dir: str
     record_overwrite: bool
     machines: tuple[Machine, ...]
+    stagger: float = 0.0
 
     @property
     def namespaces(self) -> list[str]:
@@ -586,4 +596,4 @@ def load_plant(path: str | os.PathLike[str]) -> Plant:
         raise PlantError(errors, source=source)
     return Plant(name=name, source=source, seed=value['seed'], record=value['record'],
                  record_dir=value['record_dir'], record_overwrite=value['record_overwrite'],
-                 machines=tuple(machines))
+                 machines=tuple(machines), stagger=float(value['stagger']))
