@@ -17,10 +17,10 @@ DDS domain of this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``), with one 
   each node's ``/diagnostics`` status (deserialized, 1 Hz a node).
 
 The run lasts ``--seconds`` from the moment every machine has delivered its first batch (the
-start column: from the spawn of the first node to then). The nodes start at once on 2 cores,
-or machine i ``i`` x ``--stagger`` s after the first (default: the plant file's ``stagger``),
-as a plant's pumps are started; each machine is judged from its own first batch. Then the
-reader and the nodes get SIGINT. What is measured, per machine:
+start column: from the spawn of the nodes to then; N nodes start at once on 2 cores, and with
+``--stagger S``, default the plant file's ``stagger``, machine i's rotor runs up i x S s after
+machine 0's, as a plant's pumps are started). Each machine is judged from its own first
+batch. Then the reader and the nodes get SIGINT. What is measured, per machine:
 
 * **delivered/expected per 1 s window**: the node's own ``/diagnostics`` windows (period 1 s
   of wall time; ``sim_time_s`` at each) give each window's span of sim time; delivered is
@@ -217,19 +217,38 @@ rclpy.try_shutdown()
 
 
 # ---------------------------------------------------------------------------------------
-def scene_machines(scene, n):
-    """N copies of ``scene``: [(namespace, scene name, node parameters)], seeds 1..N."""
-    return [(f'm{i + 1:02d}', scene, {'scene': scene, 'noise_seed': i + 1})
-            for i in range(n)]
-
-
-def plant_machines(name):
-    """The machines of a plant file: [(namespace, scene name, node parameters)], the
-    plant's name and its stagger (s), its logs off (a bench measures the plant, not its
-    disk)."""
+def scene_machines(scene, n, stagger=0.0):
+    """N copies of ``scene``: [(namespace, scene name, node parameters)], seeds 1..N; with
+    ``stagger`` (s) machine i's rotor runs up i x it after machine 0's, as a plant file's
+    ``stagger`` makes it (the schedule :meth:`Plant.node_parameters` writes)."""
+    machines = [(f'm{i + 1:02d}', scene, {'scene': scene, 'noise_seed': i + 1})
+                for i in range(n)]
+    if not stagger:
+        return machines
     sys.path.insert(0, ROOT)
     from impact_damper_sim.scene.plant import load_plant
+    tmp = tempfile.mkdtemp(prefix='plant_bench_')
+    path = os.path.join(tmp, 'copies.yaml')
+    with open(path, 'w') as f:
+        yaml.safe_dump({'stagger': f'{stagger!r} s', 'machines': [
+            {'namespace': ns, 'scene': sc, 'seed': p['noise_seed']}
+            for ns, sc, p in machines]}, f)
+    params = load_plant(path).node_parameters(schedule_dir=tmp)
+    return [(ns, sc, dict(p, **{k: v for k, v in params[ns].items() if k == 'schedule'}))
+            for ns, sc, p in machines]
+
+
+def plant_machines(name, stagger=None):
+    """The machines of a plant file: [(namespace, scene name, node parameters)], the
+    plant's name and its stagger (s; ``stagger`` overrides the file's), its logs off (a bench
+    measures the plant, not its disk)."""
+    sys.path.insert(0, ROOT)
+    import dataclasses
+
+    from impact_damper_sim.scene.plant import load_plant
     plant = load_plant(name)
+    if stagger is not None:
+        plant = dataclasses.replace(plant, stagger=float(stagger))
     params = plant.node_parameters(schedule_dir=tempfile.mkdtemp(prefix='plant_bench_'))
     out = []
     for m in plant.machines:
@@ -297,11 +316,10 @@ def window_ratios(windows, topics):
     return out
 
 
-def run_plant(label, machines, args, domain, log_dir, stagger=0.0):
-    """Run the machines, machine i started i x ``stagger`` s after the first; a dict of
-    figures per machine and for the plant."""
+def run_plant(label, machines, args, domain, log_dir):
+    """Run the machines; a dict of figures per machine and for the plant."""
     env = dict(base_env(), ROS_DOMAIN_ID=str(domain))
-    res = {'label': label, 'n': len(machines), 'domain': domain, 'stagger_s': stagger,
+    res = {'label': label, 'n': len(machines), 'domain': domain,
            'scenes': sorted({s for _, s, _ in machines}), 'status': 'error', 'reason': ''}
     node_exe = settled_script([NODE_EXE])
     if node_exe is None:
@@ -323,10 +341,7 @@ def run_plant(label, machines, args, domain, log_dir, stagger=0.0):
                 continue
             if line is None or '"ready"' in line:
                 break
-        t_start = time.monotonic()
         for i, (ns, _scene, params) in enumerate(machines):
-            # a staggered plant: machine i starts i x stagger after the first
-            time.sleep(max(0.0, t_start + i * stagger - time.monotonic()))
             pfile = os.path.join(log_dir, f'{ns.replace("/", ".")}.yaml')
             with open(pfile, 'w') as f:
                 yaml.safe_dump({'/**': {'ros__parameters': dict(
@@ -581,9 +596,9 @@ def page(data):
         '- **node RSS**: resident memory at the end of the run; **peak**: `VmHWM`.',
         '- **load before**: the 1-minute load average when the run began (a quiet 2-core '
         'machine reads well under 1).',
-        '- **start**: from spawning the first node to every machine\'s first batch at the '
-        'subscriber (all start at once and compete for the cores, or a stagger apart: the '
-        'label gives it).',
+        '- **start**: from spawning the nodes to every machine\'s first batch at the '
+        'subscriber (all start at once and compete for the cores; a stagger, in the label, '
+        'spreads the rotors\' run-ups, not the starts).',
         '',
         DATA_MARK + json.dumps(data, sort_keys=True) + ' -->',
     ]
@@ -633,8 +648,9 @@ def main(argv=None):
                         help=f'add the results to this page (default {PAGE})')
     parser.add_argument('--keep-logs', metavar='DIR', help="keep the processes' output here")
     parser.add_argument('--stagger', type=float, metavar='S',
-                        help='start machine i i x S s after the first (default: the plant '
-                             "file's stagger; 0 for --scene; --ceiling starts all at once)")
+                        help="machine i's rotor runs up i x S s after machine 0's (default: "
+                             "the plant file's stagger; 0 for --scene; --ceiling: all at "
+                             'once)')
     parser.add_argument('--json', metavar='FILE', help='write every figure of the runs here '
                         '(with the start-up: CPU per 1 s from the spawn)')
     args = parser.parse_args(argv)
@@ -652,7 +668,7 @@ def main(argv=None):
     print(f'load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores); '
           f'domain {domain}; {args.seconds:g} s from every machine\'s first batch', flush=True)
 
-    def run(label, machines, stagger=0.0):
+    def run(label, machines):
         load_before = os.getloadavg()[0]
         with tempfile.TemporaryDirectory(prefix='plant_bench_') as tmp:
             log_dir = tmp
@@ -660,7 +676,7 @@ def main(argv=None):
                 log_dir = os.path.join(args.keep_logs, label)
                 os.makedirs(log_dir, exist_ok=True)
             try:
-                res = run_plant(label, machines, args, domain, log_dir, stagger)
+                res = run_plant(label, machines, args, domain, log_dir)
             except Exception as exc:   # one failed run still reports
                 res = {'label': label, 'n': len(machines), 'status': 'error',
                        'scenes': sorted({s for _, s, _ in machines}),
@@ -671,14 +687,13 @@ def main(argv=None):
 
     runs, ceilings = {}, {}
     if args.plant:
-        machines, name, stagger = plant_machines(args.plant)
-        stagger = stagger if args.stagger is None else args.stagger
+        machines, name, stagger = plant_machines(args.plant, args.stagger)
         label = f'plant {name}' + (f' (stagger {stagger:g} s)' if stagger else '')
-        runs[label] = run(label, machines, stagger)
+        runs[label] = run(label, machines)
     elif args.scene:
         stagger = args.stagger or 0.0
         label = f'{args.n} x {args.scene}' + (f' (stagger {stagger:g} s)' if stagger else '')
-        runs[label] = run(label, scene_machines(args.scene, args.n), stagger)
+        runs[label] = run(label, scene_machines(args.scene, args.n, stagger))
     else:
         ns = list(CEILING_NS)
         while ns[-1] < args.max_n:

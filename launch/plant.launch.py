@@ -18,8 +18,8 @@ says ``record: none``, each machine records its own log), ``record_mode`` (``non
 (0, the default: one ``vibration_node`` process per machine; K >= 1: K ``plant_host``
 processes, ``--share 0/K`` ... ``--share K-1/K`` of the plant file, machine ``i`` in process
 ``i mod K``; at most as many as machines), ``stagger`` (s; empty = the file's ``stagger``:
-machine ``i`` starts ``i`` x this after the first; with ``hosts:=K`` process ``i`` does, and
-starts its machines together).
+machine ``i``'s rotor runs up ``i`` x this after machine 0's; every node streams from the
+start).
 
 What starts (docs/guides/plant.md): ``/<namespace>/vibration_node`` per machine with the
 parameters :meth:`Machine.node_parameters` gives (seed, unbalance, preset, faults as a
@@ -42,7 +42,7 @@ import tempfile
 from types import SimpleNamespace
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction, TimerAction
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -100,7 +100,7 @@ def plant_hosts(text, machines):
 
 
 def plant_stagger(text, default):
-    """The ``stagger`` launch argument -> seconds between two machines' starts (empty: the
+    """The ``stagger`` launch argument -> seconds between two machines' run-ups (empty: the
     plant file's ``default``).
 
     Raises
@@ -116,15 +116,9 @@ def plant_stagger(text, default):
     except ValueError:
         stagger = -1.0
     if not 0 <= stagger <= STAGGER_MAX:
-        raise RuntimeError(f'stagger:={text}: give seconds from 0 to {STAGGER_MAX:g} (machine i '
-                           'starts i x this after the first)')
+        raise RuntimeError(f'stagger:={text}: give seconds from 0 to {STAGGER_MAX:g} (machine '
+                           "i's rotor runs up i x this after machine 0's)")
     return stagger
-
-
-def staggered(actions, stagger):
-    """``actions`` with action ``i`` started ``i`` x ``stagger`` s after the launch."""
-    return [a if i == 0 or not stagger else TimerAction(period=i * stagger, actions=[a])
-            for i, a in enumerate(actions)]
 
 
 def _plant_actions(context):
@@ -142,6 +136,7 @@ def _plant_actions(context):
         raise RuntimeError(f"record_mode:={mode!r}: use one of {' | '.join(RECORD_MODES)}")
     hosts = plant_hosts(get('hosts'), len(plant.machines))
     stagger = plant_stagger(get('stagger'), plant.stagger)
+    plant = dataclasses.replace(plant, stagger=stagger)
     if record_dir and mode == 'none':
         mode = 'per_machine'   # asked to record: each machine its own (complete) log
     plant = dataclasses.replace(plant, record=mode)
@@ -163,20 +158,20 @@ def _plant_actions(context):
         # not tell the user to start a recorder that is already running)
         record = ['--record-mode', 'none' if mode == 'one_log' else mode] + (
             ['--record-dir', str(directory)] if mode == 'per_machine' else [])
-        actions += staggered([Node(package=PACKAGE, executable='plant_host', output='screen',
-                                   emulate_tty=True,
-                                   arguments=['--plant', plant.source, *record,
-                                              '--share', f'{i}/{hosts}'])
-                              for i in range(hosts)], stagger)
+        actions += [Node(package=PACKAGE, executable='plant_host', output='screen',
+                         emulate_tty=True,
+                         arguments=['--plant', plant.source, *record, '--stagger', f'{stagger!r}',
+                                    '--share', f'{i}/{hosts}'])
+                    for i in range(hosts)]
     else:
         schedule_dir = directory if directory is not None else tempfile.mkdtemp(
             prefix=f'plant_{plant.name}_')
         params = plant.node_parameters(record_dir=directory, schedule_dir=schedule_dir)
-        actions += staggered([Node(
-            package=PACKAGE, executable='vibration_node', name='vibration_node',
-            namespace=m.namespace, output='screen', emulate_tty=True,
-            parameters=[{**params[m.namespace], 'publish_clock': i == 0}])
-            for i, m in enumerate(plant.machines)], stagger)
+        for i, m in enumerate(plant.machines):
+            actions.append(Node(
+                package=PACKAGE, executable='vibration_node', name='vibration_node',
+                namespace=m.namespace, output='screen', emulate_tty=True,
+                parameters=[{**params[m.namespace], 'publish_clock': i == 0}]))
     if get('monitor').lower() in ('true', '1', 'yes'):
         if monitor_follows_namespaces():
             actions.append(Node(
@@ -207,7 +202,7 @@ def generate_launch_description():
                                           'plant_host processes, each a share (--share i/K) '
                                           'of the machines'),
         DeclareLaunchArgument('stagger', default_value='',
-                              description="s between two machines' starts; empty = the "
-                                          "file's stagger"),
+                              description="s between two machines' rotor run-ups; empty = "
+                                          "the file's stagger"),
         OpaqueFunction(function=_plant_actions),
     ])

@@ -198,6 +198,38 @@ def test_the_stagger_is_a_time_in_range(tmp_path):
     assert _errors(tmp_path, 'stagger: -1 s\n' + machines)[0].startswith('stagger: ')
 
 
+def test_a_stagger_holds_each_rotor_at_rest_then_runs_it_up_i_x_stagger_later(tmp_path):
+    """Issue 39: ten hpotp running up through the resonance together cost several times
+    their steady state at once. Machine i's schedule holds its rotor at rest from 0 s and
+    commands the scene's running speed at i x stagger; machine 0 and a machine whose rotor
+    starts at speed (rbs) or that has none (sdof) get no such entries; a fault keeps its
+    index after the schedule file's entries."""
+    from impact_damper_sim.live.schedule import Schedule
+    path = _plant(tmp_path, """
+stagger: 1.5 s
+machines:
+  - {namespace: a, scene: hpotp}
+  - {namespace: b, scene: hpotp, faults: [{kind: gain, accelerometer: hpotp_casing_bottom,
+                                           gain: 2}]}
+  - {namespace: c, scene: hpotp}
+  - {namespace: d, scene: rbs}
+  - {namespace: e, scene: sdof, noise_std: 0.1}
+""")
+    plant = load_plant(path)
+    assert [m.run_up_speed for m in plant.machines] == [2400.0] * 3 + [None, None]
+    params = plant.node_parameters(schedule_dir=tmp_path / 'schedules')
+    assert 'schedule' not in params['a'] and 'schedule' not in params['d'] \
+        and 'schedule' not in params['e'], params
+    for ns, delay in (('b', 1.5), ('c', 3.0)):
+        entries = yaml.safe_load(Path(params[ns]['schedule']).read_text())['schedule']
+        assert entries[-2:] == [{'at': '0 s', 'speed': '0 rad/s'},
+                                {'at': f'{delay} s', 'speed': '2400.0 rad/s'}], entries
+        timeline = [(e.at, e.commands) for e in Schedule.load(params[ns]['schedule']).entries]
+        assert timeline[-1] == (delay, (('speed', 'topic', 'rotor/speed_command', 2400.0),)), \
+            timeline
+    assert 'fault' in yaml.safe_load(Path(params['b']['schedule']).read_text())['schedule'][0]
+
+
 def test_the_shipped_plants_load_and_are_found_by_name():
     assert {'ten_hpotp', 'mixed'} <= set(plant_files())
     ten = load_plant('ten_hpotp')

@@ -35,7 +35,7 @@ order given (the plant's first). Each machine is seeded apart: machine ``i`` (fr
 plant file gives it its own. Parameters after ``--ros-args -p`` apply to every machine where
 the plant does not set them. Only the first machine publishes ``/clock`` (``--clock``): one
 topic cannot carry several machines' sim times. ``--record-mode`` overrides the plant file's
-``record`` (``none``, ``per_machine``, ``one_log``).
+``record`` (``none``, ``per_machine``, ``one_log``), ``--stagger S`` its ``stagger``.
 
 Exit status as ``vibration_node``: 0 on Ctrl-C, SIGTERM or SIGHUP (every machine stopped and
 its recording finished), 2 (one line on stderr naming the machine or the option) when a plant
@@ -133,7 +133,7 @@ def _checked_share(share):
 
 
 def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='first',
-                  share=None, record_mode=None):
+                  share=None, record_mode=None, stagger=None):
     """The machines to host, in order: the plant file's, then ``machines``.
 
     Parameters
@@ -155,6 +155,9 @@ def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='fi
         ``publish_clock``). Default all.
     record_mode : str, optional
         Overrides the plant file's ``record`` (``none``, ``per_machine``, ``one_log``).
+    stagger : float, optional
+        Overrides the plant file's ``stagger`` (s): machine ``i``'s rotor runs up ``i`` x this
+        after machine 0's.
 
     Returns
     -------
@@ -183,6 +186,12 @@ def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='fi
                 raise SceneError(f"--record-mode {record_mode}: use one of "
                                  f"{' | '.join(RECORD_MODES)}")
             loaded = dataclasses.replace(loaded, record=record_mode)
+        if stagger is not None:
+            from ..scene.plant import STAGGER_MAX
+            if not 0 <= stagger <= STAGGER_MAX:
+                raise SceneError(f'--stagger {stagger:g}: give seconds from 0 to '
+                                 f'{STAGGER_MAX:g}')
+            loaded = dataclasses.replace(loaded, stagger=float(stagger))
         base = loaded.seed if seed is None else base
         params = loaded.node_parameters(record_dir=loaded.record_directory(record_dir)
                                         if loaded.record == 'per_machine' else None)
@@ -246,6 +255,9 @@ def _parser():
     parser.add_argument('--record-mode', default=None, metavar='MODE',
                         help="none, per_machine or one_log: overrides the plant file's "
                              'record')
+    parser.add_argument('--stagger', type=float, default=None, metavar='S',
+                        help="machine i's rotor runs up i x S s after machine 0's: overrides "
+                             "the plant file's stagger")
     parser.add_argument('--clock', choices=CLOCK_CHOICES, default='first',
                         help='which machines publish /clock (default: the first)')
     parser.add_argument('--share', default=None, metavar='I/K',
@@ -338,7 +350,8 @@ def main(args=None):
         share = None if options.share is None else parse_share(options.share)
         specs, notes = machine_specs(options.machines, options.plant, options.seed,
                                      options.record_dir, options.clock, share=share,
-                                     record_mode=options.record_mode)
+                                     record_mode=options.record_mode,
+                                     stagger=options.stagger)
     except SceneError as exc:
         print(f'plant_host: {exc}', file=sys.stderr)
         return 2

@@ -7,7 +7,7 @@ A plant file is YAML, checked at load like a scene (every problem is one line na
     seed: 100                   # base seed: machine i gets seed + i unless it gives its own
     record: per_machine         # none | per_machine | one_log
     record_dir: logs/pumps_a    # where the logs go (default: ./<plant>_<date>-<time>)
-    stagger: 2 s                # machine i starts i x this after the first (default 0)
+    stagger: 2 s                # machine i's rotor starts i x this after machine 0's (default 0)
     machines:
       - namespace: pump1        # ROS namespace: the node is /pump1/vibration_node
         scene: hpotp            # scene name or file (relative to the plant file)
@@ -55,6 +55,7 @@ import yaml
 from .catalog import resolve_scene, validated
 from .channel_spec import PRESETS
 from .containers import ListOf, Section
+from .excitation import speed_profile
 from .loading import load_yaml
 from .schema import (
     _INVALID,
@@ -78,8 +79,8 @@ __all__ = ['MACHINE_KEYS', 'PLANT_KEYS', 'RECORD_MODES', 'SCHEMA', 'SEED_MAX', '
 #: how a plant records: not at all, one MCAP per machine (each node's ``record``
 #: parameter), or one MCAP for all (the ``recorder`` node)
 RECORD_MODES = ('none', 'per_machine', 'one_log')
-#: the longest start stagger between two machines (s): a minute apart is a plant started by
-#: hand; more is a typo
+#: the longest stagger between two machines' run-ups (s): a minute apart is a plant started
+#: by hand; more is a typo
 STAGGER_MAX = 60.0
 
 #: the largest seed (``noise_seed``'s range, 2^31 - 1)
@@ -182,8 +183,9 @@ PLANT_KEYS = {
                              '= ./<plant>_<YYYYmmdd-HHMMSS>'),
     'record_overwrite': Boolean(False, doc='overwrite existing logs (otherwise refused)'),
     'stagger': Quantity('time', 0.0, min=0, max=STAGGER_MAX,
-                        doc='machine i (from 0) starts i x this after the first, as pumps of '
-                            'a plant are not all started at once (0: all together)'),
+                        doc="machine i's rotor (from 0) starts its run-up i x this after "
+                            "machine 0's, as a plant's pumps are started one after another "
+                            '(0: all together); the nodes all stream from the start'),
     'machines': ListOf(Section(MACHINE_KEYS), min_len=1, doc='the machines'),
 }
 
@@ -254,6 +256,9 @@ class Machine:
     overrides: tuple[str, ...]
     schedule: str | None
     faults: tuple[dict[str, Any], ...]
+    #: the running speed (rad/s) the scene's rotor runs up to from rest, which a staggered
+    #: start commands; None when it starts at speed (no run-up to stagger) or has no rotor
+    run_up_speed: float | None = None
 
     @property
     def flat_name(self) -> str:
@@ -275,21 +280,34 @@ class Machine:
             out.append(f'channel={self.preset}')
         return out
 
-    def schedule_text(self) -> str | None:
+    def schedule_text(self, start_delay: float = 0.0) -> str | None:
         """The YAML text of the machine's schedule (its schedule file's entries, then one
-        entry per fault, at 0 s), or None when it has neither (str)."""
-        if not self.faults:
+        entry per fault, at 0 s, then a staggered start's two), or None when it has neither
+        faults nor a staggered start (str).
+
+        Parameters
+        ----------
+        start_delay : float, optional
+            Hold the rotor at rest until this sim time (s), then command its running speed
+            (a rotor that runs up from rest; 0: it starts with the node).
+        """
+        start = (start_delay > 0 and self.run_up_speed is not None) and [
+            {'at': '0 s', 'speed': '0 rad/s'},
+            {'at': f'{start_delay!r} s', 'speed': f'{self.run_up_speed!r} rad/s'}]
+        if not self.faults and not start:
             return None
         entries: list[Any] = []
         if self.schedule is not None:
             entries = list(load_yaml(Path(self.schedule), kind='schedule')['schedule'])
         entries += fault_schedule_entries(self.faults)
+        entries += start or []   # last: faults[k] keeps its index after the file's entries
         head = (f'# schedule of machine {self.namespace} (plant file machines[{self.index}]): '
                 f'faults[k] is the entry after the schedule file\'s\n')
         return head + yaml.safe_dump({'schedule': entries}, sort_keys=False)
 
     def node_parameters(self, *, record: str = '', record_overwrite: bool = False,
-                        schedule_dir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+                        schedule_dir: str | os.PathLike[str] | None = None,
+                        start_delay: float = 0.0) -> dict[str, Any]:
         """The machine's ``vibration_node`` parameters (name -> value).
 
         Parameters
@@ -299,8 +317,11 @@ class Machine:
         record_overwrite : bool, optional
             Overwrite an existing log.
         schedule_dir : str or os.PathLike, optional
-            Where to write the schedule of a machine with faults (``<flat_name>.schedule.yaml``;
-            created); default a directory under the system's temporary directory.
+            Where to write the schedule of a machine with faults or a staggered start
+            (``<flat_name>.schedule.yaml``; created); default a directory under the system's
+            temporary directory.
+        start_delay : float, optional
+            The rotor's run-up starts at this sim time (s): :meth:`schedule_text`.
 
         Returns
         -------
@@ -317,7 +338,7 @@ class Machine:
             params['overrides'] = overrides
         if self.hardware_id:
             params['hardware_id'] = self.hardware_id
-        text = self.schedule_text()
+        text = self.schedule_text(start_delay)
         if text is not None:
             directory = Path(schedule_dir if schedule_dir is not None else
                              Path(tempfile.gettempdir()) / f'impact_damper_plant_{os.getuid()}')
@@ -359,7 +380,7 @@ class Plant:
     record_overwrite : bool
     machines : tuple of Machine
     stagger : float
-        Start of machine ``i`` after machine 0: ``i`` x this (s).
+        Machine ``i``'s rotor starts its run-up ``i`` x this after machine 0's (s).
     """
 
     name: str
@@ -402,13 +423,15 @@ class Plant:
                         schedule_dir: str | os.PathLike[str] | None = None
                         ) -> dict[str, dict[str, Any]]:
         """Every machine's node parameters, ``{namespace: {name: value}}``; per-machine
-        logs in ``record_dir`` (default :meth:`record_directory`)."""
+        logs in ``record_dir`` (default :meth:`record_directory`), machine ``i``'s run-up
+        ``i`` x :attr:`stagger` after machine 0's."""
         paths = (self.record_paths(record_dir if record_dir is not None
                                    else self.record_directory())
                  if self.record == 'per_machine' else {})
         return {m.namespace: m.node_parameters(record=str(paths.get(m.namespace, '')),
                                                record_overwrite=self.record_overwrite,
-                                               schedule_dir=schedule_dir)
+                                               schedule_dir=schedule_dir,
+                                               start_delay=m.index * self.stagger)
                 for m in self.machines}
 
     def labels(self) -> dict[str, Any]:
@@ -416,6 +439,16 @@ class Plant:
         :meth:`Machine.labels` (plain values)."""
         return {'plant': self.name, 'source': self.source, 'seed': self.seed,
                 'machines': [m.labels() for m in self.machines]}
+
+
+def _run_up_speed(rotor: Mapping[str, Any] | None) -> float | None:
+    """The speed (rad/s) a validated ``rotor`` section runs up to from rest; None without a
+    rotor or when it starts at speed."""
+    if rotor is None:
+        return None
+    profile = speed_profile(rotor['speed'])
+    final = float(profile.final_speed)
+    return final if float(profile.speed(0.0)) == 0.0 and final > 0 else None
 
 
 def fault_schedule_entries(faults: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
@@ -578,7 +611,8 @@ def load_plant(path: str | os.PathLike[str]) -> Plant:
                 errors.append(f'{where}.schedule: {schedule!r} has no schedule: list to add '
                               'the faults to')
         machine = dataclasses.replace(machine, scene_name=spec['name'],
-                                      effective_preset=spec['channel']['preset'])
+                                      effective_preset=spec['channel']['preset'],
+                                      run_up_speed=_run_up_speed(rotor))
         random = (machine.noise_std > 0 or _random_stage(spec['channel'])
                   or any(_random_stage(s.get('channel')) for s in spec['sensors']))
         if not random:
