@@ -11,34 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from decimator_reference import decimate_reference
 from impact_damper_sim.live.filters import StreamingDecimator
 from impact_damper_sim.live.realtime import LiveSimulation
 from impact_damper_sim.live.streams import live_scene
-
-
-def _decimate_fresh(dec, chunks):
-    """StreamingDecimator.apply with a new buffer and index arrays every chunk."""
-    n = len(dec.taps)
-    kernel = dec.taps[::-1].copy()
-    channels = np.arange(dec.n_channels)[None, :, None]
-    history = np.zeros((dec.n_channels, n - 1))
-    consumed = 0
-    out = []
-    for x in chunks:
-        buf = np.concatenate([history, x.T], axis=1)
-        start = consumed - history.shape[1]
-        consumed += len(x)
-        history = buf[:, buf.shape[1] - history.shape[1]:]
-        last = consumed - 1 - dec.delay
-        first = max(0, -(-(consumed - len(x) - dec.delay) // dec.factor) * dec.factor)
-        index = np.arange(first, last + 1, dec.factor, dtype=np.int64)
-        if index.size == 0:
-            out.append((index, np.empty((0, dec.n_channels))))
-            continue
-        lo = index + dec.delay - (n - 1) - start
-        windows = buf[channels, (lo[:, None] + np.arange(n))[:, None, :]].transpose(1, 0, 2)
-        out.append((index, (windows @ kernel).T))
-    return out
 
 
 @pytest.mark.parametrize('factor, channels', [(2, 6), (5, 3), (20, 12)])
@@ -50,7 +26,7 @@ def test_decimator_reused_buffers_give_the_fresh_windows(factor, channels):
     chunks = [rng.normal(0.0, 2.0, (k, channels)) for k in sizes]
     dec = StreamingDecimator(factor, 1000.0 * factor, channels)
     got = [dec.apply(x) for x in chunks]
-    want = _decimate_fresh(StreamingDecimator(factor, 1000.0 * factor, channels), chunks)
+    want = decimate_reference(StreamingDecimator(factor, 1000.0 * factor, channels), chunks)
     assert sum(len(i) for i, _ in got) > 20
     for (i_got, y_got), (i_want, y_want) in zip(got, want):
         assert np.array_equal(i_got, i_want)

@@ -11,35 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from decimator_reference import decimate_reference
 from impact_damper_sim.live.filters import StreamingDecimator
 from impact_damper_sim.recording.batches import CdrWriter
 from impact_damper_sim.recording.message_cdr import clock_cdr
 from impact_damper_sim.scene.excitation import CommandedSpeed
-
-
-def _decimate_reference(dec, chunks):
-    """StreamingDecimator.apply as it was: the windows of a sliding_window_view."""
-    taps = dec.taps
-    n = len(taps)
-    kernel = taps[::-1].copy()
-    history = np.zeros((dec.n_channels, n - 1))
-    consumed = 0
-    out = []
-    for x in chunks:
-        buf = np.concatenate([history, x.T], axis=1)
-        start = consumed - history.shape[1]
-        consumed += len(x)
-        history = buf[:, buf.shape[1] - history.shape[1]:]
-        last = consumed - 1 - dec.delay
-        first = max(0, -(-(consumed - len(x) - dec.delay) // dec.factor) * dec.factor)
-        index = np.arange(first, last + 1, dec.factor, dtype=np.int64)
-        if index.size == 0:
-            out.append((index, np.empty((0, dec.n_channels))))
-            continue
-        lo = index + dec.delay - (n - 1) - start
-        windows = np.lib.stride_tricks.sliding_window_view(buf, n, axis=1)[:, lo]
-        out.append((index, (windows @ kernel).T))
-    return out
 
 
 @pytest.mark.parametrize('factor, rate, channels', [(2, 2000.0, 6), (20, 20000.0, 12),
@@ -51,7 +27,7 @@ def test_decimator_windows_round_as_the_sliding_view(factor, rate, channels):
               for k in sizes]
     dec = StreamingDecimator(factor, rate, channels)
     got = [dec.apply(x) for x in chunks]
-    want = _decimate_reference(StreamingDecimator(factor, rate, channels), chunks)
+    want = decimate_reference(StreamingDecimator(factor, rate, channels), chunks)
     assert sum(len(i) for i, _ in got) > 10
     for (i_got, y_got), (i_want, y_want) in zip(got, want):
         assert np.array_equal(i_got, i_want)
