@@ -82,3 +82,6 @@ try:
     rclpy.spin(node)
 except (KeyboardInterrupt, ExternalShutdownException):
     pass
+except RuntimeError:   # Ctrl-C: rclpy's handler may shut the context down under spin's wait
+    if rclpy.ok():
+        raise
