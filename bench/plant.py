@@ -243,12 +243,10 @@ def plant_machines(name, stagger=None):
     plant's name and its stagger (s; ``stagger`` overrides the file's), its logs off (a bench
     measures the plant, not its disk)."""
     sys.path.insert(0, ROOT)
-    import dataclasses
-
     from impact_damper_sim.scene.plant import load_plant
     plant = load_plant(name)
     if stagger is not None:
-        plant = dataclasses.replace(plant, stagger=float(stagger))
+        plant = plant.with_stagger(stagger, f'--stagger {stagger:g}')
     params = plant.node_parameters(schedule_dir=tempfile.mkdtemp(prefix='plant_bench_'))
     out = []
     for m in plant.machines:

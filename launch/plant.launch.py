@@ -99,28 +99,6 @@ def plant_hosts(text, machines):
     return hosts
 
 
-def plant_stagger(text, default):
-    """The ``stagger`` launch argument -> seconds between two machines' run-ups (empty: the
-    plant file's ``default``).
-
-    Raises
-    ------
-    RuntimeError
-        Not a number of seconds in [0, STAGGER_MAX].
-    """
-    from impact_damper_sim.scene.plant import STAGGER_MAX
-    if not text:
-        return default
-    try:
-        stagger = float(text)
-    except ValueError:
-        stagger = -1.0
-    if not 0 <= stagger <= STAGGER_MAX:
-        raise RuntimeError(f'stagger:={text}: give seconds from 0 to {STAGGER_MAX:g} (machine '
-                           "i's rotor runs up i x this after machine 0's)")
-    return stagger
-
-
 def _plant_actions(context):
     from impact_damper_sim.scene.plant import RECORD_MODES, PlantError, load_plant
     get = lambda name: LaunchConfiguration(name).perform(context).strip()   # noqa: E731
@@ -135,8 +113,12 @@ def _plant_actions(context):
     if mode not in RECORD_MODES:
         raise RuntimeError(f"record_mode:={mode!r}: use one of {' | '.join(RECORD_MODES)}")
     hosts = plant_hosts(get('hosts'), len(plant.machines))
-    stagger = plant_stagger(get('stagger'), plant.stagger)
-    plant = dataclasses.replace(plant, stagger=stagger)
+    if get('stagger'):
+        try:
+            plant = plant.with_stagger(get('stagger'), f"stagger:={get('stagger')}")
+        except PlantError as exc:
+            raise RuntimeError(str(exc)) from None
+    stagger = plant.stagger
     if record_dir and mode == 'none':
         mode = 'per_machine'   # asked to record: each machine its own (complete) log
     plant = dataclasses.replace(plant, record=mode)

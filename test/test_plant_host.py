@@ -93,6 +93,20 @@ def test_share_text_that_is_not_i_over_k_is_refused_naming_the_option(text):
     assert parse_share(' 2/5') == (2, 5)
 
 
+def test_stagger_overrides_the_plant_files_and_a_bad_one_is_refused_naming_the_option():
+    """--stagger S (the launch's stagger:=S reaches every host so): machine i's schedule runs
+    its rotor up at i x S, the whole plant's index, in every share."""
+    import yaml
+    specs, _ = machine_specs(plant='ten_hpotp', stagger=2.0, share=(1, 5))
+    assert [s.namespace for s in specs] == ['pump02', 'pump07']
+    for spec, index in zip(specs, (1, 6)):
+        with open(spec.parameters['schedule']) as f:
+            entries = yaml.safe_load(f)['schedule']
+        assert entries[-1] == {'at': f'{2.0 * index!r} s', 'speed': '2400.0 rad/s'}, entries
+    with pytest.raises(SceneError, match=r'^--stagger -1: give seconds from 0 to 60 '):
+        machine_specs(plant='ten_hpotp', stagger=-1.0)
+
+
 def test_parse_machine_strips_the_leading_slash():
     assert parse_machine('/a/b:rbs_kcc') == ('a/b', 'rbs_kcc')
 

@@ -290,6 +290,11 @@ class FaultInjector:
                 and (f.hi is None or f.hi > (self._done[f.acc] or 0)) and
                 (f.hi is None or f.hi > f.lo)]
 
+    def has_faults(self, acc_index: int) -> bool:
+        """Whether any fault was ever added to accelerometer ``acc_index`` (over or not): one
+        without can skip :meth:`hook` and needs :meth:`after_limit` only for its bookkeeping."""
+        return bool(self._by_acc[acc_index])
+
     # -- streams -----------------------------------------------------------------------------
     def _start(self, t: npt.ArrayLike, k: int) -> int:
         """Index of a chunk's first sample from its times ``t`` (s; array, or the first)."""
@@ -396,19 +401,6 @@ class FaultInjector:
         self._last[acc_index] = last
         self._done[acc_index] = n0 + k
         return samples, valid
-
-    def _pass(self, n0: int, samples: np.ndarray, acc_index: int) -> None:
-        """:meth:`after_limit` of an accelerometer that has no fault, from the index ``n0``
-        of the chunk's first sample: it only keeps the last value read and where the
-        stream is (the samples stay as they are, all valid)."""
-        k = len(samples)
-        if k == 0:
-            return
-        if self._done[acc_index] is not None and n0 != self._done[acc_index]:
-            raise ValueError(f'chunk starts at sample {n0}; the last one ended before '
-                             f'{self._done[acc_index]}: chunks must follow each other')
-        self._last[acc_index] = samples[-1].copy()
-        self._done[acc_index] = n0 + k
 
     def apply(self, t: npt.ArrayLike, samples: npt.ArrayLike, acc_index: int,
               limit: Callable[[np.ndarray], object] | None = None

@@ -543,7 +543,6 @@ class LiveSimulation:
                 self._mean_work.clear()
             mean = self._mean_work[n_steps] = np.empty((n_steps, 3))
         v_prev, dt = self._v_prev, self._dt_0d
-        n0 = round(float(t[0]) * faults.sample_rate_hz) if k else 0   # as faults._start
         for a, channel in enumerate(self.channels):
             # mean acceleration over each step, translations only (rotations give rates):
             # the difference of the velocities at the steps' ends (the first from the last
@@ -556,13 +555,13 @@ class LiveSimulation:
             # the faults that change values act before the range and ADC (a gain clips, and
             # the clip count counts it), the rest after them (stuck, missing samples)
             out = lin[:, a, :]
-            if faults._by_acc[a]:
+            if faults.has_faults(a):
                 clipped[a] = channel._process_into(mean, faults.hook(t, a), out,
                                                    truth[:, a, :])
                 valid[:, a] = faults.after_limit(t, out, a)[1]
-            else:   # no fault: the stream's position and last value only
+            else:   # no fault: every sample valid; the injector keeps the last one read
                 clipped[a] = channel._process_into(mean, None, out, truth[:, a, :])
-                faults._pass(n0, out, a)
+                faults.after_limit(t[0] if k else t, out, a)
             ang[:, a, :] = vel[pick, c + 3:c + 6]
         if n_steps:
             self._v_prev = vel[-1].copy()

@@ -187,11 +187,7 @@ def machine_specs(machines=(), plant=None, seed=None, record_dir=None, clock='fi
                                  f"{' | '.join(RECORD_MODES)}")
             loaded = dataclasses.replace(loaded, record=record_mode)
         if stagger is not None:
-            from ..scene.plant import STAGGER_MAX
-            if not 0 <= stagger <= STAGGER_MAX:
-                raise SceneError(f'--stagger {stagger:g}: give seconds from 0 to '
-                                 f'{STAGGER_MAX:g}')
-            loaded = dataclasses.replace(loaded, stagger=float(stagger))
+            loaded = loaded.with_stagger(stagger, f'--stagger {stagger:g}')
         base = loaded.seed if seed is None else base
         params = loaded.node_parameters(record_dir=loaded.record_directory(record_dir)
                                         if loaded.record == 'per_machine' else None)

@@ -197,7 +197,11 @@ class _Knots:
         if seg is None:
             k_, dt_, s_ = self._locate(t)
             return self._angle_at(k_, dt_, s_), self._speed_at(k_, dt_, s_), s_
-        k, s = seg
+        return self._parts_on(*seg, t)
+
+    def _parts_on(self, k: int, s: float, t: FloatArray
+                  ) -> tuple[FloatOrArray, FloatOrArray, FloatOrArray]:
+        """:meth:`state_parts` of times ``t`` that all lie in segment ``k`` of slope ``s``."""
         if t.ndim == 0:
             dt = float(t) - self._tl[k]
             w_k = self._wl[k]
@@ -229,11 +233,7 @@ class _Knots:
         seg = self._segment(t)
         if seg is None:
             return self._raw_angle(t)
-        k, s = seg
-        if t.ndim == 0:
-            dt = float(t) - self._tl[k]
-            return np.float64(self._phil[k] + self._wl[k] * dt + 0.5 * s * dt * dt)
-        return self._angle_one(k, t - self._tl[k], s)
+        return self._parts_on(*seg, t)[0]
 
     def _time_one(self, a: FloatArray) -> FloatOrArray | None:
         """:meth:`time_at` for angles ``a`` all after the first knot's, on one segment, within

@@ -43,6 +43,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import datetime
+import math
 import os
 import re
 import tempfile
@@ -433,6 +434,25 @@ class Plant:
                                                schedule_dir=schedule_dir,
                                                start_delay=m.index * self.stagger)
                 for m in self.machines}
+
+    def with_stagger(self, value: float | str, name: str = 'stagger') -> Plant:
+        """This plant with its :attr:`stagger` set to ``value`` (s; a launch argument's text
+        or a number).
+
+        Raises
+        ------
+        PlantError
+            ``value`` is not a number of seconds in [0, :data:`STAGGER_MAX`]; the message
+            starts with ``name`` (``stagger:=9000``, ``--stagger 9000``).
+        """
+        try:
+            stagger = float(value)
+        except ValueError:
+            stagger = math.nan
+        if not 0 <= stagger <= STAGGER_MAX:
+            raise PlantError(f'{name}: give seconds from 0 to {STAGGER_MAX:g} (machine i\'s '
+                             "rotor runs up i x this after machine 0's)")
+        return dataclasses.replace(self, stagger=stagger)
 
     def labels(self) -> dict[str, Any]:
         """The plant's labels for a log's metadata: name, file, seed and each machine's
