@@ -20,8 +20,10 @@ class HandoffLock:
 
     def __enter__(self):
         self.waiting += 1
-        self._lock.acquire()
-        self.waiting -= 1
+        try:
+            self._lock.acquire()
+        finally:   # an interrupted wait leaves no waiter counted for ever
+            self.waiting -= 1
         return self
 
     def __exit__(self, *exc_info):

@@ -59,8 +59,10 @@ from .monitor_machine import (
 )
 from .parameters import serve_unset_parameters
 from .process import (
+    SignalStop,
     freeze_start_up_heap,
     ignore_further_interrupts,
+    report_a_stuck_clean_up,
     settle_interrupt,
     shutdown_quietly,
     spin_guarded,
@@ -368,25 +370,34 @@ def _say(logger, ok, text):
 def main(args=None):
     """Run the ``monitor`` node until Ctrl-C or an external shutdown.
 
-    Exit status 0 on Ctrl-C or shutdown, 2 (one line on stderr) when a start-up parameter is
-    invalid.
+    Exit status 0 on Ctrl-C, SIGTERM, SIGHUP or shutdown, 2 (one line on stderr) when a
+    start-up parameter is invalid.
     """
+    stop = SignalStop()   # before rclpy.init: rclpy's handlers chain to it
     rclpy.init(args=args)
     node = None
     try:
         node = VibrationMonitor()
+        stop.begin_running()   # signals only noted from here: its threads start
         freeze_start_up_heap()   # its windows run every report: no walks of start-up objects
         executor = rclpy.executors.SingleThreadedExecutor()
         executor.add_node(node)
         spin_guarded(executor, lambda exc: node.get_logger().error(
             f'callback failed: {type(exc).__name__}: {exc}', throttle_duration_sec=1.0))
     except (KeyboardInterrupt, ExternalShutdownException):
-        ignore_further_interrupts()
-        settle_interrupt()
+        pass
     except (MonitorParameterError, ParameterException) as exc:
         print(f'monitor: {exc}', file=sys.stderr)
         return 2
+    except Exception:
+        if not stop.received:
+            raise
+        # the signal's shutdown under start-up ("context is invalid"): a stop, not a failure
     finally:
+        report_a_stuck_clean_up()
+        if stop.received:
+            ignore_further_interrupts()
+            settle_interrupt()
         if node is not None:
             node.destroy_node()
         shutdown_quietly()

@@ -325,7 +325,6 @@ def main(args=None):
     Exit status 0 on Ctrl-C or shutdown, 2 (one line on stderr) when the plant file, a
     machine's scene or a start-up parameter is invalid.
     """
-    import signal
     sys.setswitchinterval(SWITCH_INTERVAL)
 
     import rclpy
@@ -334,8 +333,10 @@ def main(args=None):
 
     from ..scene.schema import SceneError
     from .process import (
+        SignalStop,
         freeze_start_up_heap,
         ignore_further_interrupts,
+        report_a_stuck_clean_up,
         settle_interrupt,
         shutdown_quietly,
         spin_guarded,
@@ -351,15 +352,16 @@ def main(args=None):
     except SceneError as exc:
         print(f'plant_host: {exc}', file=sys.stderr)
         return 2
+    # Ctrl-C, SIGTERM and a closed terminal end the spin; each recording is finished
+    stop = SignalStop()   # before rclpy.init: rclpy's handlers chain to it
     rclpy.init(args=argv)
-    # a closed terminal ends the plant as SIGTERM does, finishing every recording
-    signal.signal(signal.SIGHUP, lambda *_: signal.raise_signal(signal.SIGTERM))
     log = rclpy.logging.get_logger('plant_host')
     for note in notes:
         log.info(note)
     nodes = []
     try:
         nodes = build_machines(specs)
+        stop.begin_running()   # signals only noted from here: the machines' threads start
         freeze_start_up_heap()   # once, after every machine: no full collections while paced
         for node in nodes:
             node.start()
@@ -373,12 +375,19 @@ def main(args=None):
         spin_guarded(executor, lambda exc: log.error(
             f'callback failed: {type(exc).__name__}: {exc}', throttle_duration_sec=1.0))
     except (KeyboardInterrupt, ExternalShutdownException):
-        ignore_further_interrupts()
-        settle_interrupt()
+        pass
     except MachineError as exc:
         print(f'plant_host: {exc}', file=sys.stderr)
         return 2
+    except Exception:
+        if not stop.received:
+            raise
+        # the signal's shutdown under start-up ("context is invalid"): a stop, not a failure
     finally:
+        report_a_stuck_clean_up()
+        if stop.received:
+            ignore_further_interrupts()
+            settle_interrupt()
         for node in nodes:
             node.destroy_node()
         shutdown_quietly()

@@ -1,12 +1,18 @@
 """A node process's life: guarded spinning, the start-up heap, interrupts and shutdown.
 
-:func:`spin_guarded`, :func:`settle_interrupt` and :func:`shutdown_quietly` spin and end a
-``main`` without racing rclpy's own SIGINT handler, which shuts the context down on another
-thread; :func:`ignore_further_interrupts` keeps a second SIGINT from interrupting the
-clean-up; :func:`freeze_start_up_heap` keeps the collector off the start-up objects.
+:class:`SignalStop` turns SIGINT, SIGTERM and SIGHUP into a flag and a shut-down context,
+never into an exception in the middle of a callback; :func:`spin_guarded`,
+:func:`settle_interrupt` and :func:`shutdown_quietly` spin and end a ``main`` without racing
+rclpy's own handler, which shuts the context down on another thread;
+:func:`ignore_further_interrupts` keeps a second SIGINT from interrupting the clean-up;
+:func:`thread_stack` and :func:`report_a_stuck_clean_up` say where a thread that will not
+stop is; :func:`freeze_start_up_heap`
+keeps the collector off the start-up objects.
 """
 from __future__ import annotations
 
+import signal
+import sys
 import time
 
 
@@ -35,6 +41,85 @@ def spin_guarded(executor, report):
                 # Ctrl-C shut the context down under the wait ("context is not valid")
                 raise ExternalShutdownException() from exc
             report(exc)
+
+
+class SignalStop:
+    """Ends a node process's ``main`` on SIGINT, SIGTERM or SIGHUP without raising in the
+    middle of a running node's callback.
+
+    Python's default SIGINT handler raises ``KeyboardInterrupt`` at whatever bytecode the
+    main thread runs next. Raised just after a callback took the node's lock and before the
+    ``try`` that releases it, it leaked the lock: the stepping thread waited for it for ever,
+    ``destroy_node`` waited for the stepping thread, and ``ros2 launch`` had to SIGKILL the
+    node 15 s later (once in CI, a two-machine plant). It happens when the signal reaches
+    another thread while the main thread waits for the lock, so the wait goes on, succeeds,
+    and the pending interrupt is raised one bytecode later.
+
+    Construct it before ``rclpy.init``: rclpy's handlers (SIGINT and SIGTERM: they shut the
+    context down and wake the executor's wait) then chain to these. While the node is being
+    built SIGINT still raises ``KeyboardInterrupt``, so Ctrl-C cuts a long start-up (a cold
+    kernel cache) short; no lock is shared yet. Call :meth:`begin_running` before the
+    stepping thread starts: from then on a signal is only noted, and the spin ends with
+    ``ExternalShutdownException``, as it always did on SIGTERM. SIGHUP (a closed terminal) is
+    raised again as SIGTERM, so it ends the node the same way.
+
+    Attributes
+    ----------
+    signum : int or None
+        The first signal received (SIGINT, SIGTERM), or None.
+    """
+
+    def __init__(self):
+        self.signum = None
+        self._interrupt = True
+        signal.signal(signal.SIGINT, self._note)
+        signal.signal(signal.SIGTERM, self._note)
+        signal.signal(signal.SIGHUP, lambda *_: signal.raise_signal(signal.SIGTERM))
+
+    def _note(self, signum, frame):
+        if self.signum is None:
+            self.signum = signum
+        if self._interrupt and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+
+    def begin_running(self):
+        """From now on only note a signal (the node's threads and callbacks start next);
+        raise ``ExternalShutdownException`` if one came while the node was built (SIGTERM,
+        or a SIGINT caught by start-up code): the spin that follows would not see it."""
+        from rclpy.executors import ExternalShutdownException
+        self._interrupt = False
+        if self.received:
+            raise ExternalShutdownException()
+
+    @property
+    def received(self):
+        """True once a stop signal arrived."""
+        return self.signum is not None
+
+
+def report_a_stuck_clean_up(timeout_s=4.0):
+    """Print every thread's stack to stderr if the clean-up that begins now still runs after
+    ``timeout_s`` (s); :func:`shutdown_quietly` cancels it.
+
+    ``ros2 launch`` sends SIGTERM 5 s after SIGINT and SIGKILL 10 s later, and a killed
+    process says nothing about where it hung. ``faulthandler`` writes from a thread of its
+    own, without the GIL, so it reports a deadlocked process too.
+    """
+    import faulthandler
+    try:
+        faulthandler.dump_traceback_later(timeout_s, exit=False, file=sys.__stderr__)
+    except (AttributeError, OSError, ValueError):   # no stderr file (an embedding host)
+        pass
+
+
+def thread_stack(thread, limit=8):
+    """The innermost ``limit`` frames of a running ``thread``, formatted (str), for a log
+    that must say where a thread is stuck."""
+    import traceback
+    frame = sys._current_frames().get(thread.ident)
+    if frame is None:
+        return '  (no stack: the thread has ended)'
+    return ''.join(traceback.format_stack(frame)[-limit:]).rstrip()
 
 
 def freeze_start_up_heap():
@@ -67,7 +152,6 @@ def ignore_further_interrupts():
     launch's SIGINT and the group's: the second one interrupted ``destroy_node`` with a
     traceback (launch reported exit code -2); the first one already asked to stop.
     """
-    import signal
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
@@ -88,8 +172,11 @@ def settle_interrupt(context=None, timeout_s=1.0):
 
 def shutdown_quietly(context=None):
     """``rclpy.try_shutdown``, taking "already shut down" by the SIGINT handler as done."""
+    import faulthandler
+
     import rclpy
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    faulthandler.cancel_dump_traceback_later()   # the clean-up got this far
     try:
         rclpy.try_shutdown(context=context)
     except _rclpy.RCLError:
@@ -97,5 +184,6 @@ def shutdown_quietly(context=None):
             raise   # a failure of our own, not the handler's shutdown
 
 
-__all__ = ['freeze_start_up_heap', 'ignore_further_interrupts', 'settle_interrupt',
-           'shutdown_quietly', 'spin_guarded']
+__all__ = ['SignalStop', 'freeze_start_up_heap', 'ignore_further_interrupts',
+           'report_a_stuck_clean_up', 'settle_interrupt', 'shutdown_quietly', 'spin_guarded',
+           'thread_stack']

@@ -45,11 +45,14 @@ from .node_recording import Recording
 from .notices import BusyNotice, NameClash, ThrottledLog
 from .parameters import PARAMETERS, RCLPY_PARAMETERS, ParameterError, check, declare_all
 from .process import (
+    SignalStop,
     freeze_start_up_heap,
     ignore_further_interrupts,
+    report_a_stuck_clean_up,
     settle_interrupt,
     shutdown_quietly,
     spin_guarded,
+    thread_stack,
 )
 from .service_guard import guard_services
 
@@ -423,16 +426,29 @@ class VibrationNode(Node):
             return f'stepping thread stalled for {wall - self._heartbeat:.1f} s'
         return ''
 
+    #: How long :meth:`stop` waits for the stepping thread (s): under the 5 s ``ros2 launch``
+    #: gives a node between SIGINT and SIGTERM. A chunk takes milliseconds.
+    STOP_WAIT = 3.0
+
     def stop(self):
-        """Stop the stepping thread and wait for it (idempotent).
+        """Stop the stepping thread and wait for it, at most :attr:`STOP_WAIT` (idempotent).
 
         What was already stepped (up to 2 + ``Outbox.REFILL`` chunks ahead of the clock) is
-        published and recorded now, so the counters, the topics and the log agree.
+        published and recorded now, so the counters, the topics and the log agree. A thread
+        that does not stop in time is a bug: its stack is logged at ERROR and the node goes
+        on shutting down (the thread is a daemon) rather than hang until ``ros2 launch``
+        kills it.
         """
         self._stop.set()
         self._wake.set()
-        if self._thread is not None:
-            self._thread.join()
+        thread = self._thread
+        if thread is not None:
+            thread.join(self.STOP_WAIT)
+            if thread.is_alive():   # a daemon: it does not hold the process up
+                self._log('error', f'the stepping thread did not stop within '
+                                   f'{self.STOP_WAIT:g} s; left behind, nothing flushed. '
+                                   f'It was at:\n{thread_stack(thread)}')
+                return
             self._thread = None
         if self.context.ok():
             self._flush()
@@ -561,20 +577,18 @@ class VibrationNode(Node):
 def main(args=None):
     """Entry point: ``ros2 run impact_damper_sim vibration_node [--ros-args ...]``.
 
-    Exit status 0 on Ctrl-C or shutdown, 2 (one line on stderr) when the scene or a start-up
-    parameter is invalid. The form of ros2/demos' Jazzy talker (rclpy 7 has no
-    ``with rclpy.init()``: it returns None).
+    Exit status 0 on Ctrl-C, SIGTERM, SIGHUP or shutdown, 2 (one line on stderr) when the
+    scene or a start-up parameter is invalid. The form of ros2/demos' Jazzy talker (rclpy 7
+    has no ``with rclpy.init()``: it returns None), with signals that end the spin instead
+    of raising in a callback (:class:`~.process.SignalStop`).
     """
-    import signal
-
     from rclpy.exceptions import ParameterException
+    stop = SignalStop()   # before rclpy.init: rclpy's handlers chain to it
     rclpy.init(args=args)
-    # a closed terminal or an ended remote session (SIGHUP) ends the node as SIGTERM does,
-    # finishing any recording, instead of killing it mid-file
-    signal.signal(signal.SIGHUP, lambda *_: signal.raise_signal(signal.SIGTERM))
     node = None
     try:
         node = VibrationNode(start_stepping=False)
+        stop.begin_running()   # signals only noted from here: the node's threads start
         freeze_start_up_heap()   # no 150 ms full collections of start-up objects while paced
         node.start()
         executor = SingleThreadedExecutor()
@@ -582,12 +596,19 @@ def main(args=None):
         spin_guarded(executor, lambda exc: node._log(
             'error', f'callback failed: {type(exc).__name__}: {exc}', 1.0, 'spin'))
     except (KeyboardInterrupt, ExternalShutdownException):
-        ignore_further_interrupts()
-        settle_interrupt()
+        pass
     except (SceneError, ParameterException) as exc:
         print(f'vibration_node: {exc}', file=sys.stderr)
         return 2
+    except Exception:
+        if not stop.received:
+            raise
+        # the signal's shutdown under start-up ("context is invalid"): a stop, not a failure
     finally:
+        report_a_stuck_clean_up()
+        if stop.received:
+            ignore_further_interrupts()
+            settle_interrupt()
         if node is not None:
             node.destroy_node()
         shutdown_quietly()
