@@ -17,8 +17,8 @@ import pytest
 
 from node_helpers import make_node
 
-# A holder thread takes the lock, signals SIGINT to itself (so the main thread's wait is not
-# interrupted), then releases it; the main thread waits for the lock meanwhile.
+# A holder thread takes the lock, waits until the main thread waits for it, signals SIGINT to
+# itself (so the main thread's wait is not interrupted), then releases it.
 _RACE = textwrap.dedent('''
     import signal, sys, threading, time
     from impact_damper_sim.ros.handoff import HandoffLock
@@ -31,7 +31,10 @@ _RACE = textwrap.dedent('''
     def holder():
         with lock:
             held.set()
-            time.sleep(0.2)   # the main thread is waiting for the lock by now
+            deadline = time.monotonic() + 60.0
+            while lock.waiting == 0 and time.monotonic() < deadline:
+                time.sleep(0.001)   # until the main thread counts itself a waiter
+            time.sleep(0.05)   # and is inside the lock's acquire
             signal.pthread_kill(threading.get_ident(), signal.SIGINT)
             time.sleep(0.2)
 
