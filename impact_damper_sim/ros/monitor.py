@@ -61,9 +61,6 @@ from .parameters import serve_unset_parameters
 from .process import (
     SignalStop,
     freeze_start_up_heap,
-    ignore_further_interrupts,
-    report_a_stuck_clean_up,
-    settle_interrupt,
     shutdown_quietly,
     spin_guarded,
 )
@@ -394,10 +391,7 @@ def main(args=None):
             raise
         # the signal's shutdown under start-up ("context is invalid"): a stop, not a failure
     finally:
-        report_a_stuck_clean_up()
-        if stop.received:
-            ignore_further_interrupts()
-            settle_interrupt()
+        stop.begin_clean_up()
         if node is not None:
             node.destroy_node()
         shutdown_quietly()

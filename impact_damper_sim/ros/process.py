@@ -6,8 +6,7 @@ never into an exception in the middle of a callback; :func:`spin_guarded`,
 rclpy's own handler, which shuts the context down on another thread;
 :func:`ignore_further_interrupts` keeps a second SIGINT from interrupting the clean-up;
 :func:`thread_stack` and :func:`report_a_stuck_clean_up` say where a thread that will not
-stop is; :func:`freeze_start_up_heap`
-keeps the collector off the start-up objects.
+stop is; :func:`freeze_start_up_heap` keeps the collector off the start-up objects.
 """
 from __future__ import annotations
 
@@ -95,6 +94,15 @@ class SignalStop:
     def received(self):
         """True once a stop signal arrived."""
         return self.signum is not None
+
+    def begin_clean_up(self):
+        """Start a ``main``'s clean-up (its ``finally``): report it if it hangs
+        (:func:`report_a_stuck_clean_up`, cancelled by :func:`shutdown_quietly`); after a
+        signal, ignore further SIGINTs and let rclpy's handler finish its shutdown first."""
+        report_a_stuck_clean_up()
+        if self.received:
+            ignore_further_interrupts()
+            settle_interrupt()
 
 
 def report_a_stuck_clean_up(timeout_s=4.0):

@@ -47,9 +47,6 @@ from .parameters import PARAMETERS, RCLPY_PARAMETERS, ParameterError, check, dec
 from .process import (
     SignalStop,
     freeze_start_up_heap,
-    ignore_further_interrupts,
-    report_a_stuck_clean_up,
-    settle_interrupt,
     shutdown_quietly,
     spin_guarded,
     thread_stack,
@@ -437,7 +434,8 @@ class VibrationNode(Node):
         published and recorded now, so the counters, the topics and the log agree. A thread
         that does not stop in time is a bug: its stack is logged at ERROR and the node goes
         on shutting down (the thread is a daemon) rather than hang until ``ros2 launch``
-        kills it.
+        kills it. One stuck inside a chunk still holds the lock, which finishing a recording
+        waits for; ``main``'s clean-up report then prints where every thread is.
         """
         self._stop.set()
         self._wake.set()
@@ -605,10 +603,7 @@ def main(args=None):
             raise
         # the signal's shutdown under start-up ("context is invalid"): a stop, not a failure
     finally:
-        report_a_stuck_clean_up()
-        if stop.received:
-            ignore_further_interrupts()
-            settle_interrupt()
+        stop.begin_clean_up()
         if node is not None:
             node.destroy_node()
         shutdown_quietly()
