@@ -56,17 +56,18 @@ def test_the_node_refuses_a_tiny_imu_rate_naming_the_parameter(ros_context):
 
 
 def test_pacing_at_the_slowest_imu_rate_sends_on_time_and_sleeps_until_the_next_item():
-    """At 1 Hz (the slowest Imu stream from 2 kHz) a wake-up's horizon is EARLY, not 1.1 Imu
-    periods, it may send BURST samples, and the thread sleeps until the next full-rate item,
-    never 0 (no spin) and never an Imu period (no stall)."""
+    """At 1 Hz (the slowest Imu stream from 2 kHz) a wake-up's horizon is ``early`` (1.2 ms
+    for pairs), not 1.1 Imu periods, it may send a group of samples, and the thread sleeps
+    until the next full-rate item, never 0 (no spin) and never an Imu period (no stall)."""
     clock = FakeClock()
-    box = Outbox(Pacer(1.0, 0.0, clock=clock), imu_rate=1.0, lookahead=0.01, chunk=0.01)
+    box = Outbox(Pacer(1.0, 0.0, clock=clock), imu_rate=1.0, lookahead=0.01, chunk=0.01,
+                 group=2)
     for i in range(1, 21):                      # a 10 ms chunk of 2 kHz batch items
         box.put(i * 500_000, 'batch', None, True)
     box.send_due(clock.now, 0.01, lambda *item: None)
     horizon, burst = box.allowance(clock.now)
-    assert horizon - clock.now == pytest.approx(Outbox.EARLY, abs=1e-9)
-    assert burst == Outbox.BURST
+    assert horizon - clock.now == pytest.approx(1.2e-3, abs=1e-9)
+    assert burst == 2
     sent = []
     clock.now += 2e-3
     box.send_due(clock.now, 0.01, lambda *item: sent.append(item[0]))
@@ -74,3 +75,22 @@ def test_pacing_at_the_slowest_imu_rate_sends_on_time_and_sleeps_until_the_next_
     sleep = box.wait(False, clock.now, 0.01, longest=0.1)
     assert sleep == pytest.approx(1.5e-3, abs=1e-12)
     assert math.isfinite(sleep) and sleep > 0
+
+
+def test_imu_group_reaches_the_outbox_and_a_bad_one_is_refused_naming_it(ros_context):
+    """``imu_group`` (default 4) is the group size of the node's outbox; 5 is refused at
+    start naming the parameter and its range."""
+    from impact_damper_sim.ros.parameters import ParameterError
+    node = make_node(ros_context, 'sdof', sample_rate=2000.0)
+    try:
+        assert node.outbox.burst == 4 and node.outbox.early == pytest.approx(3.2e-3)
+    finally:
+        node.destroy_node()
+    node = make_node(ros_context, 'sdof', sample_rate=2000.0, imu_group=1)
+    try:
+        assert node.outbox.burst == 1 and node.outbox.early == pytest.approx(2e-4)
+    finally:
+        node.destroy_node()
+    with pytest.raises(ParameterError) as refused:
+        make_node(ros_context, 'sdof', sample_rate=2000.0, imu_group=5)
+    assert "parameter 'imu_group'" in str(refused.value) and '[1, 4]' in str(refused.value)

@@ -20,12 +20,12 @@ class Clock:
         return self.now
 
 
-def outbox(rtf=1.0, clock=None, seconds=0.2, wire=True):
+def outbox(rtf=1.0, clock=None, seconds=0.2, wire=True, group=Outbox.GROUP):
     """An outbox holding ``seconds`` of one accelerometer's 2 kHz samples from t = 0, and
     what it sent: (ns, wall s)."""
     clock = clock or Clock()
     box = Outbox(Pacer(rtf, 0.0, clock=clock), imu_rate=IMU_RATE, lookahead=0.01,
-                 chunk=0.01, limited=['acc'])
+                 chunk=0.01, limited=['acc'], group=group)
     for k in range(1, int(round(seconds * IMU_RATE)) + 1):
         box.put(k * 500_000, 'acc', b'', wire)
     sent = []
@@ -39,7 +39,7 @@ def test_items_never_leave_more_than_early_before_their_time():
         clock.now += box.wait(held, clock.now, 0.2, 0.01)
     assert len(sent) >= 190
     early = max(box.pacer.wall_at(ns * 1e-9) - wall for ns, wall in sent)
-    assert early <= Outbox.EARLY + 1e-12
+    assert early <= box.early + 1e-12
 
 
 def test_a_backlog_drains_at_catch_up_rate_in_groups_of_max_burst():
@@ -90,7 +90,7 @@ def test_a_reset_makes_no_deficit():
     plan = box.plan(clock.now, 0.2)
     assert plan.lag <= 0.0 and box.pacer.deficits == 0
     box.send_due(clock.now, 0.2, send)
-    assert len(sent) <= Outbox.BURST   # on time again: a pair, not 10 000 samples
+    assert len(sent) <= box.burst   # on time again: a group, not 10 000 samples
 
 
 def test_a_long_lag_is_dropped_as_one_deficit():
@@ -140,3 +140,34 @@ def test_stepping_refills_refill_chunks_beyond_lookahead_then_waits():
 def test_factor_zero_steps_one_chunk_per_plan():
     box, clock, sent, send = outbox(rtf=0.0)
     assert box.plan(clock.now, 0.2).chunks == 1
+
+
+@pytest.mark.parametrize('group', [1, 2, 4])
+def test_on_time_a_wake_up_sends_one_group_each_sample_by_its_time(group):
+    """At 1 kHz on time, each wake-up sends exactly ``group`` samples (so 1000 / group
+    wake-ups a second; the first, at t = 0 with the first sample 1 ms away, fewer), none of
+    them more than ``group - 1`` periods + 0.2 ms before its time and none after it."""
+    clock = Clock()
+    box = Outbox(Pacer(1.0, 0.0, clock=clock), imu_rate=1000.0, lookahead=0.01, chunk=0.01,
+                 limited=['acc'], group=group)
+    for k in range(1, 201):
+        box.put(k * 1_000_000, 'acc', b'', True)
+    sent, groups = [], []
+    while box.pending:
+        n0 = len(sent)
+        held = box.send_due(clock.now, 0.2, lambda ns, *_: sent.append((ns, clock.now)))
+        if len(sent) > n0:
+            groups.append(len(sent) - n0)
+        assert not held
+        clock.now += box.wait(held, clock.now, 0.2, 0.01)
+    assert set(groups[1:-1]) == {group} and max(groups) == group and sum(groups) == 200
+    assert len(groups) <= 200 // group + 1
+    lead = [box.pacer.wall_at(ns * 1e-9) - wall for ns, wall in sent]
+    assert max(lead) == pytest.approx((group - 1) * 1e-3, abs=1e-9)
+    assert max(lead) <= box.early and min(lead) >= -1e-12
+
+
+@pytest.mark.parametrize('group', [0, 5, 2.0, True])
+def test_a_bad_group_is_refused_naming_it_and_its_range(group):
+    with pytest.raises(PacingError, match=r'Imu group: .*\[1, 4\], got'):
+        Outbox(Pacer(1.0, 0.0), imu_rate=1000.0, lookahead=0.01, chunk=0.01, group=group)

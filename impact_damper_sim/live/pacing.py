@@ -6,7 +6,7 @@ ROS-free, on an injected wall clock, so the rules are tested with plain Python
 * :class:`Pacer` maps wall time to sim time for a real-time factor and drops a deficit
   longer than ``max_lag``.
 * :class:`Outbox` holds the items stepped ahead of their time, in time order, and decides
-  which leave at a wake-up (at most ``EARLY`` before their time, in small groups when a
+  which leave at a wake-up (at most ``early`` before their time, in small groups when a
   backlog built up), when the next chunk is stepped and how long the thread sleeps.
 
 Items are ``(ns, key, payload, wire)``: sim time (ns), an opaque key (the node's outlet),
@@ -144,24 +144,34 @@ class Outbox:
     limited : iterable
         Keys of the per-sample streams whose sends per wake-up are limited (one
         accelerometer each).
+    group : int
+        Imu samples per accelerometer a paced wake-up sends (dimensionless), 1 to
+        :attr:`MAX_BURST`; default :attr:`GROUP`.
+
+    Raises
+    ------
+    PacingError
+        ``group`` out of range.
     """
 
-    #: how early (wall s) an item may be published with the one due before it, at most
-    EARLY = 1.2e-3
-    #: ... and in per-sample Imu periods: 1.1 sends each Imu sample with the one before it,
-    #: so one wake-up sends 2 samples per accelerometer (every 2 ms at 1 kHz): half the
-    #: wake-ups of one sample each, and a keep-last-5 reader holds 2 such pairs
-    EARLY_SAMPLES = 1.1
-    #: Imu samples per accelerometer any wake-up may send (or 1 ms of them, if more); one
-    #: that finds a backlog may send up to MAX_BURST, earned at CATCH_UP_RATE
-    BURST = 2
+    #: Imu samples per accelerometer one paced wake-up sends, by default (the node's
+    #: ``imu_group``): 4 every 4 ms at 1 kHz. Each wake-up costs the node its loop, a sleep
+    #: and cold caches: groups of 4 instead of pairs (GROUP 2) cut the node on hpotp by
+    #: 2-4 points of a core (bench/node_cost.py, paired runs), every stamp unchanged; up to
+    #: MAX_BURST, so a keep-last-5 reader still holds a whole group and one more sample
+    GROUP = 4
+    #: how early (wall s) an item may leave with the one due before it, at most, beyond
+    #: ``group - 1`` ms: 0.2 ms for single samples, 1.2 ms for pairs, 3.2 ms for groups of 4
+    EARLY_MARGIN = 2e-4
+    #: wall time (s) between the wake-ups that send a backlog (twice the sample rate or more)
     #: wall time (s) between the wake-ups that send a backlog (twice the sample rate or more)
     CATCH_UP = 5e-4
     #: a backlog leaves at up to this many times the Imu rate, counted over the wall time
     #: since the previous wake-up: on a busy core a wake-up takes 1-3 ms, not CATCH_UP, and a
-    #: fixed BURST per wake-up then drained a 35 ms backlog in 0.6 s (measured)
+    #: fixed group per wake-up then drained a 35 ms backlog in 0.6 s (measured)
     CATCH_UP_RATE = 4.0
-    #: ... in groups of at most this many samples per accelerometer (keep-last-5 readers)
+    #: ... in groups of at most this many samples per accelerometer (keep-last-5 readers);
+    #: also the largest ``group``
     MAX_BURST = 4
     #: chunks stepped beyond ``lookahead`` once stepping starts, back to back in one
     #: wake-up: the Python of each chunk after the first then runs warm. On this 2-core VM
@@ -173,8 +183,18 @@ class Outbox:
     REFILL = 4
 
     def __init__(self, pacer: Pacer, *, imu_rate: float, lookahead: float, chunk: float,
-                 t_sim: float = 0.0, limited: Iterable[Hashable] = ()) -> None:
+                 t_sim: float = 0.0, limited: Iterable[Hashable] = (),
+                 group: int = GROUP) -> None:
+        if isinstance(group, bool) or not (isinstance(group, int) and 1 <= group <= self.MAX_BURST):
+            raise PacingError(f'Imu group: must be a whole number of samples in '
+                              f'[1, {self.MAX_BURST}], got {group!r}')
         self.pacer = pacer
+        #: samples per limited stream a paced wake-up sends (or 1 ms of them, if more)
+        self.burst = group
+        #: how early an item may leave, at most: in Imu periods (each sample goes with the
+        #: ``group - 1`` before it) and in wall s
+        self.early_samples = group - 0.9
+        self.early = (group - 1) * 1e-3 + self.EARLY_MARGIN
         self.imu_period = 1.0 / float(imu_rate)
         self.lookahead = float(lookahead)
         self.chunk = float(chunk)
@@ -199,7 +219,7 @@ class Outbox:
         """Wall horizon (s) and samples per limited stream that a paced wake-up at ``now``
         (wall s) may send, at a factor > 0.
 
-        Pairs of Imu samples (see :attr:`EARLY_SAMPLES`), far below a keep-last-5 reader's
+        Groups of ``group`` Imu samples (see :attr:`GROUP`), within a keep-last-5 reader's
         depth; a backlog (the thread was descheduled) leaves in small groups, not in one
         burst, at :attr:`CATCH_UP_RATE` x the stream's rate over the time since the last
         wake-up. Counted in Imu samples, not in the full-rate batch's: at 20 kHz 1 ms of the
@@ -207,11 +227,11 @@ class Outbox:
         """
         rtf = self.pacer.real_time_factor
         period = self.imu_period
-        per_ms = max(self.BURST, math.ceil(1e-3 * rtf / period - 1e-9))
+        per_ms = max(self.burst, math.ceil(1e-3 * rtf / period - 1e-9))
         earned = self.CATCH_UP_RATE * rtf * (now - self._last_wake) / period
         # (+1e-9: 4 x 0.5 ms of a 2 kHz stream can round to 3.999...)
         burst = max(per_ms, math.floor(min(earned, self.MAX_BURST) + 1e-9))
-        return now + min(self.EARLY, self.EARLY_SAMPLES * period / rtf), burst
+        return now + min(self.early, self.early_samples * period / rtf), burst
 
     def send_due(self, now: float, t_stepped: float, send: SendFn) -> bool:
         """One wake-up at wall time ``now`` (s): send what the pacing allows through
@@ -305,7 +325,7 @@ class Outbox:
         """Sim time (s) whose items are all out by wall time ``wall`` (s): the schedule's,
         up to the first item still queued (the queue is in time order: all before it are
         out) and the stepped time ``t_stepped`` (s); never before the published time (an
-        item may leave up to ``EARLY`` before its time). Never decreases between resets of
+        item may leave up to ``early`` before its time). Never decreases between resets of
         the pacer, so an achieved factor is never negative."""
         pending = self.pending
         first = pending[0][0] * 1e-9 if pending else math.inf

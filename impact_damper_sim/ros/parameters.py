@@ -57,6 +57,11 @@ PARAMETERS = {
                       'sample_rate / 2000: 1 Hz from 2 kHz); 0 = the highest such rate not '
                       'above 1000 Hz (hpotp 1000 Hz from 2000 Hz, rbs 1000 Hz from 20000 Hz)',
                  (0.0, 100000.0), True),
+    'imu_group': Spec(4, 'Imu samples per accelerometer the node sends together, each with '
+                      'its own stamp and none more than imu_group - 1 ms + 0.2 ms early '
+                      '(dimensionless): 4 = a group every 4 ms at 1 kHz; 1 = each sample at '
+                      'its own time (four times the wake-ups, more CPU); at most 4, so a '
+                      "keep-last-5 reader holds a whole group", (1, 4), True),
     'dampers_enabled': Spec(True, 'impact dampers act (dynamic: compare with and without live)',
                         None, False),
     'noise_std': Spec(0.0, 'white noise added to each acceleration sample, standard deviation '

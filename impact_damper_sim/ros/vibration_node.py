@@ -146,7 +146,7 @@ class VibrationNode(Node):
                            clock=self._wall)
         self.outbox = Outbox(self.pacer, imu_rate=self.live.imu_rate,
                              lookahead=p['tick_period'], chunk=self._chunk * self._period,
-                             t_sim=self.live.t)
+                             t_sim=self.live.t, group=p['imu_group'])
         self._make_interfaces(p)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         if p['record']:
