@@ -156,9 +156,9 @@ class Outbox:
 
     #: Imu samples per accelerometer one paced wake-up sends, by default (the node's
     #: ``imu_group``): 4 every 4 ms at 1 kHz. Each wake-up costs the node its loop, a sleep
-    #: and cold caches: groups of 4 instead of pairs (GROUP 2) cut the node on hpotp by
-    #: 2-4 points of a core (bench/node_cost.py, paired runs), every stamp unchanged; up to
-    #: MAX_BURST, so a keep-last-5 reader still holds a whole group and one more sample
+    #: and cold caches: groups of 4 instead of pairs (GROUP 2) halve the wake-ups and cut
+    #: the node on hpotp by about 1.5-2 points of a core (bench/node_cost.py, paired),
+    #: every stamp unchanged; up to MAX_BURST, so a keep-last-5 reader holds a whole group
     GROUP = 4
     #: how early (wall s) an item may leave with the one due before it, at most, beyond
     #: ``group - 1`` ms: 0.2 ms for single samples, 1.2 ms for pairs, 3.2 ms for groups of 4
