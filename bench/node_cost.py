@@ -28,6 +28,15 @@ What is measured:
   wrappers cost about a microsecond a call: that run's total is a little above the plain
   runs'.
 
+``--floor`` runs, instead of the node, its **publishing floor**: the same node (topics, QoS,
+outbox, pacing, wake-ups, subscriber counts, ``Publisher.publish``, diagnostics) whose
+physics, sensor chain and packing are replaced, once it is running, by replaying the items
+200 of its chunks queued (the same bytes, re-timed: :func:`floor_child`; give ``--skip
+8``). Its CPU is what putting this message stream on the wire costs in rclpy and the
+middleware, whatever the physics costs: the floor under the node's own figure.
+``--with-floor`` runs the floor in turns with the node's plain runs and prints and pages it
+beside them.
+
 ``--tree DIR`` runs the node from another checkout of the package (``PYTHONPATH=DIR``, its
 ``config/``); ``--vs DIR`` runs that checkout's node and this one's in turns, run by run (the
 before column of a change, from ``git archive`` of the commit before it, measured alike
@@ -42,6 +51,8 @@ Usage::
     .venv/bin/python bench/node_cost.py [--scene hpotp] [--seconds 20] [--runs 3]
         [--skip 2] [--no-breakdown] [--monitor] [--node-arg ARG ...] [--domain N]
         [--tree DIR] [--vs DIR] [--json FILE] [--before FILE] [--page FILE]
+    .venv/bin/python bench/node_cost.py --with-floor --skip 8 ...   # the floor in turns
+    .venv/bin/python bench/node_cost.py --floor --no-breakdown --skip 8 [--runs 3] [--json FILE]
     .venv/bin/python bench/node_cost.py --render RESULTS.json --page FILE
 """
 from __future__ import annotations
@@ -193,6 +204,54 @@ def child(out, argv):
         writer.join(timeout=2.0)
 
 
+#: the floor child steps its first FLOOR_START chunks for real, keeps what the next
+#: FLOOR_CAPTURE queue, and replays those (10 ms chunks: hpotp's rotor runs up over sim
+#: 1-4 s, so 5-7 s is its running stream; give ``--skip 8`` so no real chunk is counted)
+FLOOR_START = 500
+FLOOR_CAPTURE = 200
+
+
+def floor_child(argv):
+    """Run the node as :func:`child` does, without stage counters, as its publishing floor:
+    its first :data:`FLOOR_START` + :data:`FLOOR_CAPTURE` chunks are stepped for real, and
+    the items each of the last :data:`FLOOR_CAPTURE` queued are kept (time from the chunk's
+    start, outlet, bytes); every later chunk queues one of them again in turn, re-timed to
+    the chunk, asks each outlet for its subscribers once per chunk as the node does, and
+    moves the simulated time on by the chunk's length without computing anything."""
+    from impact_damper_sim.ros import vibration_node as vn
+    real_step = vn.VibrationNode._step
+    kept = {}
+
+    def step(self, n):
+        rec = kept.setdefault(id(self), {'chunks': [], 'next': 0, 'stepped': 0})
+        if rec['stepped'] < FLOOR_START:
+            rec['stepped'] += 1
+            return real_step(self, n)
+        if len(rec['chunks']) < FLOOR_CAPTURE:
+            t0 = self.live.t
+            k0 = len(self.outbox.pending)   # only this thread takes items out
+            ok = real_step(self, n)
+            base = int(round(t0 * 1e9))
+            items = [(ns - base, key, payload)
+                     for ns, key, payload, _ in list(self.outbox.pending)[k0:]]
+            rec['chunks'].append((self.live.t - t0, items))
+            return ok
+        dt, items = rec['chunks'][rec['next'] % len(rec['chunks'])]
+        rec['next'] += 1
+        with self._lock:
+            base, wires = int(round(self.live.t * 1e9)), {}
+            for dns, key, payload in items:
+                wire = wires.get(key)
+                if wire is None:
+                    wire = wires[key] = key.has_subscribers()
+                self.outbox.put(base + dns, key, payload, wire)
+            self.live.sim.integrator.t = self.live.t + dt
+        return True
+
+    vn.VibrationNode._step = step
+    return vn.main(['vibration_node', *argv])
+
+
 # -- per-thread CPU ---------------------------------------------------------------------------
 def thread_cpu(pid):
     """{tid: (name, user s, system s)} of the process's threads now."""
@@ -229,7 +288,7 @@ def thread_groups(before, after, pid, stepping, seconds):
 
 
 # -- one run ------------------------------------------------------------------------------------
-def run_once(args, domain, log_dir, staged, tree=None):
+def run_once(args, domain, log_dir, staged, tree=None, floor=False):
     """Start the readers and the node (from checkout ``tree``, default this one), measure,
     stop everything; a dict of figures."""
     from node_scenes import MONITOR_EXES, NODE_EXE, base_env
@@ -275,7 +334,9 @@ def run_once(args, domain, log_dir, staged, tree=None):
                     pass
             except queue.Empty:
                 pass
-        if staged:
+        if floor or args.floor:
+            argv = [py, os.path.abspath(__file__), '--floor-child', *node_args]
+        elif staged:
             argv = [py, os.path.abspath(__file__), '--child', stages_out, *node_args]
         else:
             exe = settled_script([NODE_EXE])
@@ -411,6 +472,13 @@ def report_lines(data, before=None):
         if d.get('each'):
             each = ', '.join(f'{m:.1f} (peak {p:.1f})' for m, p in d['each'])
             lines.append(f'\n{label}: run medians {each}')
+    floor_runs = (data.get('floor') or {}).get('summary') or {}
+    if floor_runs:
+        each = ', '.join(f'{m:.1f}' for m, _ in floor_runs['each'])
+        lines.append(f"\nthe publishing floor (`--floor`: the same node and messages, the "
+                     f"physics, sensor chain and packing replaced by replaying 200 chunks' "
+                     f"items; in turns with the runs above): median {floor_runs['median']:.1f}"
+                     f" % of a core, peak {floor_runs['peak']:.1f} (run medians {each})")
     b_now, b_then = _breakdown(data), _breakdown(before) if before else None
     if not (b_now or b_then):
         return lines
@@ -509,6 +577,8 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ['--child']:
         return child(argv[1], argv[2:])
+    if argv[:1] == ['--floor-child']:
+        return floor_child(argv[1:])
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--scene', default='hpotp')
     parser.add_argument('--seconds', type=float, default=20.0,
@@ -519,6 +589,11 @@ def main(argv=None):
     parser.add_argument('--no-breakdown', action='store_true',
                         help='no instrumented run (no stages)')
     parser.add_argument('--monitor', action='store_true', help='the monitor reads too')
+    parser.add_argument('--floor', action='store_true',
+                        help="the node's publishing floor instead of the node (see above)")
+    parser.add_argument('--with-floor', action='store_true',
+                        help='the floor too, in turns with the node (printed and paged '
+                             'beside it; give --skip 8)')
     parser.add_argument('--node-arg', action='append', default=[],
                         help='extra --ros-args argument for the node (repeat)')
     parser.add_argument('--domain', type=int, help='ROS_DOMAIN_ID (default: a free one)')
@@ -534,6 +609,9 @@ def main(argv=None):
     parser.add_argument('--render', metavar='JSON',
                         help='no run: print and write --page from a --json file')
     args = parser.parse_args(argv)
+    if args.floor and (args.vs or args.page or not args.no_breakdown):
+        parser.error('--floor: give --no-breakdown, and no --vs or --page (the floor is '
+                     'quoted beside the node, not paged as it)')
     if args.render:
         with open(args.render) as fh:
             data = json.load(fh)
@@ -550,17 +628,20 @@ def main(argv=None):
     # (checkout, staged): with --vs the two checkouts take turns, run by run, so that a
     # drift of the machine's speed during the call moves both columns alike
     trees = [args.vs, args.tree] if args.vs else [args.tree]
-    plan = [(tree, False) for _ in range(args.runs) for tree in trees]
+    plan = [(tree, False) for _ in range(args.runs)
+            for tree in trees + (['floor'] if args.with_floor else [])]
     plan += [] if args.no_breakdown else [(tree, True) for tree in trees]
-    runs = {tree: [] for tree in trees}
+    runs = {tree: [] for tree in trees + ['floor']}
     for tree, staged in plan:
         with tempfile.TemporaryDirectory(prefix='node_cost_') as tmp:
             try:
-                r = run_once(args, domain, tmp, staged, tree)
+                r = (run_once(args, domain, tmp, False, None, floor=True) if tree == 'floor'
+                     else run_once(args, domain, tmp, staged, tree))
             except Exception as exc:   # a bench bug must not lose the other runs
                 r = {'staged': staged, 'error': f'{type(exc).__name__}: {exc}'}
         runs[tree].append(r)
-        what = ('before, ' if args.vs and tree == args.vs else 'after, ' if args.vs else '') + (
+        what = ('floor, ' if tree == 'floor' else 'before, ' if args.vs and tree == args.vs
+                else 'after, ' if args.vs else '') + (
             'instrumented' if staged else f'run {len(runs[tree])}')
         if 'error' in r:
             print(f'{what}: {r["error"]}', flush=True)
@@ -577,6 +658,8 @@ def main(argv=None):
             'load_after': os.getloadavg()[0], 'steal': _steal(steal0, _cpu_ticks()),
             'runs': runs[args.tree]}
     data['summary'] = summary(data['runs'])
+    if args.with_floor:
+        data['floor'] = {'runs': runs['floor'], 'summary': summary(runs['floor'])}
     before = None
     if args.vs:
         before = dict(data, runs=runs[args.vs], tree_note=args.vs_note,
