@@ -76,6 +76,10 @@ class Publishers:
             if out is not None and (messages.streams[stream].topic, messages.streams[
                     stream].type_name) != (out.topic, out.type_name):
                 raise RuntimeError(f'stream {messages.streams[stream]} is not {out.topic}')
+        # per stream number, its outlet (a list: indexed per queued item)
+        self._outlets = [self.outlet_of.get(stream) for stream in range(len(messages.streams))]
+        self._every = self.all
+        self.look_up_readers()
 
     @property
     def all(self):
@@ -83,10 +87,19 @@ class Publishers:
         return [*self.accel, *self.batch, *self.truth, self.impacts, self.state, self.speed,
                 self.joint, *self.tach, self.diagnostics] + ([self.clock] if self.clock else [])
 
+    def look_up_readers(self):
+        """Ask every outlet whether anybody reads it (:meth:`Outlet.look_up`): once per
+        refill of the outbox, before its chunks are stepped, not once per outlet and chunk.
+        A reader that appears gets the chunks of the next refill (up to ``tick_period`` x
+        (1 + ``Outbox.REFILL``) later: 50 ms); what is queued meanwhile leaves as for nobody
+        (volatile topics: no late joiner gets it)."""
+        for outlet in self._every:
+            outlet.look_up()
+
     @staticmethod
     def send(ns, outlet, item, wire):
         """Publish one queued item (the outbox's ``send``)."""
-        if isinstance(item, bytes):
+        if item.__class__ is bytes:
             outlet.publish_raw(item, ns, wire)
         else:
             outlet.publish(item, ns, wire)
@@ -95,15 +108,11 @@ class Publishers:
         """Queue a stepped chunk (``period``: output sample period, s): the messages
         :class:`~impact_damper_sim.recording.node_messages.NodeMessages` packs from it (the
         same bytes ``study record`` writes), each with its send time, and count what it
-        holds."""
-        outlet_of, put = self.outlet_of, self.outbox.put
-        wire_of = {}   # one has_subscribers() per outlet and chunk
+        holds. Whether anybody reads each topic is what :meth:`look_up_readers` found last."""
+        outlets, put = self._outlets, self.outbox.put
         for ns, stream, data in self.messages.batch_items(batch):
-            outlet = outlet_of[stream]
-            wire = wire_of.get(stream)
-            if wire is None:
-                wire = wire_of[stream] = outlet.has_subscribers()
-            put(ns, outlet, data, wire)
+            outlet = outlets[stream]
+            put(ns, outlet, data, outlet.wire)
         stats, total = self.counters.stats, self.counters.stats_total
         # what was published: a sample a sensor fault lost is not counted (the counters
         # say nothing of faults, as a DAQ driver counting what it sends would not)
@@ -129,9 +138,10 @@ class Publishers:
         """Queue ``/clock``, rotor speed and joint state for the stepped time."""
         # like the samples, a topic nobody subscribes to (volatile: no late joiner gets it)
         # is not put on the wire and costs the stepping thread no wake-up
+        outlets, put = self._outlets, self.outbox.put
         for ns, stream, data in self.messages.time_items():
-            outlet = self.outlet_of[stream]
-            self.outbox.put(ns, outlet, data, outlet.has_subscribers())
+            outlet = outlets[stream]
+            put(ns, outlet, data, outlet.wire)
 
     def publish_state_now(self):
         """Publish ``impactor_state`` at once (latched: start-up, a switch of the dampers)."""

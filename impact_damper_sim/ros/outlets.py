@@ -3,6 +3,8 @@
 * :class:`Outlet` publishes serialized bytes (rclpy sends ``bytes`` as they are) and gives
   the same bytes to the recorder, so a message is serialized once for both, by
   :func:`.cdr.serialize` (canonical CDR: zero pads, no trailing bytes, readable by rosbags).
+  The bytes go to the middleware through :func:`write_raw`, the part of rclpy's
+  ``Publisher.publish`` that bytes need (some 1,700 a second leave one node).
 * :class:`StampedPacker` (and :class:`ImuPacker`) writes a whole chunk of stamped messages
   (``sensor_msgs/Imu`` samples) as CDR in one NumPy pass from a canonical template; the field
   offsets are found in that template, and the packer checks a packed message against rclpy
@@ -10,6 +12,7 @@
 """
 from __future__ import annotations
 
+import functools
 import struct
 
 import numpy as np
@@ -51,6 +54,16 @@ class Outlet:
         Offered QoS (also written to the record file).
     record : callable
         ``record(topic, type_name, qos, data, ns)`` receives every message's bytes.
+
+    Attributes
+    ----------
+    wire : bool
+        Some subscription was matched at the last :meth:`look_up` (False before the first).
+    write : callable
+        ``write(data)`` puts serialized bytes on the wire: :func:`write_raw` on the
+        publisher's handle, or the publisher's ``publish`` where a test or a bench replaced
+        it on the instance (:meth:`look_up` notices that). Replacing :meth:`publish_raw`
+        on the instance captures everything the outlet would send, counts and records.
     """
 
     def __init__(self, node, msg_type, topic, qos, record):
@@ -61,6 +74,9 @@ class Outlet:
         self.qos = qos
         self.count = 0   # messages published
         self._record = record
+        self.wire = False
+        self._write_raw = functools.partial(write_raw, self.pub.handle)
+        self.write = self._write_raw
 
     def publish(self, msg, ns=None, wire=True):
         """Serialize ``msg`` once, publish (if ``wire``) and record the bytes (``ns``: log
@@ -70,13 +86,33 @@ class Outlet:
     def publish_raw(self, data, ns=None, wire=True):
         """Publish (if ``wire``) and record serialized bytes ``data`` (``ns``: log time)."""
         if wire:
-            self.pub.publish(data)
+            self.write(data)
         self.count += 1
         self._record(self.topic, self.type_name, self.qos, data, ns)
 
     def has_subscribers(self):
         """bool: Some subscription is matched (DDS drops what nobody reads anyway)."""
         return self.pub.get_subscription_count() > 0
+
+    def look_up(self):
+        """Ask whether anybody reads the topic now (:meth:`has_subscribers`) into
+        :attr:`wire`, and bind :attr:`write` anew; :attr:`wire` (bool)."""
+        # a publish replaced on the rclpy publisher itself (how tests and benches watch the
+        # wire) is honoured from here on
+        self.write = vars(self.pub).get('publish', self._write_raw)
+        self.wire = wire = bool(self.has_subscribers())
+        return wire
+
+
+def write_raw(handle, data):
+    """Put serialized ``data`` (bytes) on the wire through an rclpy publisher's ``handle``.
+
+    What rclpy's ``Publisher.publish`` does with bytes, without its per-call type checks. The
+    handle is held while it sends, as rclpy holds it: a publisher destroyed meanwhile (a
+    stepping thread that outlived ``destroy_node``) raises ``InvalidHandle``, never crashes.
+    """
+    with handle:
+        handle.publish_raw(data)
 
 
 class StampedPacker:
@@ -170,4 +206,5 @@ class ImuPacker(StampedPacker):
         super().__init__(template, ('linear_acceleration', 'angular_velocity'))
 
 
-__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'set_stamp', 'stamp', 'type_name']
+__all__ = ['ImuPacker', 'Outlet', 'StampedPacker', 'set_stamp', 'stamp', 'type_name',
+           'write_raw']

@@ -497,6 +497,8 @@ class VibrationNode(Node):
         if plan.step:
             if plan.late:
                 stats.overruns += 1   # a whole chunk behind schedule: late
+            # who reads what: asked once per refill (a reader that appears waits one refill)
+            self.publishing.look_up_readers()
             for _ in range(plan.chunks):   # back to back: warm (Outbox.REFILL)
                 if not self._step(self._chunk):
                     break
@@ -526,6 +528,7 @@ class VibrationNode(Node):
             return
         target, lag = self.pacer.target(live.t)
         self.counters.stats.lag = max(self.counters.stats.lag, lag)
+        self.publishing.look_up_readers()
         while True:
             n = (self._chunk if math.isinf(target)
                  else int(math.floor((target - live.t) / self._period + 1e-9)))
