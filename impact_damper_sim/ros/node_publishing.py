@@ -116,18 +116,22 @@ class Publishers:
         stats, total = self.counters.stats, self.counters.stats_total
         # what was published: a sample a sensor fault lost is not counted (the counters
         # say nothing of faults, as a DAQ driver counting what it sends would not)
-        published = published_samples(batch)
+        # (count_nonzero, not all() or any(): a fraction of their cost on these small arrays)
+        valid = batch.valid
+        lin = batch.linear_acceleration
+        if valid is None or np.count_nonzero(valid) == valid.size:
+            published = int(batch.t.size)
+        else:   # the peak of what was sent
+            published = published_samples(batch)
+            lin = lin[valid]
         stats.samples += published
         total['samples'] += published
-        lin = batch.linear_acceleration
-        if batch.valid is not None and not batch.valid.all():   # the peak of what was sent
-            lin = lin[batch.valid]
-        peak = float(np.max(np.abs(lin))) if lin.size else 0.0   # a scene may have no sensor
+        peak = float(np.abs(lin).max()) if lin.size else 0.0   # a scene may have no sensor
         stats.peak = max(stats.peak, peak)
         impacts = int(np.count_nonzero(batch.events['kind'] == _IMPACT))
         stats.impacts += impacts
         total['impacts'] += impacts
-        if batch.clipped is not None and batch.clipped.any():   # the DAQ's overrange count
+        if batch.clipped is not None and np.count_nonzero(batch.clipped):   # DAQ overrange
             stats.clipped = stats.clipped + batch.clipped
             total['clipped'] = total['clipped'] + batch.clipped
         stats.stuck_time += self.live.stuck_count() * batch.t.size * period
