@@ -108,6 +108,7 @@ def test_stop_gives_up_on_a_stuck_stepping_thread_and_says_where_it_is(ros_conte
     """A stepping thread waiting for a lock that is never released: ``stop`` returns after
     ``STOP_WAIT`` (0.3 s here) instead of waiting for ever, and logs at ERROR where the thread
     is (its wait in ``_cycle``). Released, the thread ends on its own."""
+    from impact_damper_sim.ros.process import thread_stack
     node = make_node(ros_context, 'sdof')
     lines = []
     monkeypatch.setattr(node, '_log', lambda level, text, *a: lines.append((level, text)))
@@ -117,9 +118,10 @@ def test_stop_gives_up_on_a_stuck_stepping_thread_and_says_where_it_is(ros_conte
         node.start()
         thread = node._thread
         deadline = time.monotonic() + 30.0
-        while node._lock.waiting == 0 and time.monotonic() < deadline:
+        # the stepper's own waits are not counted (HandoffLock.stepper): read its stack
+        while 'with self._lock' not in thread_stack(thread) and time.monotonic() < deadline:
             time.sleep(0.01)   # the stepping thread now waits for the lock
-        assert node._lock.waiting == 1
+        assert 'with self._lock' in thread_stack(thread)
         start = time.monotonic()
         node.stop()
         waited = time.monotonic() - start

@@ -12,10 +12,18 @@ class HandoffLock:
     keeps winning, and stepping flat out (``real_time_factor`` 0) would starve commands and
     diagnostics. Waiters are counted; :meth:`hand_over`, called by the stepper between
     chunks, pauses 0.5 ms when anyone waits.
+
+    Attributes
+    ----------
+    stepper : threading.RLock
+        The same lock for the stepper itself, taken without counting it as a waiter (only
+        others' waits make :meth:`hand_over` pause): ``with lock.stepper:`` runs no Python,
+        a few microseconds less at each of its some 500 acquisitions a second.
     """
 
     def __init__(self):
         self._lock = threading.RLock()
+        self.stepper = self._lock
         self.waiting = 0
 
     def __enter__(self):

@@ -486,7 +486,7 @@ class VibrationNode(Node):
         The rules are the outbox's (:class:`~impact_damper_sim.live.pacing.Outbox`)."""
         live, outbox = self.live, self.outbox
         now = self._wall()
-        with self._lock:
+        with self._lock.stepper:
             held = outbox.send_due(now, live.t, self.publishing.send)
         if live.failure is not None:
             self.diagnostics.report_failure()
@@ -541,7 +541,7 @@ class VibrationNode(Node):
     def _step(self, n):
         """Step ``n`` samples (fewer when a schedule entry falls inside them: it applies at
         its sample boundary) and queue what they produce; False once the simulation failed."""
-        with self._lock:
+        with self._lock.stepper:
             if self.schedule is not None and not self.schedule.done:
                 self._play_schedule()
                 ahead = self.schedule.samples_to_next(self.live.t, self.live.sample_rate)
