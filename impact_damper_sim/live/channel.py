@@ -218,18 +218,41 @@ class SensorChannel:
         self._lp_energy: np.ndarray | None = None
         self._sosfilt: _SosFilt | None = None
         # scratch arrays per chunk length (steps) and per limited shape: see _step_work
-        self._work: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._work: dict[int, tuple[np.ndarray, ...]] = {}
         self._limit_work: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         # the range's and the ADC's constants as 0-d arrays for _limit: (r, -r); (lsb, lo, hi)
         self._range_0d = (None if self.range is None
                           else (np.array(float(self.range)), np.array(-float(self.range))))
         self._adc_0d = None if self._adc is None else tuple(np.array(v) for v in self._adc[:3])
+        # the compiled chain (kernels/channel_chunk.py) covers every channel whose ADC has a
+        # code above 0 (bits >= 2): NumPy's minimum and maximum may order a tie of -0.0 and
+        # 0.0 either way, a compiled comparison keeps the code's sign
+        self._compiled = self._adc is None or self._adc[2] >= 1.0
+        # its constant arguments; a stage that is off is an array with no rows
+        none2, none3 = np.empty((0, 6)), np.empty((0, 2, 3))
+        self._limits = np.array(
+            [0.0 if self.range is None else 1.0, self.range or 0.0, -(self.range or 0.0),
+             0.0 if self._adc is None else 1.0, *(self._adc[:3] if self._adc else (1, 0, 1))])
+        self._no_rows = np.empty((0, 3))
+        self._chain_consts = (
+            none2 if self._pre_sos is None else self._pre_sos,
+            none3 if self._zi_pre is None else self._zi_pre,
+            np.empty(0) if self.turn_on_bias is None else self.turn_on_bias,
+            *((none2, none3) if self._gm is None else self._gm[:2]),
+            *((none2, none3) if self._rw is None else self._rw[:2]))
+        self._mount_t = None if self.mounting is None else self.mounting.T
+        self._kernels: tuple[Any, Any] | None = None
 
     def _load_kernel(self) -> _SosFilt:
         # imported on first use, as StreamingLowpass does: importing this module loads no Numba
         from ..integrate.kernels.filters import sosfilt
         self._sosfilt = sosfilt
         return sosfilt
+
+    def _load_chain(self) -> tuple[Any, Any]:
+        from ..integrate.kernels.channel_chunk import channel_chunk, limit
+        self._kernels = (channel_chunk, limit)
+        return self._kernels
 
     # -- properties ----------------------------------------------------------------------
     @property
@@ -316,17 +339,57 @@ class SensorChannel:
             raise ValueError(self._msg(f'expected shape (k * {self.decimation}, 3), '
                                        f'got {a.shape}'))
         k = a.shape[0] // self.decimation
-        samples, truth = np.empty((k, 3)), np.empty((k, 3))
-        clipped = self._process_into(a, before_limit, samples, truth)
-        return ChannelOutput(samples, truth, clipped)
+        samples, truth = np.empty((k, 1, 3)), np.empty((k, 1, 3))
+        clipped = self._process_chunk(a, before_limit, samples, truth, 0)
+        return ChannelOutput(samples[:, 0], truth[:, 0], clipped)
+
+    def _process_chunk(self, a: np.ndarray, before_limit: Callable[[np.ndarray], object] | None,
+                       samples: np.ndarray, truth: np.ndarray, acc: int) -> int:
+        """:meth:`process` of a checked C-contiguous ``(k * decimation, 3)`` float chunk
+        ``a`` (m/s^2) into ``samples[:, acc, :]`` and ``truth[:, acc, :]`` (each C-contiguous
+        ``(k, n, 3)``, m/s^2; ``LiveSimulation.step`` passes its batch's arrays); returns the
+        clip count. The compiled chain (:mod:`~impact_damper_sim.integrate.kernels.
+        channel_chunk`) with the same draws from the same generators, in the same order, as
+        :meth:`_process_into` (its NumPy twin, which a 1-bit ADC still takes): the same
+        bytes."""
+        if not self._compiled:
+            return self._process_into(a, before_limit, samples[:, acc], truth[:, acc])
+        chain, limit = self._kernels or self._load_chain()
+        n = a.shape[0]
+        work = self._work.get(n)
+        if work is None:
+            work = self._step_work(n)
+        x, y, s, mounted, b = work
+        # the mounting's product stays NumPy's (BLAS: a loop would not round alike)
+        m = a if self._mount_t is None else np.matmul(a, self._mount_t, out=mounted)
+        none = self._no_rows
+        noise = (self._rng_noise.normal(0.0, self.noise_std_per_step, (n, 3))
+                 if self.noise_std_per_step > 0 else none)
+        gm_w = none if self._gm is None else self._gm[3].normal(0.0, self._gm[2], (n, 3))
+        rw_w = none if self._rw is None else self._rw[3].normal(0.0, self._rw[2], (n, 3))
+        k = n // self.decimation
+        white = (self._rng_white.normal(0.0, self.white_noise_std, (k, 3))
+                 if self.white_noise_std > 0 else none)
+        adc = self._adc
+        adc_noise = adc[4].normal(0.0, adc[3], (k, 3)) if adc is not None and adc[3] > 0 \
+            else none
+        pre_sos, zi_pre, bias, gm_sos, gm_zi, rw_sos, rw_zi = self._chain_consts
+        # no early return for k = 0: that call compiles the kernels where the node warms up
+        clipped = chain(a, m, pre_sos, zi_pre, noise, bias, gm_sos, gm_zi, gm_w, rw_sos, rw_zi,
+                        rw_w, self._lp_sos, self._zi_lp, x, y, s, b, self.decimation, white,
+                        samples, truth, acc, self._limits, adc_noise, before_limit is None)
+        if before_limit is None:
+            return int(clipped)
+        before_limit(samples[:, acc])   # a fault acts before the range and ADC
+        return int(limit(samples, acc, adc_noise, self._limits))
 
     def _process_into(self, a: np.ndarray, before_limit: Callable[[np.ndarray], object] | None,
                       samples: np.ndarray, truth: np.ndarray) -> int:
         """:meth:`process` of a checked C-contiguous ``(k * decimation, 3)`` float chunk
         ``a`` (m/s^2) into ``samples`` and ``truth`` (each ``(k, 3)``, any strides, m/s^2);
         returns the clip count. The same operations in the same order, without the checks,
-        the output allocations or the :class:`ChannelOutput` (``LiveSimulation.step`` writes
-        straight into its batch's arrays)."""
+        the output allocations or the :class:`ChannelOutput`: the NumPy twin of
+        :meth:`_process_chunk` (``test/test_channel_chunk.py``)."""
         sosfilt = self._sosfilt or self._load_kernel()
         work = self._work.get(a.shape[0])
         if work is None:
@@ -352,13 +415,15 @@ class SensorChannel:
             before_limit(samples)
         return self._limit(samples, self._adc is not None and self._adc[3] > 0)
 
-    def _step_work(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _step_work(self, n: int) -> tuple[np.ndarray, ...]:
         """Scratch arrays of an ``n``-step chunk, made once per chunk length (a live run
-        steps one length): the low-pass's input and output and the sensor-frame signal."""
+        steps one length): the low-pass's input and output, the sensor-frame signal, the
+        mounted signal and a bias process's output."""
         if len(self._work) >= 8:   # chunk lengths vary (a paced run catching up): keep few
             self._work.clear()
         width = 3 if self._step_ideal else 6
-        work = (np.empty((n, width)), np.empty((n, width)), np.empty((n, 3)))
+        work = (np.empty((n, width)), np.empty((n, width)), np.empty((n, 3)), np.empty((n, 3)),
+                np.empty((n, 3)))
         self._work[n] = work
         return work
 

@@ -220,8 +220,8 @@ class StreamingDecimator:
                                            self.sample_rate_hz, DECIMATION_STOPBAND_DB + 2.0)
         self.delay = (len(self.taps) - 1) // 2
         self._kernel = self.taps[::-1].copy()
-        self._offsets = np.arange(len(self.taps))
-        self._channels = np.arange(self.n_channels)[None, :, None]
+        self._none = np.empty((0, 0, 0))   # apply's second group of columns: none
+        self._gather: Any = None           # the compiled gather, imported on first use
         #: fraction of a white input's variance an output keeps: sum(taps^2) (0.44 at
         #: 2 -> 1 kHz, 0.044 at 20 -> 1 kHz; 1 without decimation)
         self.white_noise_gain = float(np.sum(self.taps ** 2))
@@ -229,12 +229,12 @@ class StreamingDecimator:
 
     def reset(self) -> None:
         """Forget the history (a signal at rest before the next sample)."""
+        # the last len(taps) - 1 inputs, channel-major (updated in place)
         self._history = np.zeros((self.n_channels, len(self.taps) - 1))
         self._consumed = 0   # input samples taken so far
-        # apply's scratch: buffer pairs per length, the one in use, gather positions
-        self._buffers: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._current: np.ndarray | None = None
-        self._gather: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray]] = {}
+        # _filter's scratch per chunk length and output count: the history and the chunk
+        # channel-major, and the windows
+        self._work: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
 
     def apply(self, x: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
         """Take the next chunk; return the outputs that are now complete.
@@ -259,52 +259,51 @@ class StreamingDecimator:
             index = np.arange(self._consumed, self._consumed + len(x), dtype=np.int64)
             self._consumed += len(x)
             return index, x.copy()
-        return self._filter(x.T)
+        return self._filter(np.ascontiguousarray(x).reshape(len(x), self.n_channels, 1),
+                            self._none)
 
-    def _filter(self, x_t: np.ndarray) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
-        """:meth:`apply` (factor > 1) of the transposed chunk ``x_t``, shape
-        ``(n_channels, k)``."""
+    def _apply_groups(self, a: np.ndarray, b: np.ndarray
+                      ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """:meth:`apply` of the chunk ``concatenate([a, b], axis=2).reshape(k, n_channels)``
+        without making it: ``a`` and ``b`` C-contiguous float ``(k, g, w_a)`` and ``(k, g,
+        w_b)``, ``g (w_a + w_b) = n_channels`` (``LiveSimulation.step``'s linear and angular
+        accelerations)."""
+        if self.factor == 1:
+            return self.apply(np.concatenate([a, b], axis=2).reshape(len(a), self.n_channels))
+        return self._filter(a, b)
+
+    def _filter(self, a: np.ndarray, b: np.ndarray
+                ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """:meth:`apply` (factor > 1) of a chunk given as :meth:`_apply_groups` takes it."""
+        gather = self._gather
+        if gather is None:
+            from ..integrate.kernels.channel_chunk import decimator_gather as gather
+            self._gather = gather
         hist = self._history.shape[1]
-        k = x_t.shape[1]
-        # channel-major, so that each output is a dot product over contiguous memory:
-        # buf[:, i] is sample start + i, the history then the chunk, in one of two buffers
-        # per length that take turns (the history is a view of the other one's tail)
-        pair = self._buffers.get(hist + k)
-        if pair is None:
-            if len(self._buffers) >= 8:   # chunk lengths vary (a paced run catching up)
-                self._buffers.clear()
-            pair = self._buffers[hist + k] = (np.empty((self.n_channels, hist + k)),
-                                              np.empty((self.n_channels, hist + k)))
-        buf = pair[1] if pair[0] is self._current else pair[0]
-        buf[:, :hist] = self._history
-        buf[:, hist:] = x_t
-        self._current = buf
-        start = self._consumed - hist
+        k = a.shape[0]
+        start = self._consumed - hist   # the input index of the history's first column
         self._consumed += k
-        self._history = buf[:, k:]
         # outputs at input index c need inputs up to c + delay, all taken by now
         last = self._consumed - 1 - self.delay
         first = max(0, -(-(self._consumed - k - self.delay) // self.factor) * self.factor)
         index = np.arange(first, last + 1, self.factor, dtype=np.int64)
-        if index.size == 0:
-            return index, np.empty((0, self.n_channels))
         n = len(self.taps)
         # window of output c: inputs c + delay - n + 1 .. c + delay (before t = 0: zeros),
-        # gathered in one indexing into the layout a sliding_window_view indexed by lo has
-        # (outputs, channels, taps): the product then rounds alike, bit for bit. The flat
-        # positions depend only on the first window's place and the buffer's length: made
-        # once per pair (a steady run repeats one)
-        lo0 = first + self.delay - (n - 1) - start
-        key = (lo0, index.size, hist + k)
-        gather = self._gather.get(key)
-        if gather is None:
-            if len(self._gather) >= 16:
-                self._gather.clear()
-            lo = lo0 + self.factor * np.arange(index.size)
-            flat = self._channels * (hist + k) + (lo[:, None] + self._offsets)[:, None, :]
-            gather = self._gather[key] = (flat, np.empty(flat.shape))
-        flat, windows = gather
-        buf.reshape(-1).take(flat, out=windows)
+        # gathered channel-major into the layout a sliding_window_view indexed by lo has
+        # (outputs, channels, taps): the product then rounds alike, bit for bit
+        work = self._work.get((k, index.size))
+        if work is None:
+            if len(self._work) >= 8:   # chunk lengths vary (a paced run catching up)
+                self._work.clear()
+            work = self._work[k, index.size] = (np.empty((self.n_channels, hist + k)),
+                                                 np.empty((index.size, self.n_channels, n)))
+        buf, windows = work
+        # also with no output: the history moves on (and the node's warm-up, a chunk of
+        # none, compiles the kernel)
+        gather(self._history, a, b, first + self.delay - (n - 1) - start, self.factor, buf,
+               windows)
+        if index.size == 0:
+            return index, np.empty((0, self.n_channels))
         return index, (windows.transpose(1, 0, 2) @ self._kernel).T
 
 

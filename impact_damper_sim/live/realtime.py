@@ -134,6 +134,11 @@ class LiveSimulation:
                                                           dtype=int).reshape(-1, 1))
         n_acc = len(self.accelerometers)
         self.channels = self._channels(seed)
+        # each channel's range and ADC for the compiled Imu limit (kernels/channel_chunk.py),
+        # none for the channels it does not cover: those NumPy's (SensorChannel._limit)
+        self._imu_numpy = [a for a, ch in enumerate(self.channels) if not ch._compiled]
+        self._imu_limits = np.array([ch._limits if ch._compiled else np.zeros(7)
+                                     for ch in self.channels]).reshape(n_acc, 7)
         imu_rate = default_imu_rate(sample_rate) if imu_rate is None else float(imu_rate)
         factor = sample_rate / imu_rate if math.isfinite(imu_rate) and imu_rate > 0 else 0.0
         if factor > MAX_DECIMATION_FACTOR + 0.5:   # the anti-alias FIR is ~52 x k taps
@@ -149,9 +154,10 @@ class LiveSimulation:
         self._t_first: float | None = None       # time of the first one (s)
         self._v_prev = np.zeros(6 * n_acc)
         self._pick = slice(self.decimation - 1, None, self.decimation)   # the output steps
-        self._mean_work: dict[int, np.ndarray] = {}   # step's scratch per chunk length
-        # 0-d operands: a cheaper ufunc call than with a Python float, the same values
-        self._dt_0d, self._sample_rate_0d = np.array(self.dt), np.array(sample_rate)
+        self._mean_work: dict[int, list[np.ndarray]] = {}   # step's scratch per chunk length
+        self._kernels: tuple[Any, Any] | None = None   # see _load_kernels
+        # a 0-d operand: a cheaper ufunc call than with a Python float, the same values
+        self._sample_rate_0d = np.array(sample_rate)
         self.max_unbalance = float(max_unbalance)
         self.profile = scene_model.speed_profile
         self.unbalance = scene_model.unbalance
@@ -495,6 +501,12 @@ class LiveSimulation:
         return rel[cells], vel[cells] - housing, np.repeat(stuck, dims)
 
     # -- stepping -------------------------------------------------------------------------
+    def _load_kernels(self) -> tuple[Any, Any]:
+        # imported on the first step (the node's warm-up), as the channels' kernels are
+        from ..integrate.kernels.channel_chunk import split_decimated, step_inputs
+        self._kernels = (step_inputs, split_decimated)
+        return self._kernels
+
     def step(self, n_samples: int) -> Batch | None:
         """Advance ``n_samples`` output samples.
 
@@ -520,62 +532,63 @@ class LiveSimulation:
             self.failure = f'{type(exc).__name__}: {exc}'
             return None
         vel = samples.velocity
-        # the sum is finite only when every value is (an inf or a NaN spreads into it)
-        if not math.isfinite(vel.sum()) and not np.all(np.isfinite(vel)):
-            self.failure = f'non-finite sensor velocity before t = {self.sim.t:.6g} s'
-            return None
+        # the chain's kernels (kernels/channel_chunk.py), imported on the first step
+        step_inputs, split_decimated = self._kernels or self._load_kernels()
         k = int(n_samples)
         n_acc = len(self.channels)
+        ang = np.empty((k, n_acc, 3))
+        # each accelerometer's mean acceleration over each step, made in these buffers per
+        # chunk length: its channel reads it and keeps nothing of it
+        means = self._mean_work.get(n_steps)
+        if means is None:
+            if len(self._mean_work) >= 8:   # chunk lengths vary (a paced run catching up)
+                self._mean_work.clear()
+            means = self._mean_work[n_steps] = [np.empty((n_steps, 3)) for _ in range(n_acc)]
+        v_prev, dt, decimation = self._v_prev, self.dt, self.decimation
+        finite = True
+        for a in range(n_acc):
+            # mean acceleration over each step, translations only (rotations give rates):
+            # the difference of the velocities at the steps' ends (the first from the last
+            # chunk's end) over dt, as np.diff of them stacked, / dt; the angular velocity
+            # at the output steps into ang; whether the six columns are finite
+            finite = step_inputs(vel, v_prev, 6 * a, dt, decimation, means[a], ang, a) \
+                and finite
+        if not finite:
+            self.failure = f'non-finite sensor velocity before t = {self.sim.t:.6g} s'
+            return None
         pick = self._pick
         t = samples.t[pick]
         lin = np.empty((k, n_acc, 3))
-        ang = np.empty((k, n_acc, 3))
         truth = np.empty((k, n_acc, 3))
         clipped = np.zeros(n_acc, dtype=np.int64)
         valid = np.empty((k, n_acc), bool)
         valid.fill(True)   # np.ones costs a copyto call more
         faults = self.faults
-        # one accelerometer's mean acceleration over each step, made in this buffer per
-        # chunk length: the channel reads it and keeps nothing of it
-        mean = self._mean_work.get(n_steps)
-        if mean is None:
-            if len(self._mean_work) >= 8:   # chunk lengths vary (a paced run catching up)
-                self._mean_work.clear()
-            mean = self._mean_work[n_steps] = np.empty((n_steps, 3))
-        v_prev, dt = self._v_prev, self._dt_0d
         for a, channel in enumerate(self.channels):
-            # mean acceleration over each step, translations only (rotations give rates):
-            # the difference of the velocities at the steps' ends (the first from the last
-            # chunk's end) over dt, as np.diff of them stacked, / dt
-            c = 6 * a
-            if n_steps:
-                np.subtract(vel[:1, c:c + 3], v_prev[c:c + 3], out=mean[:1])
-                np.subtract(vel[1:, c:c + 3], vel[:-1, c:c + 3], out=mean[1:])
-                np.divide(mean, dt, out=mean)
             # the faults that change values act before the range and ADC (a gain clips, and
             # the clip count counts it), the rest after them (stuck, missing samples)
-            out = lin[:, a, :]
             if faults.has_faults(a):
-                clipped[a] = channel._process_into(mean, faults.hook(t, a), out,
-                                                   truth[:, a, :])
-                valid[:, a] = faults.after_limit(t, out, a)[1]
+                clipped[a] = channel._process_chunk(means[a], faults.hook(t, a), lin, truth, a)
+                valid[:, a] = faults.after_limit(t, lin[:, a, :], a)[1]
             else:   # no fault: every sample valid; the injector keeps the last one read
-                clipped[a] = channel._process_into(mean, None, out, truth[:, a, :])
-                faults.after_limit(t[0] if k else t, out, a)
-            ang[:, a, :] = vel[pick, c + 3:c + 6]
+                clipped[a] = channel._process_chunk(means[a], None, lin, truth, a)
+                faults.after_limit(t[0] if k else t, lin[:, a, :], a)
         if n_steps:
             self._v_prev = vel[-1].copy()
         if self._t_first is None and k:
             self._t_first = float(t[0])
-        # the sensor's noise passes through the DAQ's decimation filter, as in hardware
-        index, dec = self._decimator.apply(
-            np.concatenate([lin, ang], axis=2).reshape(k, 6 * n_acc))
-        dec = dec.reshape(index.size, n_acc, 6)
-        imu_lin = dec[:, :, :3].copy()
+        # the sensor's noise passes through the DAQ's decimation filter, as in hardware;
+        # channel 6 a + j is lin[:, a, j] (j < 3), else ang[:, a, j - 3]
+        index, dec = self._decimator._apply_groups(lin, ang)
+        imu_lin = np.empty((index.size, n_acc, 3))
+        imu_ang = np.empty((index.size, n_acc, 3))
         imu_clipped = np.zeros(n_acc, dtype=np.int64)
-        for a, channel in enumerate(self.channels):   # the Imu is on the ADC's grid too
-            # process_decimated without its copy and checks
-            imu_clipped[a] = channel._limit(imu_lin[:, a, :], False)
+        # the Imu is on the ADC's grid too: each channel's range and ADC (process_decimated
+        # without its copy and checks), compiled, or NumPy's where the kernel does not cover it
+        split_decimated(np.ascontiguousarray(dec.T), imu_lin, imu_ang, self._imu_limits,
+                        imu_clipped)
+        for a in self._imu_numpy:
+            imu_clipped[a] = self.channels[a]._limit(imu_lin[:, a], False)
         imu_t = (self._t_first or 0.0) + index / self._sample_rate_0d
         imu_valid = np.empty((imu_t.size, n_acc), bool)
         imu_valid.fill(True)
@@ -591,7 +604,7 @@ class LiveSimulation:
             self._stuck, self._stuck_raw = stuck, raw
         self.steps += n_steps
         angle, speed, keyphasor = self._tachometer(t)
-        return Batch(t, lin, ang, events, changed, imu_t, imu_lin, dec[:, :, 3:], truth,
+        return Batch(t, lin, ang, events, changed, imu_t, imu_lin, imu_ang, truth,
                      clipped, imu_clipped, angle, speed, keyphasor, valid, imu_valid)
 
     def _tachometer(self, t: npt.NDArray[np.float64]
