@@ -251,6 +251,9 @@ class SensorChannel:
 
     def _load_chain(self) -> tuple[Any, Any]:
         from ..integrate.kernels.channel_chunk import channel_chunk, limit
+        # the limit a fault's chunk calls from here, compiled (or loaded) now, where the node
+        # warms up, not in the paced tick of the first fault
+        limit(np.empty((0, 1, 3)), 0, self._no_rows, self._limits)
         self._kernels = (channel_chunk, limit)
         return self._kernels
 
