@@ -22,7 +22,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..integrate.events import IMPACT
+from ..integrate.events import IMPACT, empty_events
+from ..integrate.kernels.impact_rows import impact_rows
 from . import node_topics as nt
 from .batches import (
     ACCEL_FIELDS,
@@ -153,7 +154,7 @@ class NodeMessages:
         table = np.full((2, max(1, len(dofs_of))), 5, np.int64)
         for j, axes in enumerate(self.impactor_axes):
             table[:len(axes), j] = [2 + axis for axis in axes]
-        self._impulse_columns = list(table)
+        self._impulse_columns = table
         self.joint_names = [f"{spec['name']}/{d}" for spec, dofs in zip(specs, dofs_of)
                             for d in dofs]
         # the housings' frame; with housings at several nodes, the scene's (axes are global)
@@ -169,6 +170,9 @@ class NodeMessages:
         self.rotor_frame = rotor_frame_id(scene.name)
         # the start of the interval the next impact batch covers (ns)
         self.impacts_from = int(round(live.t * 1e9))
+        if scene.impactors:   # the kernel loaded (or compiled) now, not in a paced chunk:
+            for m in (1, 2):   # for both layouts (NumPy calls a field view of one event contiguous)
+                self._impact_batch(empty_events(m))
 
     def _frame_of_node(self, node):
         for acc in self.live.accelerometers:
@@ -284,33 +288,17 @@ class NodeMessages:
 
     def _impact_batch(self, events):
         """The CDR bytes of the impact batch covering the chunk just stepped: the impacts
-        among its ``events``, in time order."""
-        encoder = self._impact_encoder
-        # fields are taken one by one at the impacts' indices: indexing the structured
-        # events (with their 2-vector normals) costs several times more
-        at = (events['kind'] == IMPACT).nonzero()[0]
-        n = at.size
-        if not n:
-            return encoder.encode_data(self.impacts_from, 0, b'')
-        t_ns = np.rint(events['t'][at] * 1e9).astype(np.int64)
-        order = np.argsort(t_ns, kind='stable')
-        at, t_ns = at[order], t_ns[order]
+        among its ``events``, in time order (one compiled call,
+        :func:`~impact_damper_sim.integrate.kernels.impact_rows.impact_rows`)."""
+        m = events.size
         # a row is t, impactor (uint32 and 4 zero bytes), jx jy jz, v_approach,
         # v_separation, energy: eight 8-byte slots, zeros where nothing is written
-        rows = np.zeros((n, 8), '<f8')
-        rows[:, 0] = (t_ns - self.impacts_from) * 1e-9
-        which = events['impactor'][at].astype(np.int64)
-        rows.view('<u4')[:, 2] = which
-        # plane DOFs -> jx, jy, jz, in one scatter per DOF of the plane into the flat rows;
-        # a DOF a plane lacks lands in v_approach, written next
-        flat, start = rows.reshape(-1), np.arange(0, 8 * n, 8)
-        magnitude, normal = events['impulse'][at], events['normal']
-        for k, column in enumerate(self._impulse_columns):
-            flat[start + column[which]] = magnitude * normal[:, k][at]
-        rows[:, 5] = np.abs(events['v_n'][at])
-        rows[:, 6] = np.abs(events['v_n_after'][at])
-        rows[:, 7] = events['loss'][at]
-        return encoder.encode_data(self.impacts_from, n, rows.tobytes())
+        rows = np.zeros((m, 8), '<f8')
+        n = impact_rows(events['t'], events['kind'], events['impactor'], events['impulse'],
+                        events['normal'], events['v_n'], events['v_n_after'], events['loss'],
+                        IMPACT, self.impacts_from, self._impulse_columns,
+                        np.empty(m, np.int64), rows, rows.view('<u4'))
+        return self._impact_encoder.encode_data(self.impacts_from, n, rows[:n].tobytes())
 
     def time_items(self):
         """``/clock``, ``rotor/speed`` and ``rotor/joint_states`` now: list of (ns, stream,
