@@ -97,6 +97,7 @@ STAGES = (
     ('impact_damper_sim.live.pacing', 'Outbox.send_due', 'publishing'),
     ('impact_damper_sim.ros.outlets', 'Outlet.publish_raw', 'publishing'),
     ('rclpy.publisher', 'Publisher.publish', 'publish (rclpy, DDS)'),
+    ('impact_damper_sim.ros.outlets', 'write_raw', 'publish (rclpy, DDS)'),
     ('time', 'sleep', 'waiting'),
     ('threading', 'Event.wait', 'waiting'),
     ('impact_damper_sim.ros.vibration_node', 'VibrationNode._run', 'wake-up loop'),
@@ -110,7 +111,8 @@ STAGE_ROWS = (
     ('packing', 'messages packed and queued (batch_items, queue_batch, time_items)'),
     ('subscriber counts', 'Outlet.has_subscribers (get_subscription_count)'),
     ('publishing', 'the outbox and the outlets in Python (send_due, publish_raw)'),
-    ('publish (rclpy, DDS)', 'Publisher.publish: rclpy and the middleware, this thread'),
+    ('publish (rclpy, DDS)', 'Publisher.publish or outlets.write_raw: rclpy and the '
+                             'middleware, this thread'),
     ('waiting', 'sleeps and waits: their system calls and wake-ups'),
     ('wake-up loop', 'the stepping loop itself (_run, _cycle, pacing, locks)'),
 )

@@ -8,7 +8,8 @@ compiles ``.pyc`` files at install time. Nothing here is needed for correctness:
 an empty cache compiles what it calls (``NUMBA_CACHE_DIR``: where; ``docs/node.md``: how long).
 
 For each scene in ``config/scenes``: the node's warm-up (``LiveSimulation.step(0)``, the same
-call the node makes before its clock starts; scenes the node refuses are skipped) and a
+call the node makes before its clock starts, and its message packer ``NodeMessages``, which
+loads the impact-row kernel; scenes the node refuses are skipped) and a
 one-millisecond offline run (``study simulate``: the energy ledger's kernel forms). Prints one
 line per scene with the seconds it took.
 """
@@ -35,6 +36,7 @@ def main(argv=None):
     from impact_damper_sim.cli.study import main as study
     from impact_damper_sim.live.realtime import LiveSimulation
     from impact_damper_sim.live.streams import live_scene
+    from impact_damper_sim.recording.node_messages import NodeMessages
     from impact_damper_sim.scene.schema import SceneError
     print(f'compiling the kernels of {len(scenes)} scenes into the cache (once; a later start '
           'loads them)', flush=True)
@@ -46,7 +48,9 @@ def main(argv=None):
         except SceneError:
             live = 'offline only'   # the node refuses it (offline_only): no live warm-up
         else:
-            LiveSimulation(model, initial_target=target).step(0)
+            simulation = LiveSimulation(model, initial_target=target)
+            simulation.step(0)
+            NodeMessages(simulation, model)
             live = 'live'
         if args.offline:
             with contextlib.redirect_stdout(io.StringIO()) as out:

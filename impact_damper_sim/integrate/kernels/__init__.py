@@ -17,9 +17,9 @@ with :mod:`.quadrature` (the series, integrals and factors they share), :mod:`.e
 exact propagator's event loop, and the entry point of :mod:`impact_damper_sim.integrate.exact`),
 :mod:`.prefetch` (what a cold start compiles in helper processes first), :mod:`.newmark_step`
 (the Newmark step), :mod:`.filters` (the streaming low-pass), :mod:`.divergence_check` (each
-chunk's divergence check, one pass over its samples) and :mod:`.channel_chunk` (the live
+chunk's divergence check, one pass over its samples), :mod:`.channel_chunk` (the live
 accelerometer chain of a chunk: its inputs, the channel's stages, range and ADC, the DAQ
-decimator's gather).
+decimator's gather) and :mod:`.impact_rows` (the rows of a chunk's impact batch).
 
 Compile time (an empty cache compiles the kernels a run calls, once): a kernel is compiled
 for the first call that needs it, once per argument types (:class:`Kernel`). Numba links a
