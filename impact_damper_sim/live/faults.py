@@ -402,6 +402,36 @@ class FaultInjector:
         self._done[acc_index] = n0 + k
         return samples, valid
 
+    def follow(self, t0: npt.ArrayLike, samples: np.ndarray, acc_index: int) -> None:
+        """:meth:`after_limit` for a caller that does not need the validity mask: the same
+        state kept (the last value read, where the stream is) and the same errors.
+
+        For an accelerometer that has never had a fault this is bookkeeping only (no
+        fault acts), done on Python numbers: the live step calls it per channel and chunk.
+
+        Parameters
+        ----------
+        t0 : float or array_like
+            The chunk's first sample time (s), or its times as :meth:`after_limit` takes
+            them; chunks must follow each other.
+        samples : ndarray, shape (k, 3)
+            The samples after the range and ADC (m/s^2), changed in place by any fault.
+        acc_index : int
+            The accelerometer (dimensionless).
+        """
+        k = len(samples)
+        if self._by_acc[acc_index] or not k or not isinstance(t0, float):
+            self.after_limit(t0, samples, acc_index)
+            return
+        # np.rint and round both round half to even (and raise alike on inf, nan)
+        n0 = round(float(t0) * self.sample_rate_hz)
+        done = self._done[acc_index]
+        if done is not None and n0 != done:
+            raise ValueError(f'chunk starts at sample {n0}; the last one ended before '
+                             f'{done}: chunks must follow each other')
+        self._last[acc_index] = samples[-1].copy()
+        self._done[acc_index] = n0 + k
+
     def apply(self, t: npt.ArrayLike, samples: npt.ArrayLike, acc_index: int,
               limit: Callable[[np.ndarray], object] | None = None
               ) -> tuple[np.ndarray, npt.NDArray[np.bool_]]:

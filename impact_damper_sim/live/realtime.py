@@ -572,7 +572,7 @@ class LiveSimulation:
                 valid[:, a] = faults.after_limit(t, lin[:, a, :], a)[1]
             else:   # no fault: every sample valid; the injector keeps the last one read
                 clipped[a] = channel._process_chunk(means[a], None, lin, truth, a)
-                faults.after_limit(t[0] if k else t, lin[:, a, :], a)
+                faults.follow(t[0] if k else t, lin[:, a, :], a)
         if n_steps:
             self._v_prev = vel[-1].copy()
         if self._t_first is None and k:
@@ -622,16 +622,17 @@ class LiveSimulation:
             return None, None, None
         if not t.size:
             return np.empty(0), np.empty(0), np.empty(0, KEYPHASOR_DTYPE)
-        angle, speed, _ = self.profile.state(t)
-        angle, speed = np.atleast_1d(angle), np.atleast_1d(speed)
-        first, last = _turns(self._phi_end) + 1, _turns(float(angle[-1]))
-        revolution = np.arange(first, last + 1, dtype=np.int64)
-        keyphasor = np.empty(revolution.size, KEYPHASOR_DTYPE)
-        if revolution.size:
-            at = np.clip(self.profile.time_at_angle(_TWO_PI * revolution), self._t_end, t[-1])
-            keyphasor['t'], keyphasor['revolution'] = at, revolution
-            keyphasor['speed'] = np.atleast_1d(self.profile.speed(at))
-        self._phi_end, self._t_end = float(angle[-1]), float(t[-1])
+        # t is 1-D: state(t) without the acceleration; lists for the chunk's few turns
+        angle, speed = self.profile.angle_speed(t)
+        phi_end, t_end = float(angle[-1]), float(t[-1])
+        first, last = _turns(self._phi_end) + 1, _turns(phi_end)
+        if last >= first:
+            at, at_speed = self.profile.keyphasor(first, last, self._t_end, t_end)
+            keyphasor = np.fromiter(zip(at, range(first, last + 1), at_speed),
+                                    KEYPHASOR_DTYPE, last - first + 1)
+        else:
+            keyphasor = np.empty(0, KEYPHASOR_DTYPE)
+        self._phi_end, self._t_end = phi_end, t_end
         return angle, speed, keyphasor
 
     def linear_growth_rate(self) -> float:

@@ -61,6 +61,7 @@ _SMALL = 64
 #: (rad^2/s^2): its square root is then > 0, never a division by zero
 _TINY = 1e-300
 _MIN = np.minimum.reduce
+_TWO_PI = 2.0 * math.pi
 _MAX = np.maximum.reduce
 
 
@@ -286,6 +287,45 @@ class _Knots:
         dt += self._tl[k]
         return dt
 
+    def time_list(self, angles: Sequence[float]) -> list[float] | None:
+        """:meth:`time_at` of a few angles (rad) as Python floats, each on its own segment;
+        None unless every angle passes :meth:`_time_one`'s conditions (then the caller takes
+        :meth:`time_at`). The scalar form of :meth:`_time_one`: the same operations, so the
+        same bits."""
+        if not self._tame:
+            return None
+        phis, wl, sl, tl = self._phil, self._wl, self._sl, self._tl
+        n = len(phis)
+        out = []
+        for a in angles:
+            if not -_TAME <= a <= _TAME:
+                return None
+            j = bisect.bisect_left(phis, a)
+            if j == 0:
+                return None
+            k = j - 1
+            w = wl[k]
+            s = sl[k] if j < n else 0.0   # held after the last knot
+            d = a - phis[k]
+            if not (w > 0.0 or (2.0 * s) * d >= _TINY):   # else a root may be 0
+                return None
+            root = math.sqrt(max(w * w + 2.0 * s * d, 0.0))
+            out.append(tl[k] + 2.0 * d / (w + root))
+        return out
+
+    def speed_list(self, times: Sequence[float]) -> list[float]:
+        """:meth:`speed` at a few times (s) as Python floats: the general path's
+        ``w_k + s_k (t - t_k)`` per time, the same operations, so the same bits."""
+        tl, wl, sl = self._tl, self._wl, self._sl
+        out = []
+        for x in times:
+            k = bisect.bisect_right(tl, x) - 1   # searchsorted(side='right') - 1
+            if k < 0:   # held at w_0 before the first knot
+                out.append(wl[0] + 0.0 * (x - tl[0]))
+            else:
+                out.append(wl[k] + sl[k] * (x - tl[k]))
+        return out
+
     def time_at(self, angle: npt.ArrayLike) -> FloatOrArray:
         """The first time the angle reaches each of ``angle`` (rad, non-decreasing angle).
 
@@ -391,6 +431,43 @@ class SpeedProfile:
         if times.ndim == 0:
             return phi[()], omega[()], alpha[()]   # type: ignore[index]
         return phi, omega, alpha
+
+    def angle_speed(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(phi, omega)`` at the times of a 1-D float array ``t``: :meth:`state` without
+        the acceleration (rad, rad/s), the same values (the live tachometer's per-chunk
+        query)."""
+        angle, speed, _ = self._knots().state_parts(t)
+        return angle, _filled(speed, t)   # type: ignore[return-value]
+
+    def keyphasor(self, first: int, last: int, t_lo: float, t_hi: float
+                  ) -> tuple[list[float], list[float]]:
+        """The keyphasor times of turns ``first .. last`` and the speeds there, as floats.
+
+        The values of ``t = clip(time_at_angle(2 pi k), t_lo, t_hi)`` and ``speed(t)`` for
+        ``k = first .. last`` (s, rad/s), computed on Python floats with the same operations
+        (the same bits) when every angle is on a segment it can be solved on alone, else by
+        those array methods. A chunk holds a few turns: a list costs less than arrays.
+
+        Parameters
+        ----------
+        first, last : int
+            The turns (dimensionless), ``first <= last``.
+        t_lo, t_hi : float
+            The bounds the times are clipped to (s), ``t_lo <= t_hi``.
+
+        Returns
+        -------
+        times, speeds : list of float
+        """
+        knots = self._knots()
+        angles = [_TWO_PI * k for k in range(first, last + 1)]   # as int64 * float: exact
+        times = knots.time_list(angles)
+        if times is None:
+            at = np.clip(self.time_at_angle(np.array(angles)), t_lo, t_hi)
+            return at.tolist(), np.atleast_1d(self.speed(at)).tolist()
+        # np.clip's float rule: max as a > b ? a : b, then min as a < b ? a : b
+        times = [x if x < t_hi else t_hi for x in (x if x > t_lo else t_lo for x in times)]
+        return times, knots.speed_list(times)
 
     def time_at_angle(self, angle: npt.ArrayLike) -> FloatOrArray:
         """The first time the rotor angle ``phi`` reaches ``angle``, solved exactly.
