@@ -1,4 +1,6 @@
 """Read the full-rate accelerometer stream: one line per second of signal."""
+import signal
+
 import numpy as np
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -22,6 +24,8 @@ def on_batch(msg):
     second['rows'].append(batch_rows(msg))
 
 
+stopping = []   # Ctrl-C seen: rclpy shuts down, and spin ends (with an error or not)
+signal.signal(signal.SIGINT, lambda *_: stopping.append(True))   # rclpy.init chains to it
 rclpy.init()
 node = rclpy.create_node('batch_subscriber')
 node.create_subscription(PointCloud2, TOPIC, on_batch, 100)   # reliable, keep last 100
@@ -29,6 +33,6 @@ try:
     rclpy.spin(node)
 except (KeyboardInterrupt, ExternalShutdownException):
     pass
-except RuntimeError:   # Ctrl-C: rclpy's handler may shut the context down under spin's wait
-    if rclpy.ok():
+except RuntimeError:   # Ctrl-C: rclpy may shut the context down under spin's wait
+    if not stopping:
         raise

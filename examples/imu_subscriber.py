@@ -1,5 +1,6 @@
 """Read the per-sample Imu stream: one line per second of signal."""
 import math
+import signal
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -22,6 +23,8 @@ def on_imu(msg):
     second['sum_sq'] += msg.linear_acceleration.y ** 2   # m/s^2
 
 
+stopping = []   # Ctrl-C seen: rclpy shuts down, and spin ends (with an error or not)
+signal.signal(signal.SIGINT, lambda *_: stopping.append(True))   # rclpy.init chains to it
 rclpy.init()
 node = rclpy.create_node('imu_subscriber')
 # best effort, as the node offers it (a reliable reader, the default, matches nothing);
@@ -32,6 +35,6 @@ try:
     rclpy.spin(node)
 except (KeyboardInterrupt, ExternalShutdownException):
     pass
-except RuntimeError:   # Ctrl-C: rclpy's handler may shut the context down under spin's wait
-    if rclpy.ok():
+except RuntimeError:   # Ctrl-C: rclpy may shut the context down under spin's wait
+    if not stopping:
         raise

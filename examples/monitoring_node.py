@@ -1,4 +1,5 @@
 """A monitoring node: each second of signal, the RMS acceleration and the 1x amplitude."""
+import signal
 import sys
 
 import numpy as np
@@ -71,6 +72,8 @@ def on_unbalance_command(msg):
           flush=True)
 
 
+stopping = []   # Ctrl-C seen: rclpy shuts down, and spin ends (with an error or not)
+signal.signal(signal.SIGINT, lambda *_: stopping.append(True))   # rclpy.init chains to it
 rclpy.init()
 node = rclpy.create_node('monitoring_node')
 node.create_subscription(PointCloud2, itf.accel_batch_topic(SENSOR), on_accel, itf.BATCH_QOS)
@@ -82,6 +85,6 @@ try:
     rclpy.spin(node)
 except (KeyboardInterrupt, ExternalShutdownException):
     pass
-except RuntimeError:   # Ctrl-C: rclpy's handler may shut the context down under spin's wait
-    if rclpy.ok():
+except RuntimeError:   # Ctrl-C: rclpy may shut the context down under spin's wait
+    if not stopping:
         raise
