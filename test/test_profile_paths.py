@@ -15,12 +15,10 @@ from impact_damper_sim.integrate.forcing import Forcing
 from impact_damper_sim.scene import excitation
 from impact_damper_sim.scene.excitation import (
     CommandedSpeed,
-    ConstantSpeed,
-    PaperRamp,
-    PiecewiseLinearSpeed,
     UnbalanceForce,
     unbalance_forcing,
 )
+from speed_profile_cases import speed_profiles
 
 
 def _bits(value):
@@ -29,24 +27,7 @@ def _bits(value):
 
 
 def _profiles():
-    rng = np.random.default_rng(7)
-    yield PaperRamp(2400.0, 5.0)
-    yield ConstantSpeed(300.0)
-    yield ConstantSpeed(0.0)
-    yield ConstantSpeed(-0.0)
-    for i in range(4):
-        n = 2 + i
-        times = np.cumsum(rng.uniform(0.05, 1.5, n)) + (0.7 if i % 2 else -0.4)
-        speeds = rng.uniform(0.0, 3000.0, n)
-        speeds[i % n] = 0.0
-        yield PiecewiseLinearSpeed(times, speeds)
-    drive = CommandedSpeed(0.0, 480.0)   # hpotp's start-up, then a step down and up
-    drive.command(0.0, 2400.0)
-    yield drive
-    drive = CommandedSpeed(150.0, 900.0)
-    for t_now, target in ((0.3, 2000.0), (1.2, 0.0), (2.9, 800.0)):
-        drive.command(t_now, target)
-    yield drive
+    return speed_profiles(7, signed_zero=True)
 
 
 def _times(profile):

@@ -14,11 +14,10 @@ from impact_damper_sim.live.faults import FaultInjector
 from impact_damper_sim.live.realtime import KEYPHASOR_DTYPE, LiveSimulation, _turns
 from impact_damper_sim.live.streams import live_scene
 from impact_damper_sim.scene.excitation import (
-    CommandedSpeed,
     ConstantSpeed,
     PaperRamp,
-    PiecewiseLinearSpeed,
 )
+from speed_profile_cases import speed_profiles
 
 TWO_PI = 2.0 * math.pi
 
@@ -29,23 +28,7 @@ def _bits(value):
 
 
 def _profiles():
-    rng = np.random.default_rng(11)
-    yield PaperRamp(2400.0, 5.0)   # a ramp from rest: w = 0 on the first segment
-    yield ConstantSpeed(300.0)
-    yield ConstantSpeed(0.0)   # never turns: the keyphasor's angles are never reached
-    for i in range(4):
-        n = 2 + i
-        times = np.cumsum(rng.uniform(0.05, 1.5, n)) + (0.7 if i % 2 else -0.4)
-        speeds = rng.uniform(0.0, 3000.0, n)
-        speeds[i % n] = 0.0
-        yield PiecewiseLinearSpeed(times, speeds)
-    drive = CommandedSpeed(0.0, 480.0)   # hpotp's start-up
-    drive.command(0.0, 2400.0)
-    yield drive
-    drive = CommandedSpeed(150.0, 900.0)   # up, down to rest, up again
-    for t_now, target in ((0.3, 2000.0), (1.2, 0.0), (2.9, 800.0)):
-        drive.command(t_now, target)
-    yield drive
+    return speed_profiles(11)
 
 
 PROFILES = list(_profiles())
