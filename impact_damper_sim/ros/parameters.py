@@ -90,7 +90,7 @@ PARAMETERS = {
                              'off: a real test stand has none', None, True),
     'tick_period': Spec(_topics.TICK_PERIOD, 'sim time stepped per chunk (s); samples are '
                     'computed one to six chunks ahead (five stepped at a time) and published '
-                    'one by one at their own time',
+                    'by their own time (the Imu in groups of imu_group)',
                     _topics.TICK_PERIOD_RANGE, True),
     'state_period': Spec(_topics.STATE_PERIOD, 'period of the impactor_state republish (s); it '
                      'is also sent on every change', _topics.STATE_PERIOD_RANGE, True),
