@@ -144,8 +144,8 @@ def _profile(policies):
 #: The profiles are made from the ROS-free table that ``study record`` writes too, so a log
 #: of the node and an offline log carry the same QoS metadata.
 #: Accelerometer samples: best effort and volatile like ``qos_profile_sensor_data``; samples
-#: are published one by one at their own time, and the depth leaves a slow reader's
-#: executor 50 ms (at 2 kHz) before the writer overwrites.
+#: are published by their own time (in groups of ``imu_group``), and the depth leaves a
+#: slow reader's executor 50 ms (at 2 kHz) before the writer overwrites.
 SENSOR_QOS = _profile(_topics.SENSOR_QOS)
 #: Batches (full-rate samples, impacts): reliable, volatile, keep last 100 (1 s of 10 ms
 #: batches). A reliable writer also feeds best-effort readers; with keep-last it never
