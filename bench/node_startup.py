@@ -57,7 +57,7 @@ live = node.live
 t_sim = live.t
 wall = time.perf_counter()
 while live.t < t_sim + 1.0 and node._step(node._chunk):
-    node._flush(math.inf)
+    node._flush()
 rtf = (live.t - t_sim) / (time.perf_counter() - wall)
 print(f'{t_import - t_start:.3f} {t_built - t_start:.3f} {t_first - t_start:.3f} {rtf:.2f}')
 node.destroy_node()
