@@ -5,22 +5,41 @@ zero latency, to the analog ``wn^2 / (s^2 + wn/Q s + wn^2)`` (:func:`analog_reso
 the band below the anti-alias cutoff, and refuses a resonance no cascade meets within the
 tolerances below. A pure function of the stage's values and the integrator's step rate: no
 state, no random numbers. Everything is SI.
+
+The fit costs about 0.3 s of CPU, so each design is kept in the process and in a per-user
+cache on disk (:func:`impact_damper_sim._cache_dir.design_cache_dir`): one JSON file per
+design holding its floats bit for bit, keyed by the inputs' bits, this module's source text
+(a change of the algorithm or its tolerances misses every entry), numpy's version and the
+machine. A missing, corrupt or unwritable cache costs the fit again, never an error.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
+import hashlib
+import json
+import logging
 import math
+import os
+import platform
+import tempfile
 from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+
+from .._cache_dir import design_cache_dir
 
 #: What :func:`_check` measures of a cascade: (score, gain error, phase error (deg), lift
 #: error, gain above band, error above band, largest pole radius)
 _Checked = tuple[float, float, float, float, float, float, float]
 #: One fit of :meth:`_Fit.run`: (score on the grid, numerator b, denominator a, parameters p)
 _FitRun = tuple[float, np.ndarray, np.ndarray, np.ndarray]
+#: A design: the sections (None when refused) and what :func:`_check` measured of them
+_Designed = tuple[npt.NDArray[np.float64] | None, _Checked]
 
 
 def analog_resonance(f: npt.ArrayLike, fn: float, q: float) -> np.ndarray:
@@ -375,10 +394,10 @@ def _check(sos: np.ndarray, ratio: float, q: float, band: float, lowpass: float)
             gain_above, error_above, radius)
 
 
-@functools.lru_cache(maxsize=64)
-def _design(ratio: float, q: float, band: float,
-            lowpass: float) -> tuple[npt.NDArray[np.float64] | None, _Checked]:
-    # in units of the step rate: the design depends on fn, band and lowpass / step rate and Q
+def _fit_design(ratio: float, q: float, band: float, lowpass: float) -> _Designed:
+    """Fit the design (the cost :func:`_design` caches): ``(sos or None when refused, the
+    checked errors)``. The arguments are fn, band and lowpass in units of the step rate and Q:
+    the design depends on nothing else."""
     identity = np.zeros((0, 6))
     checked = _check(identity, ratio, q, band, lowpass)
     if checked[0] <= RESONANCE_DESIGN_MARGIN:
@@ -406,6 +425,120 @@ def _design(ratio: float, q: float, band: float,
             return sos, checked
     score, _, sos, checked = min(found, key=lambda f: (f[0], f[1]))
     return (sos if score <= 1.0 else None), checked
+
+
+_log = logging.getLogger(__name__)
+#: Layout of the cache's entries; a change of it (or of anything in this file) misses them all.
+_CACHE_FORMAT = 1
+
+
+def _source_digest() -> str | None:
+    """SHA-256 (hex) of this module's source file now; None when it cannot be read."""
+    try:
+        return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+#: The digest of the source as this process imported it: the code that runs
+_SOURCE_DIGEST = _source_digest()
+
+
+def _cache_entry_place(ratio: float, q: float, band: float,
+                       lowpass: float) -> tuple[Path, dict[str, Any]] | None:
+    """The cache file of a design and the key it must hold, or None without a cache: off,
+    or the source unreadable or edited since the import (the running code is not the file's,
+    so its designs must not be stored under the file's digest)."""
+    directory, digest = design_cache_dir(), _SOURCE_DIGEST
+    if directory is None or digest is None or _source_digest() != digest:
+        return None
+    key = {'format': _CACHE_FORMAT,
+           'inputs': [float(v).hex() for v in (ratio, q, band, lowpass)],
+           'source_sha256': digest, 'numpy': np.__version__, 'machine': platform.machine()}
+    name = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()
+    return directory / f'{name}.json', key
+
+
+def _encode_entry(key: dict[str, Any], designed: _Designed) -> dict[str, Any]:
+    """A design as JSON, each float as ``float.hex`` (exact, also for -0, inf and nan)."""
+    sos, checked = designed
+    return {'key': key,
+            'sos': None if sos is None else {'shape': list(sos.shape),
+                                             'values': [v.hex() for v in sos.ravel().tolist()]},
+            'checked': [float(v).hex() for v in checked]}
+
+
+def _decode_entry(entry: Any, key: dict[str, Any]) -> _Designed:
+    """The design an entry holds; ValueError when it is not one of ``key``."""
+    if not isinstance(entry, dict) or entry.get('key') != key:
+        raise ValueError('the entry holds another key')
+    if not isinstance(entry['checked'], list):
+        raise ValueError('the checked values are not a list')
+    # unpacking raises ValueError unless there are exactly 7
+    score, gain, phase, lift, above, error_above, radius = map(float.fromhex, entry['checked'])
+    checked = (score, gain, phase, lift, above, error_above, radius)
+    stored = entry['sos']
+    if stored is None:
+        return None, checked
+    rows, columns = stored['shape']
+    if not isinstance(stored['values'], list):
+        raise ValueError('the sections are not a list')
+    values = [float.fromhex(v) for v in stored['values']]
+    if (type(rows) is not int or not 0 <= rows <= RESONANCE_MAX_SECTIONS or columns != 6
+            or len(values) != 6 * rows):
+        raise ValueError(f'sections of shape {stored["shape"]} with {len(values)} values')
+    sos = np.array(values, dtype=np.float64).reshape(rows, 6)
+    return sos, checked
+
+
+def _read_cached(path: Path, key: dict[str, Any]) -> _Designed | None:
+    """The design cached at ``path``, or None when it is missing or unusable."""
+    try:
+        with open(path, encoding='ascii') as f:
+            return _decode_entry(json.load(f), key)
+    except FileNotFoundError:
+        return None
+    except Exception as exc:   # whatever a damaged entry raises: fit again
+        _log.debug('resonance design cache: %s unusable (%s), fitting again', path, exc)
+        return None
+
+
+def _write_cached(path: Path, entry: dict[str, Any]) -> None:
+    """Store ``entry`` at ``path`` atomically (a temporary file in the same directory, then
+    renamed), so a concurrent reader sees the whole entry or none; failing quietly."""
+    tmp = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix='.', suffix='.tmp', dir=path.parent)
+        with os.fdopen(fd, 'w', encoding='ascii') as f:
+            json.dump(entry, f)
+        os.replace(tmp, path)
+        tmp = None
+    except Exception as exc:   # read-only, full disk, ...: the design stands
+        _log.debug('resonance design cache: cannot write %s (%s)', path, exc)
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+@functools.lru_cache(maxsize=64)
+def _design(ratio: float, q: float, band: float, lowpass: float) -> _Designed:
+    """:func:`_fit_design`, from the disk cache when it holds the design, else fitted and
+    stored there. The arrays returned are shared: callers copy them."""
+    try:
+        place = _cache_entry_place(ratio, q, band, lowpass)
+    except Exception as exc:   # e.g. no home directory: no disk cache
+        _log.debug('resonance design cache: none (%s)', exc)
+        place = None
+    if place is not None:
+        cached = _read_cached(*place)
+        if cached is not None:
+            return cached
+    designed = _fit_design(ratio, q, band, lowpass)
+    if place is not None:
+        _write_cached(place[0], _encode_entry(place[1], designed))
+    return designed
 
 
 def design_resonance(frequency: float, q: float, step_rate_hz: float,
@@ -454,7 +587,8 @@ def design_resonance(frequency: float, q: float, step_rate_hz: float,
     fn not far enough above a band near Nyquist (with the low-pass at 0.4 x the step rate,
     fn below 2.5 x the step rate at Q 25, 3 x at Q 10, 10 x at Q 2, 30 x at Q 0.7; at
     0.3 x: 1.5 x at Q 10 and up, 2.5 x at Q 2). The fit takes 0.05 to about 1 s, once per
-    combination (cached).
+    combination: the design is kept in the process and in the per-user cache on disk (see the
+    module's docstring), which a later process reads in about a millisecond.
 
     Parameters
     ----------
