@@ -161,16 +161,25 @@ class Runs:
     def log(self, label):
         return (self.tmp / f'{label}.log').read_text()
 
-    def wait_for_batches(self, label):
-        """Wait until ``label`` counted ENOUGH batches (fail after DEADLINE s, with the logs)."""
+    def wait_for_batches(self, label, more=ENOUGH):
+        """Wait until ``label`` counted ``more`` batches more than now (fail after DEADLINE s,
+        with the logs)."""
+        goal = self.state(label)['batches'] + more
+        self._wait(lambda: self.state(label)['batches'] >= goal,
+                   lambda: f'{label} counted {self.state(label)["batches"]} batches of {goal}')
+
+    def wait_for_log(self, label, text):
+        """Wait until ``label``'s log holds ``text`` (fail after DEADLINE s, with the logs)."""
+        self._wait(lambda: text in self.log(label), lambda: f'{label} never logged {text!r}')
+
+    def _wait(self, done, what):
         end = time.monotonic() + DEADLINE
-        while self.state(label)['batches'] < ENOUGH:
+        while not done():
             dead = [k for k, p in self.procs.items()
                     if p.poll() is not None and k not in self.stopped]
             if dead or time.monotonic() > end:
                 logs = '\n'.join(f'--- {k}\n{self.log(k)[-1500:]}' for k in self.procs)
-                pytest.fail(f'{label} counted {self.state(label)["batches"]} batches '
-                            f'(ended early: {dead}); logs:\n{logs}')
+                pytest.fail(f'{what()} (ended early: {dead}); logs:\n{logs}')
             time.sleep(0.1)
 
     def stop(self, *labels, timeout=30.0):
@@ -270,6 +279,11 @@ def test_subnet_reaches_the_other_host(runs):
     runs.start('monitor', 'b', [BIN / 'impact_damper_monitor'], range='SUBNET')
     runs.probe('probe_b', 'b', range='SUBNET')
     runs.wait_for_batches('probe_b')
+    # the recorder finds new topics by polling the graph: on a slow or loaded machine it
+    # subscribed to the batches seconds after the probe (122 of 300 recorded, once). Twice
+    # ENOUGH after its subscription leaves it time to match the node's writer
+    runs.wait_for_log('recorder', BATCH_TOPIC)
+    runs.wait_for_batches('probe_b', 2 * ENOUGH)
     assert runs.stop('node') == [0], runs.log('node')
     assert runs.stop('recorder', 'monitor', 'probe_b') == [0, 0, 0], runs.log('recorder')
     crossed = runs.hosts.link_counters('b')['rx_bytes'] - before['rx_bytes']
