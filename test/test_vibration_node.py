@@ -264,8 +264,16 @@ def test_in_process_subscriber_gets_every_topic(ros_context):
         _spin(ex, 0.3)
         published = sim.stats_total['samples']
         imu = sub.got[itf.accel_topic(sensor.name)]
+        # drain the backlog: until all arrived, or the count stood still for 2 s (samples sent
+        # before the subscription matched never come, and waiting for them took the whole
+        # 20 s deadline in every run)
         end = time.monotonic() + 20.0
-        while len(imu) < published and time.monotonic() < end:   # drain the backlog
+        count, since = -1, time.monotonic()
+        while len(imu) < published and time.monotonic() < end:
+            if len(imu) != count:
+                count, since = len(imu), time.monotonic()
+            elif time.monotonic() - since > 2.0:
+                break
             time.sleep(0.2)
         ex_sub.shutdown(timeout_sec=1.0)
         imu = sub.got[itf.accel_topic(sensor.name)]
