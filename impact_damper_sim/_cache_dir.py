@@ -13,8 +13,9 @@ Everything lives under :func:`cache_root`, ``$XDG_CACHE_HOME/impact_damper_sim``
 * ``designs/``: the accelerometer's mounted-resonance designs
   (:mod:`impact_damper_sim.live.resonance_design`), a fit of about 0.3 s of CPU that every
   process building a channel would otherwise repeat. One small JSON file per design, keyed by
-  its inputs, the design module's source text and numpy's version, so checkouts and versions
-  can share it too. :data:`DESIGN_CACHE_ENV` moves it or switches it off.
+  its inputs, the design module's source text, numpy's version and the machine's
+  architecture, so checkouts and versions can share it too. :data:`DESIGN_CACHE_ENV` moves
+  it or switches it off.
 """
 from __future__ import annotations
 
