@@ -1,23 +1,32 @@
 """``plant_host``: several machines in one process, one executor.
 
 Each machine is a :class:`~impact_damper_sim.ros.vibration_node.VibrationNode` in its own
-namespace (``/pump1/vibration_node``), with its own stepping thread, topics, services,
-parameters and ``/diagnostics`` status, exactly as when it runs as a process of its own; only
-the process is shared. What the process costs once (Python, NumPy, SciPy, Numba and the
-compiled kernels, rclpy and the DDS participant: about 220 MB resident) is then paid once for
-the plant, and each further machine adds its model and its DDS endpoints (a few MB:
-docs/bench/node-memory.md). The ROS-native form (one process per machine,
-``plant.launch.py``) stays; both give the same graph.
+namespace (``/pump1/vibration_node``), with its own topics, services, parameters and
+``/diagnostics`` status, exactly as when it runs as a process of its own; only the process
+is shared, and by default one stepping thread (``--stepping shared``,
+:class:`~.stepping.SharedStepping`) that runs every machine's cycle in turn and sleeps once
+for all of them. ``--stepping own`` gives each machine a stepping thread of its own, as a
+``vibration_node`` process has; those threads then take the interpreter lock from each
+other (five hpotp machines in one process on this 2-core VM: worst 1 s window of the
+achieved real-time factor 0.36-0.85 with a thread each, 0.96-0.97 shared, at 82-84 % of a
+core against 88-92 % for the process and its reader; ``bench/node_memory.py --plant 5
+--no-processes --stepping own|shared``, three runs each).
+
+What the process costs once (Python, NumPy, SciPy, Numba and the compiled kernels, rclpy and
+the DDS participant: about 220 MB resident) is then paid once for the plant, and each
+further machine adds its model and its DDS endpoints (a few MB: docs/bench/node-memory.md).
+The ROS-native form (one process per machine, ``plant.launch.py``) stays; both give the same
+graph.
 
 What one process cannot share is the interpreter lock: its machines step Python in turn, so
 one process gives them one core at most, less the switching. On a 2-core machine three hpotp
-machines keep real time in one process and five do not, where five processes do
-(docs/bench/node-memory.md). For a plant larger than one core's worth, split it: ``--share
-I/K`` hosts only the machines whose index (in the whole list, from 0) is ``I`` modulo ``K``,
-each exactly as in the whole plant (its seed, parameters, hardware_id; ``/clock`` only from
-the share holding machine 0), so K processes ``--share 0/K`` ... ``--share K-1/K`` of one
-plant give the same machines as one process of all (``plant.launch.py hosts:=K`` starts
-them), or run one process per machine.
+machines keep real time in one process and five do not, even stepped by one thread, where
+five processes do (docs/bench/node-memory.md). For a plant larger than one core's worth,
+split it: ``--share I/K`` hosts only the machines whose index (in the whole list, from 0) is
+``I`` modulo ``K``, each exactly as in the whole plant (its seed, parameters, hardware_id;
+``/clock`` only from the share holding machine 0), so K processes ``--share 0/K`` ...
+``--share K-1/K`` of one plant give the same machines as one process of all
+(``plant.launch.py hosts:=K`` starts them), or run one process per machine.
 
 Usage::
 
@@ -35,7 +44,8 @@ order given (the plant's first). Each machine is seeded apart: machine ``i`` (fr
 plant file gives it its own. Parameters after ``--ros-args -p`` apply to every machine where
 the plant does not set them. Only the first machine publishes ``/clock`` (``--clock``): one
 topic cannot carry several machines' sim times. ``--record-mode`` overrides the plant file's
-``record`` (``none``, ``per_machine``, ``one_log``), ``--stagger S`` its ``stagger``.
+``record`` (``none``, ``per_machine``, ``one_log``), ``--stagger S`` its ``stagger``;
+``--stepping shared|own`` chooses the stepping threads (above).
 
 Exit status as ``vibration_node``: 0 on Ctrl-C, SIGTERM or SIGHUP (every machine stopped and
 its recording finished), 2 (one line on stderr naming the machine or the option) when a plant
@@ -50,6 +60,8 @@ import sys
 
 #: the executors plant_host can spin its machines with
 EXECUTORS = ('single', 'multi')
+#: how the machines step: one thread for all of them, or a thread each
+STEPPING = ('shared', 'own')
 #: which machines publish /clock
 CLOCK_CHOICES = ('first', 'all', 'none')
 #: the interpreter's thread switch interval here (s; Python's default 5 ms): the machines'
@@ -260,6 +272,9 @@ def _parser():
                         help='host only the machines whose index (plant file machines, then '
                              '--machines, from 0) is I modulo K, each as in the whole plant '
                              '(K processes --share 0/K ... K-1/K host all)')
+    parser.add_argument('--stepping', choices=STEPPING, default='shared',
+                        help='shared (default): one thread steps every machine in turn and '
+                             'sleeps once for all; own: a stepping thread per machine')
     parser.add_argument('--executor', choices=EXECUTORS, default='single',
                         help='rclpy executor of all machines (default single: each machine '
                              'steps in its own thread; the executor only serves commands, '
@@ -360,8 +375,12 @@ def main(args=None):
         nodes = build_machines(specs)
         stop.begin_running()   # signals only noted from here: the machines' threads start
         freeze_start_up_heap()   # once, after every machine: no full collections while paced
+        stepping = None
+        if options.stepping == 'shared':
+            from .stepping import SharedStepping
+            stepping = SharedStepping(nodes[0].MAX_WAIT) if nodes else None
         for node in nodes:
-            node.start()
+            node.start(stepping)
         executor = make_executor(options.executor)
         for node in nodes:
             executor.add_node(node)

@@ -52,6 +52,7 @@ from .process import (
     thread_stack,
 )
 from .service_guard import guard_services
+from .stepping import CONTEXT_EVERY, wait_for
 
 
 class VibrationNode(Node):
@@ -92,6 +93,7 @@ class VibrationNode(Node):
         # (stepping thread) touch the simulation under this lock, one chunk at a time
         self._lock = HandoffLock()
         self._thread = None
+        self._shared = None   # the SharedStepping that steps this node, if any
         self._stop = threading.Event()
         # set by a parameter change and by stop(): a long wait (a tiny real_time_factor) must
         # not outlive the setting that caused it
@@ -391,12 +393,18 @@ class VibrationNode(Node):
                              self._messages.parameter_event(list(changes.items())))
 
     # -- stepping -------------------------------------------------------------------------
-    def start(self):
-        """Start the stepping thread (idempotent).
+    def start(self, stepping=None):
+        """Start stepping (idempotent).
 
-        Stepping runs in its own thread, not in an executor callback: the executor then only
+        Stepping runs in a thread, not in an executor callback: the executor then only
         wakes for commands, parameters and the slow timers, and a long chunk of physics
         never starves them (each chunk holds the lock for a few ms at most).
+
+        Parameters
+        ----------
+        stepping : SharedStepping, optional
+            A thread that steps this node with others of the process (``plant_host``), in
+            turn; default a thread of its own.
         """
         if self._thread is not None:
             return
@@ -407,6 +415,12 @@ class VibrationNode(Node):
             self.outbox.reset(self.pacer.real_time_factor)
             self.diagnostics.restart_period(keep_trend=False)
         self._stop.clear()
+        if stepping is not None:
+            self._shared = stepping
+            self._wake = stepping.wake   # a parameter change ends the shared wait
+            self._thread = stepping.thread
+            stepping.add(self)
+            return
         self._thread = threading.Thread(target=self._run, name='vibration_stepping',
                                         daemon=True)
         self._thread.start()
@@ -441,18 +455,23 @@ class VibrationNode(Node):
         self._wake.set()
         thread = self._thread
         if thread is not None:
-            thread.join(self.STOP_WAIT)
-            if thread.is_alive():   # a daemon: it does not hold the process up
+            if self._shared is not None:   # the thread goes on for the other machines
+                left = self._shared.remove(self, self.STOP_WAIT)
+            else:
+                thread.join(self.STOP_WAIT)
+                left = not thread.is_alive()
+            if not left:   # a daemon: it does not hold the process up
                 self._log('error', f'the stepping thread did not stop within '
                                    f'{self.STOP_WAIT:g} s; left behind, nothing flushed. '
                                    f'It was at:\n{thread_stack(thread)}')
                 return
-            self._thread = None
+            self._thread = self._shared = None
         if self.context.ok():
             self._flush()
 
     def _run(self):
-        """The stepping thread: compute chunks ahead, publish each item at its time.
+        """The stepping thread of a node on its own: compute chunks ahead, publish each item
+        at its time.
 
         Samples are published one by one when the wall clock reaches their sim time (through
         the pacer), not in bursts per chunk, so a keep-last-5 ``qos_profile_sensor_data``
@@ -460,26 +479,29 @@ class VibrationNode(Node):
         (``tick_period`` of sim time each) ahead, refilled :attr:`Outbox.REFILL` + 1 at once.
         """
         cycles = 0
-        while not self._stop.is_set():
-            self._heartbeat = self._wall()
+        while True:
             cycles += 1
-            if cycles % 64 == 0 and not self.context.ok():   # a C call: not every cycle
+            delay = self._turn(cycles % CONTEXT_EVERY == 0)
+            if delay is None:
                 break
-            try:
-                delay = self._cycle()
-            except Exception as exc:   # a bug must not kill the node silently
-                if not self.context.ok():
-                    break   # Ctrl-C shut the context down under a publish: not a failure
-                with self._lock:
-                    self.live.failure = f'{type(exc).__name__}: {exc}'
-                delay = self._tick_period
-            if not delay > 0:   # 0, or NaN from a degenerate schedule
-                continue
-            if delay > 0.05:
-                if self._wake.wait(min(delay, self.MAX_WAIT)):
-                    self._wake.clear()
-            else:
-                time.sleep(delay)   # cheaper than Event.wait at a few kHz
+            wait_for(delay, self._wake, self.MAX_WAIT)
+
+    def _turn(self, check_context=False):
+        """One turn of the stepping loop (:meth:`_cycle`): the wait it asks for (s), or
+        None once this node is done (stopped, or its context shut down, when
+        ``check_context``: a C call, not every turn). A failure inside the cycle is the
+        simulation's, reported on ``/diagnostics``; it does not end the loop."""
+        if self._stop.is_set() or (check_context and not self.context.ok()):
+            return None
+        self._heartbeat = self._wall()
+        try:
+            return self._cycle()
+        except Exception as exc:   # a bug must not kill the node silently
+            if not self.context.ok():
+                return None   # Ctrl-C shut the context down under a publish: not a failure
+            with self._lock:
+                self.live.failure = f'{type(exc).__name__}: {exc}'
+            return self._tick_period
 
     def _cycle(self):
         """Send what is due, step a chunk when the buffer runs short; return a wait (s).
