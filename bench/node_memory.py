@@ -15,16 +15,17 @@ another's imports:
 * **Running node**: the ``vibration_node`` console script on ``--scene`` for ``--seconds``
   (default 20; ``--seconds 900`` for a soak), ``VmRSS``, ``Pss`` and ``USS`` (its private
   pages: what it costs beside others that map the same libraries) every ``--every`` s.
-* **Plant** (``--plant 1,3,5``): N machines of ``--scene`` in namespaces ``m0 .. m{N-1}``,
-  as N ``vibration_node`` processes, as one ``plant_host`` process (``--executor single``
+* **Plant** (``--plant 1,3,5``): N machines of ``--scene`` in namespaces ``m0 .. m{N-1}``, as
+  N ``vibration_node`` processes, as one ``plant_host`` process (``--executor single``
   and/or ``multi``) and, with ``--hosts K``, as K ``plant_host`` processes sharing them
-  (``hostK-single``: machine i in process i mod K), each with a raw reader subscribed to
-  every batch topic (PointCloud2) of every machine and to ``/diagnostics``, from a wait set
-  of its own (as
-  bench/node_scenes.py's raw reader). After every machine's first status and ``--warmup``
-  s, ``--plant-seconds`` s are measured: the worst and the median 1 s window of the
-  machines' ``real_time_factor_achieved`` (their ``/diagnostics``), the node processes' CPU
-  (% of one core, all machines together), and at the end their summed RSS, PSS and USS.
+  (``hostK-single``: machine i in process i mod K); each ``plant_host`` with one stepping
+  thread for its machines, or with ``--stepping own`` one per machine (forms ``...-own``). A
+  raw reader is subscribed to every batch topic (PointCloud2) of every machine and to
+  ``/diagnostics``, from a wait set of its own (as bench/node_scenes.py's raw reader). After
+  every machine's first status and ``--warmup`` s, ``--plant-seconds`` s are measured: the
+  worst and the median 1 s window of the machines' ``real_time_factor_achieved`` (their
+  ``/diagnostics``), the node processes' CPU (% of one core, all machines together), and at
+  the end their summed RSS, PSS and USS.
 
 Usage::
 
@@ -448,7 +449,7 @@ def child_reader(namespaces, domain, out):
     rclpy.try_shutdown()
 
 
-def plant_run(n, scene, form, seconds, warmup, domain):
+def plant_run(n, scene, form, seconds, warmup, domain, stepping='shared'):
     """One plant of ``n`` machines as ``form`` ('processes', 'host-single', 'host-multi'):
     worst/median 1 s window, CPU, memory."""
     namespaces = [f'm{k}' for k in range(n)]
@@ -477,6 +478,7 @@ def plant_run(n, scene, form, seconds, warmup, domain):
                 share = namespaces[h::hosts]
                 procs.append(subprocess.Popen(
                     [script('impact_damper_plant_host'), '--executor', form.split('-')[1],
+                     '--stepping', stepping,
                      '--seed', str(100 * h), '--clock', 'first' if h == 0 else 'none',
                      '--machines', *(f'{ns}:{scene}' for ns in share)],
                     env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
@@ -530,7 +532,9 @@ def plant_run(n, scene, form, seconds, warmup, domain):
         rtf += inside
     rtf.sort()
     return {
-        'n': n, 'scene': scene, 'form': form, 'seconds': t1 - t0,
+        'n': n, 'scene': scene, 'seconds': t1 - t0,
+        # a thread per machine in a plant_host: its own rows
+        'form': form + ('-own' if stepping == 'own' and form != 'processes' else ''),
         'statuses': len(got['windows']), 'windows': len(rtf),
         'rtf_worst': rtf[0] if rtf else math.nan,
         'rtf_median': rtf[len(rtf) // 2] if rtf else math.nan,
@@ -616,7 +620,9 @@ def page(data):
                   'beside it: about +-10 points). Forms: `processes` N `vibration_node` '
                   'processes; `host-single` / `host-multi` one `plant_host` with a single- or '
                   'multi-threaded executor; `host2-single` two `plant_host` processes, machine '
-                  'i in process i mod 2.', '',
+                  'i in process i mod 2. A `plant_host` steps all its machines in one thread '
+                  '(`--stepping shared`); a form ending in `-own` gave each machine a thread '
+                  'of its own (`--stepping own`).', '',
                   '| N | scene | form | RTF worst | median | CPU % | reader % | others % | '
                   'RSS MB | PSS MB | USS MB |',
                   '|---|---|---|---|---|---|---|---|---|---|---|']
@@ -666,6 +672,9 @@ def main(argv=None):
     parser.add_argument('--plant', default='', help='machine counts, e.g. 1,3,5')
     parser.add_argument('--executor', default='single',
                         help="plant_host executors to run: single, multi, 'single,multi' or none")
+    parser.add_argument('--stepping', choices=('shared', 'own'), default='shared',
+                        help="plant_host's --stepping (default shared: one thread for all "
+                             'machines)')
     parser.add_argument('--no-processes', action='store_true',
                         help='plant: only plant_host, not N processes')
     parser.add_argument('--hosts', type=int, default=1,
@@ -704,8 +713,8 @@ def main(argv=None):
         for n in (int(x) for x in args.plant.split(',')):
             for form in forms:
                 r = plant_run(n, args.scene, form, args.plant_seconds, args.warmup,
-                              args.domain)
-                data['plant'][f"{r['scene']} {n} {form}"] = r
+                              args.domain, stepping=args.stepping)
+                data['plant'][f"{r['scene']} {n} {r['form']}"] = r
                 print_plant(r)
     if args.json:
         with open(args.json, 'w') as f:

@@ -35,6 +35,12 @@ batch. Then the reader and the nodes get SIGINT. What is measured, per machine:
   median of the 1 s windows) and the reader's; the machine's total.
 * **RSS** of the node's process at the end (``VmRSS``) and its peak (``VmHWM``), MB.
 
+With ``--hosts K`` the machines run in K ``plant_host`` processes (``--share 0/K`` ...
+``K-1/K`` of one plant file: the ``--plant`` file, or one written for the ``--scene`` copies
+with their seeds and stagger; ``--stepping``, default shared: one stepping thread per
+process), not one ``vibration_node`` each; a machine's CPU and memory are then its process's
+divided by the machines in it.
+
 A plant **holds** when every machine's worst window is >= 0.98. ``--ceiling SCENE`` runs N = 1,
 2, 3, 5, 8, 10, 13, 16, ... copies of the scene until one does not hold (or ``--max-n``); the
 ceiling is the largest N that held; ``--start-n``/``--max-n`` or ``--ns 6,7`` split a search
@@ -48,6 +54,7 @@ Usage (quote figures only from a quiet machine: ``flock -x /tmp/bench.lock``)::
     .venv/bin/python bench/plant.py --plant mixed --page
     .venv/bin/python bench/plant.py --ceiling rbs --seconds 15 --page
     .venv/bin/python bench/plant.py --scene hpotp --n 3
+    .venv/bin/python bench/plant.py --plant ten_hpotp --hosts 2 --page
 """
 from __future__ import annotations
 
@@ -67,7 +74,7 @@ import time
 import numpy as np
 import yaml
 
-from node_scenes import NODE_EXE, ROOT, base_env
+from node_scenes import NODE_EXE, ROOT, VENV, base_env
 from node_scenes_figures import machine
 from node_scenes_procs import Child, CpuSampler, pick_domain, settled_script
 
@@ -76,6 +83,7 @@ HOLD = 0.98
 #: the N the ceiling search tries, then every 3 more
 CEILING_NS = (1, 2, 3, 5, 8, 10)
 PAGE = os.path.join(ROOT, 'docs', 'bench', 'plant.md')
+HOST_EXE = os.path.join(VENV, 'bin', 'impact_damper_plant_host')
 DATA_MARK = '<!-- plant-bench-data '
 
 # ---------------------------------------------------------------------------------------
@@ -314,6 +322,23 @@ def window_ratios(windows, topics):
     return out
 
 
+def host_plant_file(machines, log_dir, stagger):
+    """The plant ``plant_host --plant`` runs (its ``--share`` then splits it): with
+    ``--plant``, that plant file (and ``--stagger``: its override); with ``--scene`` or
+    ``--ceiling``, a plant file of the copies written here (namespaces, scenes and seeds
+    as :func:`scene_machines` gives them, ``stagger`` s). A list of plant_host arguments."""
+    if stagger is None and isinstance(machines, str):
+        return ['--plant', machines]
+    if isinstance(machines, str):
+        return ['--plant', machines, '--stagger', repr(stagger)]
+    path = os.path.join(log_dir, 'hosts_plant.yaml')
+    with open(path, 'w') as f:
+        yaml.safe_dump({'stagger': f'{stagger or 0.0!r} s', 'machines': [
+            {'namespace': ns, 'scene': scene, 'seed': int(params['noise_seed'])}
+            for ns, scene, params in machines]}, f)
+    return ['--plant', path]
+
+
 def run_plant(label, machines, args, domain, log_dir):
     """Run the machines; a dict of figures per machine and for the plant."""
     env = dict(base_env(), ROS_DOMAIN_ID=str(domain))
@@ -339,7 +364,25 @@ def run_plant(label, machines, args, domain, log_dir):
                 continue
             if line is None or '"ready"' in line:
                 break
-        for i, (ns, _scene, params) in enumerate(machines):
+        if args.hosts:
+            host_exe = settled_script([HOST_EXE])
+            if host_exe is None:
+                res['reason'] = f'{HOST_EXE} missing'
+                return res
+            plant = host_plant_file(getattr(args, 'host_plant', machines), log_dir,
+                                    getattr(args, 'host_stagger', None))
+            for h in range(args.hosts):
+                c = Child(f'plant_host{h}', [
+                    host_exe, *plant, '--share', f'{h}/{args.hosts}',
+                    '--record-mode', 'none', '--stepping', args.stepping], env, log_dir,
+                    pipe=False)
+                children.append(c)
+                nodes.extend((ns, c) for ns in namespaces[h::args.hosts])
+                cpu.add(c.pid)
+                if h == 0:
+                    cpu.add(reader.pid)
+                    cpu.add('all')
+        for i, (ns, _scene, params) in enumerate([] if args.hosts else machines):
             pfile = os.path.join(log_dir, f'{ns.replace("/", ".")}.yaml')
             with open(pfile, 'w') as f:
                 yaml.safe_dump({'/**': {'ros__parameters': dict(
@@ -354,6 +397,8 @@ def run_plant(label, machines, args, domain, log_dir):
                 cpu.add(reader.pid)
                 cpu.add('all')
         t_spawn = min(c.t_spawn for _, c in nodes)
+        # machines per process: a plant_host's CPU and memory are its machines' together
+        sharing = {c.pid: sum(1 for _, d in nodes if d is c) for _, c in nodes}
         firsts = {}
         hard = t_spawn + args.start_timeout
         while len(firsts) < len(machines) and time.monotonic() < hard:
@@ -386,9 +431,10 @@ def run_plant(label, machines, args, domain, log_dir):
         exited = {ns: c.proc.poll() for ns, c in nodes if c.proc.poll() is not None}
         reader.signal()
         reader_rc = reader.wait(30.0)
-        for _, c in nodes:
+        processes = list({id(c): c for _, c in nodes}.values())
+        for c in processes:
             c.signal()
-        for _, c in nodes:
+        for c in processes:
             c.wait(20.0)
         try:
             with open(out + '.json') as f:
@@ -419,6 +465,9 @@ def run_plant(label, machines, args, domain, log_dir):
             ratios = window_ratios(windows, topics.get(ns, []))
             values = [r for r, _, _ in ratios]
             cpu_windows, cpu_mean = cpu.windows(c.pid, firsts[ns], t_stop)
+            k = sharing[c.pid]   # a plant_host's machines share its CPU and memory
+            cpu_windows = [v / k for v in cpu_windows]
+            cpu_mean = cpu_mean / k if cpu_mean == cpu_mean else cpu_mean
             per.append({
                 'namespace': ns, 'scene': scene, 'windows': len(values),
                 'series': [round(v, 3) for v in values],   # the windows in time order
@@ -432,8 +481,9 @@ def run_plant(label, machines, args, domain, log_dir):
                 'cpu_percent': float(np.median(cpu_windows)) if cpu_windows else math.nan,
                 'cpu_mean': cpu_mean,
                 'first_batch_s': round(firsts[ns] - t_spawn, 2),
-                'cpu_from_spawn': [round(v) for v in cpu.windows(c.pid, t_spawn, t_stop)[0]],
-                'rss_mb': rss[ns][0], 'hwm_mb': rss[ns][1],
+                'cpu_from_spawn': [round(v / k) for v in cpu.windows(c.pid, t_spawn,
+                                                                       t_stop)[0]],
+                'rss_mb': rss[ns][0] / k, 'hwm_mb': rss[ns][1] / k, 'per_process': k,
                 'exited': exited.get(ns)})
         res['machines'] = per
         res['plant_cpu_percent'] = plant_cpu(res)
@@ -536,7 +586,10 @@ def page(data):
         'real time), one raw subscriber on every `accel/<name>/batch` topic; a plant holds '
         f'when every machine delivers >= {HOLD} of its samples in every 1 s window '
         '(delivered/expected: the samples of the window that reached the subscriber, per '
-        "wall second, over the sample rate; how, in `bench/plant.py`'s docstring).",
+        "wall second, over the sample rate; how, in `bench/plant.py`'s docstring). A plant "
+        'marked `[K plant_host]` ran its machines in K `plant_host` processes instead '
+        '(`--hosts K`: `--share 0/K` ... `K-1/K` of one plant file, one stepping thread per '
+        'process; `, a thread per machine`: `--stepping own`).',
         '',
         '## Plants',
         '',
@@ -591,7 +644,8 @@ def page(data):
         '- **node CPU**: utime + stime of the node\'s process, median of its 1 s windows, % '
         'of one core; **plant CPU**: the nodes\' and the subscriber\'s processes over the '
         'measured span, % of one core (200 = both cores of this machine).',
-        '- **node RSS**: resident memory at the end of the run; **peak**: `VmHWM`.',
+        '- **node RSS**: resident memory at the end of the run; **peak**: `VmHWM`. In a '
+        '`plant_host` row both node columns are its process\'s divided by its machines.',
         '- **load before**: the 1-minute load average when the run began (a quiet 2-core '
         'machine reads well under 1).',
         '- **start**: from spawning the nodes to every machine\'s first batch at the '
@@ -649,6 +703,11 @@ def main(argv=None):
                         help="machine i's rotor runs up i x S s after machine 0's (default: "
                              "the plant file's stagger; 0 for --scene; --ceiling: all at "
                              'once)')
+    parser.add_argument('--hosts', type=int, default=0, metavar='K',
+                        help='run the machines in K plant_host processes (--share 0/K ... '
+                             'K-1/K of one plant file), not one vibration_node each')
+    parser.add_argument('--stepping', choices=('shared', 'own'), default='shared',
+                        help="with --hosts: plant_host's --stepping (default shared)")
     parser.add_argument('--json', metavar='FILE', help='write every figure of the runs here '
                         '(with the start-up: CPU per 1 s from the spawn)')
     args = parser.parse_args(argv)
@@ -667,6 +726,9 @@ def main(argv=None):
           f'domain {domain}; {args.seconds:g} s from every machine\'s first batch', flush=True)
 
     def run(label, machines):
+        if args.hosts:   # a row of its own on the page
+            label += (f' [{args.hosts} plant_host'
+                      + (', a thread per machine]' if args.stepping == 'own' else ']'))
         load_before = os.getloadavg()[0]
         with tempfile.TemporaryDirectory(prefix='plant_bench_') as tmp:
             log_dir = tmp
@@ -686,10 +748,11 @@ def main(argv=None):
     runs, ceilings = {}, {}
     if args.plant:
         machines, name, stagger = plant_machines(args.plant, args.stagger)
+        args.host_plant, args.host_stagger = args.plant, args.stagger
         label = f'plant {name}' + (f' (stagger {stagger:g} s)' if stagger else '')
         runs[label] = run(label, machines)
     elif args.scene:
-        stagger = args.stagger or 0.0
+        stagger = args.host_stagger = args.stagger or 0.0
         label = f'{args.n} x {args.scene}' + (f' (stagger {stagger:g} s)' if stagger else '')
         runs[label] = run(label, scene_machines(args.scene, args.n, stagger))
     else:

@@ -40,3 +40,24 @@ def test_node_startup_child_times_a_node(monkeypatch):
     assert 0.0 < t_import <= t_built <= t_first
     assert math.isfinite(rtf) and rtf > 0.0
     assert cpu > 0.0
+
+
+def test_plant_bench_hands_plant_host_the_same_machines(tmp_path, monkeypatch):
+    """``bench/plant.py --hosts K`` runs ``plant_host --plant FILE --share I/K``; the plant
+    file it writes for ``--scene`` copies loads to the machines the process form starts:
+    the same namespaces, scenes and seeds, and the same stagger."""
+    monkeypatch.syspath_prepend(str(ROOT / 'bench'))
+    plant_bench = _bench('plant')
+    from impact_damper_sim.scene.plant import load_plant
+    machines = plant_bench.scene_machines('sdof', 3)
+    args = plant_bench.host_plant_file(machines, str(tmp_path), 1.5)
+    assert args[0] == '--plant'
+    plant = load_plant(args[1])
+    assert [(m.namespace, m.scene_name, m.seed) for m in plant.machines] == [
+        (ns, scene, params['noise_seed']) for ns, scene, params in machines]
+    assert plant.stagger == 1.5
+    # a plant file given to the bench goes to plant_host as it is, with its override
+    assert plant_bench.host_plant_file('ten_hpotp', str(tmp_path), None) == [
+        '--plant', 'ten_hpotp']
+    assert plant_bench.host_plant_file('ten_hpotp', str(tmp_path), 2.0) == [
+        '--plant', 'ten_hpotp', '--stagger', '2.0']
