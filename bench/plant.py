@@ -725,10 +725,11 @@ def main(argv=None):
     print(f'load before: {os.getloadavg()[0]:.2f} (1-min average, {os.cpu_count()} cores); '
           f'domain {domain}; {args.seconds:g} s from every machine\'s first batch', flush=True)
 
+    form = '' if not args.hosts else (   # a row of its own on the page
+        f' [{args.hosts} plant_host' + (', a thread per machine]' if args.stepping == 'own'
+                                         else ']'))
+
     def run(label, machines):
-        if args.hosts:   # a row of its own on the page
-            label += (f' [{args.hosts} plant_host'
-                      + (', a thread per machine]' if args.stepping == 'own' else ']'))
         load_before = os.getloadavg()[0]
         with tempfile.TemporaryDirectory(prefix='plant_bench_') as tmp:
             log_dir = tmp
@@ -749,11 +750,12 @@ def main(argv=None):
     if args.plant:
         machines, name, stagger = plant_machines(args.plant, args.stagger)
         args.host_plant, args.host_stagger = args.plant, args.stagger
-        label = f'plant {name}' + (f' (stagger {stagger:g} s)' if stagger else '')
+        label = f'plant {name}' + (f' (stagger {stagger:g} s)' if stagger else '') + form
         runs[label] = run(label, machines)
     elif args.scene:
         stagger = args.host_stagger = args.stagger or 0.0
-        label = f'{args.n} x {args.scene}' + (f' (stagger {stagger:g} s)' if stagger else '')
+        label = (f'{args.n} x {args.scene}' + (f' (stagger {stagger:g} s)' if stagger else '')
+                 + form)
         runs[label] = run(label, scene_machines(args.scene, args.n, stagger))
     else:
         ns = list(CEILING_NS)
@@ -763,12 +765,12 @@ def main(argv=None):
         if args.ns:
             ns = sorted(int(n) for n in args.ns.split(','))
         for n in [n for n in ns if args.start_n <= n <= args.max_n]:
-            res = run(f'{n} x {args.ceiling}', scene_machines(args.ceiling, n))
+            res = run(f'{n} x {args.ceiling}{form}', scene_machines(args.ceiling, n))
             tried.append({'n': n, 'worst': res.get('worst'), 'holds': res.get('holds', False)})
             if not res.get('holds'):
                 break
             ceiling = n
-        ceilings[args.ceiling] = {'ceiling': ceiling, 'tried': tried, 'command': command,
+        ceilings[args.ceiling + form] = {'ceiling': ceiling, 'tried': tried, 'command': command,
                                   'date': date}
         print(f'ceiling of {args.ceiling}: {ceiling if ceiling else "none"} (tried '
               + ', '.join(f'{t["n"]}: {_f(t["worst"], ".3f")}' for t in tried) + ')')

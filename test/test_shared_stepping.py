@@ -58,6 +58,9 @@ def test_one_thread_steps_every_machine_and_a_stopped_one_stands_still(ros_conte
     try:
         for node in nodes:
             node.start(stepping)
+        # each took its refill phase: chunks 0, 1 and 2 stepped ahead, nothing stepped since
+        assert [round(n.live.t / n._tick_period) for n in nodes] == [0, 1, 2]
+        stepping.start()
         assert {id(node._thread) for node in nodes} == {id(stepping.thread)}
         assert stepping.thread.name == 'vibration_stepping'
         assert _until(lambda: min(n.live.t for n in nodes) > 0.3), [n.live.t for n in nodes]
@@ -90,6 +93,7 @@ def test_a_machines_new_real_time_factor_ends_the_shared_wait(ros_context):
     stepping = SharedStepping(longest=1e6)
     try:
         node.start(stepping)
+        stepping.start()
         assert node._wake is stepping.wake
         assert _until(lambda: node.live.t > 0.2)
         assert node.set_parameters([Parameter('real_time_factor', value=1e-6)])[0].successful
@@ -116,6 +120,7 @@ def test_one_machines_failure_is_its_own(ros_context):
         broken._cycle = fail
         broken.start(stepping)
         fine.start(stepping)
+        stepping.start()
         assert _until(lambda: broken.live.failure is not None)
         assert 'RuntimeError: a bug in the cycle' in broken.live.failure
         t0 = fine.live.t

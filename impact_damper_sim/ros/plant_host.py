@@ -381,6 +381,8 @@ def main(args=None):
             stepping = SharedStepping(nodes[0].MAX_WAIT) if nodes else None
         for node in nodes:
             node.start(stepping)
+        if stepping is not None:
+            stepping.start()   # every machine's schedule begins together
         executor = make_executor(options.executor)
         for node in nodes:
             executor.add_node(node)

@@ -16,6 +16,8 @@ import math
 import threading
 import time
 
+from ..live.pacing import Outbox
+
 #: a wait longer than this (s) is an Event wait that a parameter change can end; a shorter
 #: one a plain sleep (cheaper than Event.wait at a few kHz)
 LONG_WAIT = 0.05
@@ -72,13 +74,33 @@ class SharedStepping:
         return self._members
 
     def add(self, node):
-        """Step ``node`` (a VibrationNode) from the next turn on; starts the thread."""
+        """Step ``node`` (a VibrationNode) from the next turn on (from :meth:`start` on, if
+        the thread has not started); the chunks it should step at once to take its
+        refill phase (:meth:`phase`), int."""
         with self._turns:
             if node not in self._members:
                 self._members += (node,)
-        if not self.thread.is_alive() and self.thread.ident is None:
-            self.thread.start()
+            phase = self.phase(node)
         self.wake.set()
+        return phase
+
+    def phase(self, node):
+        """Chunks (0 to ``Outbox.REFILL``) member ``node`` steps ahead at its start, so
+        that the members refill in turn, not all in one turn.
+
+        A member refills ``Outbox.REFILL`` + 1 chunks back to back when its stepped time
+        comes within a chunk of its schedule. Machines started together would refill in
+        the same turn, and the last one's sends would wait for all their chunks (five
+        hpotp machines: some 40 ms, a 1 s window of 0.96 followed by one of 1.04). Each
+        chunk stepped ahead at the start moves a member's refills a chunk later, for
+        good: member ``k`` gets ``k`` modulo ``Outbox.REFILL`` + 1."""
+        return self._members.index(node) % (Outbox.REFILL + 1)
+
+    def start(self):
+        """Start the thread (idempotent): each member's schedule began at its own start,
+        so start this once every member of the first batch is added."""
+        if self.thread.ident is None:
+            self.thread.start()
 
     def remove(self, node, timeout):
         """Stop stepping ``node``, waiting at most ``timeout`` s for the turn under way.

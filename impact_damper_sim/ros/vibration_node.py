@@ -404,7 +404,9 @@ class VibrationNode(Node):
         ----------
         stepping : SharedStepping, optional
             A thread that steps this node with others of the process (``plant_host``), in
-            turn; default a thread of its own.
+            turn; default a thread of its own. The node steps its refill phase's chunks
+            now, and is stepped once the shared thread is started
+            (:meth:`SharedStepping.start`).
         """
         if self._thread is not None:
             return
@@ -419,7 +421,11 @@ class VibrationNode(Node):
             self._shared = stepping
             self._wake = stepping.wake   # a parameter change ends the shared wait
             self._thread = stepping.thread
-            stepping.add(self)
+            phase = stepping.add(self)
+            with self._lock:   # its refills then come in their own turn (stepping.phase)
+                for _ in range(phase):
+                    if not self._step(self._chunk):
+                        break
             return
         self._thread = threading.Thread(target=self._run, name='vibration_stepping',
                                         daemon=True)
