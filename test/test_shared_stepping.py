@@ -131,3 +131,34 @@ def test_one_machines_failure_is_its_own(ros_context):
     finally:
         broken.destroy_node()
         fine.destroy_node()
+
+
+def test_a_refill_lets_the_other_machines_send_between_its_chunks(ros_context):
+    """While one member steps its refill (REFILL + 1 chunks back to back), every other
+    member's due items leave between two chunks, not after the whole refill."""
+    from impact_damper_sim.live.pacing import Outbox
+    from impact_damper_sim.ros.stepping import SharedStepping
+    refilling, waiting = _machines(ros_context, 2, f'sr{id(ros_context) % 1000}_')
+    stepping = SharedStepping(refilling.MAX_WAIT)
+    calls = []
+    try:
+        refilling.start(stepping)
+        waiting.start(stepping)   # (not started: the test drives the cycles itself)
+        original_step, original_send = refilling._step, waiting._send_due
+
+        def step(n):
+            calls.append('step')
+            return original_step(n)
+
+        def send(now):
+            calls.append('send')
+            return original_send(now)
+        refilling._step, waiting._send_due = step, send
+        refilling.outbox.reset(refilling.pacer.real_time_factor, refilling.live.t + 1.0)
+        refilling._cycle()   # its buffer is short: a whole refill
+        assert calls.count('step') == Outbox.REFILL + 1, calls
+        # a send of the other machine between every two chunks of the refill
+        assert calls == ['step'] + ['send', 'step'] * Outbox.REFILL, calls
+    finally:
+        refilling.destroy_node()
+        waiting.destroy_node()

@@ -120,6 +120,19 @@ class SharedStepping:
         self.wake.set()
         return True
 
+    def send_others(self, node):
+        """Between two chunks of ``node``'s refill: every other member sends what is due
+        now, so that no machine's samples wait for another's whole refill (some 15-20 ms
+        for hpotp's five chunks on this 2-core VM: a 1 s window of 0.98 followed by one of
+        1.02). A member whose send fails is left to its own turn, which meets the same
+        failure and reports it as that member's."""
+        for other in self._members:
+            if other is not node:
+                try:
+                    other._send_due(other._wall())
+                except Exception:   # reported by its own turn, not by this one
+                    continue
+
     def _run(self):
         turns = 0
         while True:

@@ -514,8 +514,7 @@ class VibrationNode(Node):
         The rules are the outbox's (:class:`~impact_damper_sim.live.pacing.Outbox`)."""
         live, outbox = self.live, self.outbox
         now = self._wall()
-        with self._lock.stepper:
-            held = outbox.send_due(now, live.t, self.publishing.send)
+        held = self._send_due(now)
         if live.failure is not None:
             self.diagnostics.report_failure()
             return self._tick_period
@@ -527,12 +526,21 @@ class VibrationNode(Node):
                 stats.overruns += 1   # a whole chunk behind schedule: late
             # who reads what: asked once per refill (a reader that appears waits one refill)
             self.publishing.look_up_readers()
-            for _ in range(plan.chunks):   # back to back: warm (Outbox.REFILL)
+            shared = self._shared
+            for k in range(plan.chunks):   # back to back: warm (Outbox.REFILL)
+                if k and shared is not None:   # the other machines' sends do not wait
+                    shared.send_others(self)   # for this whole refill
                 if not self._step(self._chunk):
                     break
             self._lock.hand_over()
             return outbox.CATCH_UP if held else 0.0   # a backlog waits, however late we are
         return outbox.wait(held, self._wall(), live.t, self._tick_period)
+
+    def _send_due(self, now):
+        """Send what the pacing lets out at wall time ``now`` (s); True when due samples
+        were held back (a backlog)."""
+        with self._lock.stepper:
+            return self.outbox.send_due(now, self.live.t, self.publishing.send)
 
     def _flush(self):
         """Send everything queued now."""
