@@ -6,9 +6,9 @@ thread of its own (``vibration_stepping``). In ``plant_host`` one :class:`Shared
 thread runs the cycles of all the process's machines in turn and sleeps once for all of
 them: the machines' sends and chunks then share its wake-ups and run on warm caches, where
 threads of their own would each wake on their own and wait for the interpreter lock. A send
-after a sleep costs several times one sent back to back (a raw ``Imu`` send with no reader on
-this 2-core VM: about 2 us back to back, about 20 us more when each group of 4 follows a 4 ms
-sleep, the sleeps' own cost taken out).
+after a sleep costs several times one sent back to back (a raw ``Imu`` send on a 2-core VM:
+3 us back to back and 20 us after a 4 ms sleep with no reader, 11 and 43 us with two;
+docs/bench/send-cost.md).
 """
 from __future__ import annotations
 
