@@ -7,10 +7,9 @@ is shared, and by default one stepping thread (``--stepping shared``,
 :class:`~.stepping.SharedStepping`) that runs every machine's cycle in turn and sleeps once
 for all of them. ``--stepping own`` gives each machine a stepping thread of its own, as a
 ``vibration_node`` process has; those threads then take the interpreter lock from each
-other (five hpotp machines in one process on this 2-core VM: worst 1 s window of the
-achieved real-time factor 0.36-0.85 with a thread each, 0.96-0.97 shared, at 82-84 % of a
-core against 88-92 % for the process and its reader; ``bench/node_memory.py --plant 5
---no-processes --stepping own|shared``, three runs each).
+other. Five hpotp machines in one process on a 2-core VM (docs/bench/node-memory.md): worst
+1 s window of the achieved real-time factor 0.97 shared, 0.48 with a thread each (median
+0.91), at 89 % and 100 % of a core for the process and its reader.
 
 What the process costs once (Python, NumPy, SciPy, Numba and the compiled kernels, rclpy and
 the DDS participant: about 220 MB resident) is then paid once for the plant, and each
