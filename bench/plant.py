@@ -236,14 +236,21 @@ def scene_machines(scene, n, stagger=0.0):
     sys.path.insert(0, ROOT)
     from impact_damper_sim.scene.plant import load_plant
     tmp = tempfile.mkdtemp(prefix='plant_bench_')
-    path = os.path.join(tmp, 'copies.yaml')
-    with open(path, 'w') as f:
-        yaml.safe_dump({'stagger': f'{stagger!r} s', 'machines': [
-            {'namespace': ns, 'scene': sc, 'seed': p['noise_seed']}
-            for ns, sc, p in machines]}, f)
+    path = write_copies_plant(machines, stagger, os.path.join(tmp, 'copies.yaml'))
     params = load_plant(path).node_parameters(schedule_dir=tmp)
     return [(ns, sc, dict(p, **{k: v for k, v in params[ns].items() if k == 'schedule'}))
             for ns, sc, p in machines]
+
+
+def write_copies_plant(machines, stagger, path):
+    """Write a plant file of the copies ``machines`` ([(namespace, scene, parameters)]:
+    each one's namespace, scene and ``noise_seed``) whose rotors run up ``stagger`` s apart;
+    returns ``path``."""
+    with open(path, 'w') as f:
+        yaml.safe_dump({'stagger': f'{float(stagger or 0.0)!r} s', 'machines': [
+            {'namespace': ns, 'scene': scene, 'seed': int(params['noise_seed'])}
+            for ns, scene, params in machines]}, f)
+    return path
 
 
 def plant_machines(name, stagger=None):
@@ -322,25 +329,20 @@ def window_ratios(windows, topics):
     return out
 
 
-def host_plant_file(machines, log_dir, stagger):
-    """The plant ``plant_host --plant`` runs (its ``--share`` then splits it): with
-    ``--plant``, that plant file (and ``--stagger``: its override); with ``--scene`` or
-    ``--ceiling``, a plant file of the copies written here (namespaces, scenes and seeds
-    as :func:`scene_machines` gives them, ``stagger`` s). A list of plant_host arguments."""
-    if stagger is None and isinstance(machines, str):
-        return ['--plant', machines]
-    if isinstance(machines, str):
-        return ['--plant', machines, '--stagger', repr(stagger)]
-    path = os.path.join(log_dir, 'hosts_plant.yaml')
-    with open(path, 'w') as f:
-        yaml.safe_dump({'stagger': f'{stagger or 0.0!r} s', 'machines': [
-            {'namespace': ns, 'scene': scene, 'seed': int(params['noise_seed'])}
-            for ns, scene, params in machines]}, f)
-    return ['--plant', path]
+def host_plant_file(machines, log_dir, plant=None, stagger=None):
+    """The plant file ``plant_host --plant`` runs (its ``--share`` then splits it), as
+    plant_host arguments: ``plant`` (a plant file's name or path) with ``stagger`` (s) as its
+    override when given; else a plant file of the copies ``machines`` written in ``log_dir``
+    (:func:`write_copies_plant`, ``stagger`` s apart)."""
+    if plant is not None:
+        return ['--plant', plant] + ([] if stagger is None else ['--stagger', repr(stagger)])
+    return ['--plant', write_copies_plant(machines, stagger,
+                                          os.path.join(log_dir, 'hosts_plant.yaml'))]
 
 
-def run_plant(label, machines, args, domain, log_dir):
-    """Run the machines; a dict of figures per machine and for the plant."""
+def run_plant(label, machines, args, domain, log_dir, plant=None, stagger=None):
+    """Run the machines; a dict of figures per machine and for the plant. ``plant`` and
+    ``stagger``: what :func:`host_plant_file` gives ``plant_host`` with ``--hosts``."""
     env = dict(base_env(), ROS_DOMAIN_ID=str(domain))
     res = {'label': label, 'n': len(machines), 'domain': domain,
            'scenes': sorted({s for _, s, _ in machines}), 'status': 'error', 'reason': ''}
@@ -369,11 +371,10 @@ def run_plant(label, machines, args, domain, log_dir):
             if host_exe is None:
                 res['reason'] = f'{HOST_EXE} missing'
                 return res
-            plant = host_plant_file(getattr(args, 'host_plant', machines), log_dir,
-                                    getattr(args, 'host_stagger', None))
+            source = host_plant_file(machines, log_dir, plant, stagger)
             for h in range(args.hosts):
                 c = Child(f'plant_host{h}', [
-                    host_exe, *plant, '--share', f'{h}/{args.hosts}',
+                    host_exe, *source, '--share', f'{h}/{args.hosts}',
                     '--record-mode', 'none', '--stepping', args.stepping], env, log_dir,
                     pipe=False)
                 children.append(c)
@@ -729,7 +730,7 @@ def main(argv=None):
         f' [{args.hosts} plant_host' + (', a thread per machine]' if args.stepping == 'own'
                                          else ']'))
 
-    def run(label, machines):
+    def run(label, machines, plant=None, stagger=None):
         load_before = os.getloadavg()[0]
         with tempfile.TemporaryDirectory(prefix='plant_bench_') as tmp:
             log_dir = tmp
@@ -737,7 +738,7 @@ def main(argv=None):
                 log_dir = os.path.join(args.keep_logs, label)
                 os.makedirs(log_dir, exist_ok=True)
             try:
-                res = run_plant(label, machines, args, domain, log_dir)
+                res = run_plant(label, machines, args, domain, log_dir, plant, stagger)
             except Exception as exc:   # one failed run still reports
                 res = {'label': label, 'n': len(machines), 'status': 'error',
                        'scenes': sorted({s for _, s, _ in machines}),
@@ -749,14 +750,13 @@ def main(argv=None):
     runs, ceilings = {}, {}
     if args.plant:
         machines, name, stagger = plant_machines(args.plant, args.stagger)
-        args.host_plant, args.host_stagger = args.plant, args.stagger
         label = f'plant {name}' + (f' (stagger {stagger:g} s)' if stagger else '') + form
-        runs[label] = run(label, machines)
+        runs[label] = run(label, machines, args.plant, args.stagger)
     elif args.scene:
-        stagger = args.host_stagger = args.stagger or 0.0
+        stagger = args.stagger or 0.0
         label = (f'{args.n} x {args.scene}' + (f' (stagger {stagger:g} s)' if stagger else '')
                  + form)
-        runs[label] = run(label, scene_machines(args.scene, args.n, stagger))
+        runs[label] = run(label, scene_machines(args.scene, args.n, stagger), stagger=stagger)
     else:
         ns = list(CEILING_NS)
         while ns[-1] < args.max_n:

@@ -149,11 +149,10 @@ def page(results, command, load):
         lines.append(f"| {name} | {r['matched']} | {r['warm']:.1f} | {r['paced']:.1f} | "
                      f"{r['paced'] / r['warm']:.1f} | {r['base']:.1f} |")
     lines += ['', 'A node that sends each group after a sleep pays the second column, not '
-              'the first: the code and the data of the send are cold again after each sleep '
-              '(on a virtual machine, the idle core may have run another guest meanwhile). '
-              'Fewer wake-ups (groups of 4, not single samples), and one wake-up for '
-              "several machines (`plant_host`'s shared stepping thread), are what lower it.",
-              '']
+              'the first. Why a send costs more after a sleep (caches and branch predictors '
+              'cold again, the core idle meanwhile) this bench does not separate; fewer '
+              'wake-ups (groups of 4, not single samples) and one wake-up for several '
+              "machines (`plant_host`'s shared stepping thread) are what lower it.", '']
     return '\n'.join(lines)
 
 

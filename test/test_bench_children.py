@@ -50,14 +50,14 @@ def test_plant_bench_hands_plant_host_the_same_machines(tmp_path, monkeypatch):
     plant_bench = _bench('plant')
     from impact_damper_sim.scene.plant import load_plant
     machines = plant_bench.scene_machines('sdof', 3)
-    args = plant_bench.host_plant_file(machines, str(tmp_path), 1.5)
+    args = plant_bench.host_plant_file(machines, str(tmp_path), stagger=1.5)
     assert args[0] == '--plant'
     plant = load_plant(args[1])
     assert [(m.namespace, m.scene_name, m.seed) for m in plant.machines] == [
         (ns, scene, params['noise_seed']) for ns, scene, params in machines]
     assert plant.stagger == 1.5
     # a plant file given to the bench goes to plant_host as it is, with its override
-    assert plant_bench.host_plant_file('ten_hpotp', str(tmp_path), None) == [
+    assert plant_bench.host_plant_file([], str(tmp_path), 'ten_hpotp') == [
         '--plant', 'ten_hpotp']
-    assert plant_bench.host_plant_file('ten_hpotp', str(tmp_path), 2.0) == [
+    assert plant_bench.host_plant_file([], str(tmp_path), 'ten_hpotp', 2.0) == [
         '--plant', 'ten_hpotp', '--stagger', '2.0']

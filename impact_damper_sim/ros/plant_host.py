@@ -275,15 +275,16 @@ def _parser():
                         help='shared (default): one thread steps every machine in turn and '
                              'sleeps once for all; own: a stepping thread per machine')
     parser.add_argument('--executor', choices=EXECUTORS, default='single',
-                        help='rclpy executor of all machines (default single: each machine '
-                             'steps in its own thread; the executor only serves commands, '
-                             'parameters and the 1 s timers)')
+                        help='rclpy executor of all machines (default single: the machines '
+                             'step in the stepping thread(s), not in the executor, which only '
+                             'serves commands, parameters and the 1 s timers)')
     return parser
 
 
 def make_executor(kind):
     """An rclpy executor: ``'single'`` (SingleThreadedExecutor) or ``'multi'``
-    (MultiThreadedExecutor, two threads: the machines step in threads of their own)."""
+    (MultiThreadedExecutor, two threads: the machines step in their stepping thread(s),
+    not in the executor)."""
     from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
     return SingleThreadedExecutor() if kind == 'single' else MultiThreadedExecutor(2)
 

@@ -7,7 +7,7 @@ thread runs the cycles of all the process's machines in turn and sleeps once for
 them: the machines' sends and chunks then share its wake-ups and run on warm caches, where
 threads of their own would each wake on their own and wait for the interpreter lock. A send
 after a sleep costs several times one sent back to back (a raw ``Imu`` send on a 2-core VM:
-3 us back to back and 20 us after a 4 ms sleep with no reader, 11 and 43 us with two;
+3 us back to back and 16 us after a 4 ms sleep with no reader, 10 and 34 us with two;
 docs/bench/send-cost.md).
 """
 from __future__ import annotations
